@@ -1,0 +1,36 @@
+# The two commands of the README: `make demo` and `make test`. Both build the virtual environment first.
+PYTHON ?= python3.11
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+DEVKIT_STAMP := $(VENV)/.devkit
+
+.PHONY: demo test bench clean venv docs
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $@
+
+# nuscenes-devkit pins numpy<2; we install it without its pins (test-only reference implementation).
+$(DEVKIT_STAMP): $(STAMP)
+	$(BIN)/pip install --quiet --no-deps nuscenes-devkit==1.2.0
+	touch $@
+
+venv: $(DEVKIT_STAMP)
+
+demo: $(STAMP)
+	$(BIN)/python pipelines/demo.py --out demo-out
+
+test: $(DEVKIT_STAMP)
+	$(BIN)/python -m pytest -q
+
+bench: $(DEVKIT_STAMP)
+	$(BIN)/python benchmarks/run_all.py
+
+docs: $(STAMP)
+	$(BIN)/python -m nuparquet.schemas --docs docs/schemas.md
+
+clean:
+	rm -rf $(VENV) demo-out

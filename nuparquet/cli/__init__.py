@@ -1,0 +1,1 @@
+"""The `nuparquet` command line: thin wrappers that parse, show progress and print."""

@@ -1,0 +1,44 @@
+"""`nuparquet` entry point: one subcommand per module in this package, each with `register(subparsers)`.
+
+Exit codes: 0 success, 1 the command ran and found problems (or failed on the data), 2 usage errors.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from nuparquet import __version__
+from nuparquet.errors import NuparquetError
+
+# Subcommand modules, in the order `--help` lists them.
+COMMANDS = ["convert", "validate", "export_json", "synth", "info", "stats", "sql", "render"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="nuparquet",
+        description="Convert nuScenes-format datasets to typed, denormalised Parquet; query and render them.",
+    )
+    parser.add_argument("--version", action="version", version=f"nuparquet {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name in COMMANDS:
+        importlib.import_module(f"nuparquet.cli.{name}").register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.run(args) or 0)
+    except NuparquetError as exc:  # user-facing errors: a message, never a traceback
+        print(f"error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
