@@ -1,0 +1,54 @@
+"""Shared fixtures: the real nuScenes extract (skipped cleanly when ../shared is absent), small synthetic
+datasets, and their conversions. Conversions are session-scoped: every test reads them, none writes them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+EXTRACT_ROOT = REPO.parent / "shared" / "data" / "nuscenes-extract"
+EXTRACT_VERSION = "v1.0-mini-extract"
+SYNTH_VERSION = "v1.0-synth"
+
+
+@pytest.fixture(scope="session")
+def extract_root() -> Path:
+    if not (EXTRACT_ROOT / EXTRACT_VERSION).is_dir():
+        pytest.skip("real nuScenes extract not present (../shared/data/nuscenes-extract)")
+    return EXTRACT_ROOT
+
+
+@pytest.fixture(scope="session")
+def extract_out(extract_root, tmp_path_factory) -> Path:
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp("extract") / "out"
+    convert(extract_root, EXTRACT_VERSION, out, progress=False)
+    return out
+
+
+@pytest.fixture(scope="session")
+def synth_root(tmp_path_factory) -> Path:
+    """A small synthetic dataset with images and lidar: 2 scenes x 6 samples."""
+    from nuparquet.synth import synthesize
+
+    root = tmp_path_factory.mktemp("synth") / "data"
+    synthesize(root, scenes=2, samples_per_scene=6, with_images=True, with_lidar=True, seed=7, version=SYNTH_VERSION)
+    return root
+
+
+@pytest.fixture(scope="session")
+def synth_out(synth_root, tmp_path_factory) -> Path:
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp("synth-out") / "out"
+    convert(synth_root, SYNTH_VERSION, out, progress=False)
+    return out
+
+
+@pytest.fixture(scope="session")
+def devkit():
+    """The nuscenes-devkit module (test-only reference implementation)."""
+    return pytest.importorskip("nuscenes.nuscenes")
