@@ -1,0 +1,88 @@
+"""Writing Parquet datasets and the manifest, atomically.
+
+A conversion is written into a hidden temporary sibling of OUT and renamed into place only when
+complete, so a failed or interrupted run never leaves a complete-looking OUT, and never touches an
+existing OUT unless asked to replace it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from nuparquet.errors import UsageError
+
+PART_NAME = "part-00000.parquet"
+MAX_ROW_GROUP_ROWS = 65536
+MANIFEST = "manifest.json"
+
+
+def write_parquet(table: pa.Table, directory: Path, *, group_by: str | None = None) -> int:
+    """Write `table` as `directory/part-00000.parquet`; returns bytes written.
+
+    With `group_by` (a column the table is sorted by), each run of equal values starts a new row group,
+    so a filter on that column (e.g. one scene) reads only that value's row groups via the statistics.
+    """
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / PART_NAME
+    with pq.ParquetWriter(path, table.schema, compression="zstd", write_statistics=True) as writer:
+        for start, stop in _row_groups(table, group_by):
+            writer.write_table(table.slice(start, stop - start), row_group_size=MAX_ROW_GROUP_ROWS)
+    return path.stat().st_size
+
+
+def _row_groups(table: pa.Table, group_by: str | None) -> Iterator[tuple[int, int]]:
+    n = table.num_rows
+    if n == 0:
+        yield 0, 0
+        return
+    if group_by is None:
+        yield 0, n
+        return
+    values = table.column(group_by).to_numpy(zero_copy_only=False)
+    starts = np.flatnonzero(values[1:] != values[:-1]) + 1
+    bounds = [0, *starts.tolist(), n]
+    yield from zip(bounds[:-1], bounds[1:])
+
+
+def write_manifest(root: Path, manifest: dict) -> None:
+    (root / MANIFEST).write_text(json.dumps(manifest, indent=2, sort_keys=False) + "\n")
+
+
+def utc_now() -> str:
+    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+@contextlib.contextmanager
+def atomic_directory(out: Path, *, overwrite: bool) -> Iterator[Path]:
+    """Yield a temporary sibling of `out` to write into; on success it replaces `out` by renames."""
+    out = Path(out).absolute()
+    if out.exists() and not overwrite:
+        raise UsageError(f"{out} already exists; pass --overwrite to replace it")
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"{out} exists and is not a directory")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir()
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    old = None
+    if out.exists():
+        old = out.parent / f".{out.name}.replaced-{os.getpid()}"
+        os.rename(out, old)
+    os.rename(tmp, out)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)

@@ -1,0 +1,65 @@
+"""Referential and numeric integrity of parsed source tables, driven by the schema files.
+
+Every foreign key is declared in `schemas/tables` (`"ref"`), so this module holds no list of joins of its
+own: it walks the schemas. All checks are polars anti-joins / aggregations, never a loop over records.
+"""
+
+from __future__ import annotations
+
+import polars as pl
+
+from nuparquet.problems import MAX_REPORTED, Problem
+from nuparquet.reader import SourceTable
+from nuparquet.schemas import table_schemas
+
+QUATERNION_NORM_TOLERANCE = 1e-6
+
+# Counts stored in one table that must equal the number of referring records in another:
+# (table, count field, referring table, referring field).
+_COUNTS = [("scene", "nbr_samples", "sample", "scene_token"),
+           ("instance", "nbr_annotations", "sample_annotation", "instance_token")]
+
+
+def check_integrity(tables: dict[str, SourceTable], limit: int = MAX_REPORTED) -> list[Problem]:
+    """All problems across tables: unique tokens, resolving foreign keys (including every non-empty
+    prev/next), count fields, and finite unit quaternions. At most `limit` problems per check."""
+    frames = {name: pl.from_arrow(t.table).with_row_index("_idx") for name, t in tables.items()}
+    files = {name: t.path.name for name, t in tables.items()}
+    problems: list[Problem] = []
+
+    def report(table: str, rows: pl.DataFrame, message) -> None:
+        for row in rows.head(limit).iter_rows(named=True):
+            problems.append(Problem(files[table], message(row), row["_idx"], row.get("token")))
+        if rows.height > limit:
+            problems.append(Problem(files[table], f"... {rows.height - limit} more like the above"))
+
+    for name, df in frames.items():
+        schema = table_schemas()[name]
+        dups = df.filter(pl.col("token").is_duplicated())
+        report(name, dups, lambda r: "duplicate token")
+        for f in schema.fields:
+            if f.ref is None or f.ref not in frames or f.name not in df.columns:
+                continue
+            targets = frames[f.ref].select(pl.col("token").alias("_ref"))
+            values = df.select("_idx", "token", pl.col(f.name).alias("_ref"))
+            if f.type.startswith("list"):
+                values = values.explode("_ref").drop_nulls("_ref")
+            if f.empty_ok:
+                values = values.filter(pl.col("_ref") != "")
+            dangling = values.join(targets, on="_ref", how="anti").sort("_idx")
+            report(name, dangling, lambda r, f=f: f"{f.name} {r['_ref']!r} does not resolve to a {f.ref} record")
+        for f in schema.fields:
+            if f.quaternion and f.name in df.columns:
+                q = df.select("_idx", "token", pl.col(f.name).arr.to_list().alias("_q"))
+                norm = q.select("_idx", "token", "_q", (pl.col("_q").list.eval(pl.element() ** 2).list.sum().sqrt()).alias("_n"))
+                bad = norm.filter(~pl.col("_n").is_finite() | ((pl.col("_n") - 1.0).abs() > QUATERNION_NORM_TOLERANCE))
+                report(name, bad, lambda r, f=f: f"{f.name} {r['_q']} is not a finite unit quaternion (norm {r['_n']})")
+    for table, count_field, referring, ref_field in _COUNTS:
+        if table not in frames or referring not in frames:
+            continue
+        counts = frames[referring].group_by(ref_field).agg(pl.len().alias("_actual"))
+        joined = frames[table].join(counts, left_on="token", right_on=ref_field, how="left").with_columns(
+            pl.col("_actual").fill_null(0)).sort("_idx")
+        bad = joined.filter(pl.col(count_field) != pl.col("_actual"))
+        report(table, bad, lambda r, c=count_field, ref=referring: f"{c} is {r[c]} but {r['_actual']} {ref} records refer to it")
+    return problems
