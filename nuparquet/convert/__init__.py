@@ -13,10 +13,10 @@ import pyarrow as pa
 
 from nuparquet import __version__
 from nuparquet.convert import derived
-from nuparquet.convert.write import atomic_directory, utc_now, write_manifest, write_parquet
+from nuparquet.convert.write import atomic_directory, check_target, utc_now, write_manifest, write_parquet
 from nuparquet.problems import Problem, ProblemsFound
 from nuparquet.reader import ReadResult, read_tables
-from nuparquet.schemas import FORMAT_VERSION, Schema, dataset_schemas, fingerprint
+from nuparquet.schemas import FORMAT_VERSION, Schema, dataset_schemas, fingerprint, table_schemas
 from nuparquet.validate import check_integrity
 
 # Derived datasets whose row groups follow scene boundaries (one-scene queries prune the rest).
@@ -40,7 +40,9 @@ def convert(dataroot: Path | str, version: str, out: Path | str, *, overwrite: b
     """
     from tqdm import tqdm
 
-    bar = tqdm(total=None, disable=not progress, unit=" steps", desc="convert", leave=False)
+    check_target(out, overwrite=overwrite)
+    steps = 2 * len(table_schemas()) + 7
+    bar = tqdm(total=steps, disable=not progress, unit="step", desc="convert", leave=False)
 
     def step(what: str) -> None:
         bar.set_postfix_str(what)

@@ -62,14 +62,20 @@ def utc_now() -> str:
     return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-@contextlib.contextmanager
-def atomic_directory(out: Path, *, overwrite: bool) -> Iterator[Path]:
-    """Yield a temporary sibling of `out` to write into; on success it replaces `out` by renames."""
+def check_target(out: Path | str, *, overwrite: bool) -> Path:
+    """Refuse an existing output unless told to replace it (call before doing the work, to fail fast)."""
     out = Path(out).absolute()
     if out.exists() and not overwrite:
         raise UsageError(f"{out} already exists; pass --overwrite to replace it")
     if out.exists() and not out.is_dir():
         raise UsageError(f"{out} exists and is not a directory")
+    return out
+
+
+@contextlib.contextmanager
+def atomic_directory(out: Path, *, overwrite: bool) -> Iterator[Path]:
+    """Yield a temporary sibling of `out` to write into; on success it replaces `out` by renames."""
+    out = check_target(out, overwrite=overwrite)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
     shutil.rmtree(tmp, ignore_errors=True)

@@ -1,0 +1,32 @@
+"""`nuparquet validate DATAROOT --version V`: every integrity problem, without converting."""
+
+from __future__ import annotations
+
+from nuparquet.convert import validate
+from nuparquet.problems import format_problems
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "validate",
+        help="check a nuScenes-layout dataroot for integrity problems (nothing is written)",
+        description="Check that every table exists and is a JSON array of records, required fields have the "
+        "right JSON types, tokens are unique, every foreign key and prev/next resolves, nbr_samples / "
+        "nbr_annotations agree and quaternions are finite unit quaternions. Problems are listed all at "
+        "once (file, record index, token). Exit 0 when clean, 1 when problems were found, 2 for usage errors.",
+    )
+    p.add_argument("dataroot", help="dataset root holding the version folder")
+    p.add_argument("--version", required=True, help="version folder name, e.g. v1.0-mini")
+    p.add_argument("--max-problems", type=int, default=50, help="problems to print (the rest are counted)")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    result, problems = validate(args.dataroot, args.version)
+    if problems:
+        print(format_problems(problems, limit=args.max_problems))
+        print(f"{len(problems)} problem{'s' if len(problems) != 1 else ''} found")
+        return 1
+    rows = sum(t.table.num_rows for t in result.tables.values())
+    print(f"ok: {len(result.tables)} tables, {rows:,} records, no problems")
+    return 0
