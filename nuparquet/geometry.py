@@ -1,0 +1,289 @@
+"""Rigid-body geometry for nuScenes data, vectorised over boxes and frames (numpy only).
+
+Conventions follow nuscenes-devkit and pyquaternion exactly, so results can be checked against them:
+
+- Quaternions are arrays `[..., 4]` in `[w, x, y, z]` order (the nuScenes JSON order).
+- A transform `X_from_Y` is a `(4, 4)` (or stacked `(N, 4, 4)`) row-major matrix that maps homogeneous
+  points in frame Y to frame X. It is built from the pose of Y expressed in X: `global_from_ego` from an
+  `ego_pose` record, `ego_from_sensor` from a `calibrated_sensor` record. Chains read like algebra:
+  `global_from_sensor = global_from_ego @ ego_from_sensor`.
+- Lengths are metres, box sizes are `[width, length, height]` (the devkit's `wlh`), angles are radians.
+
+Nothing here reads files, knows polars or draws: the inputs are plain arrays.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+# pyquaternion treats |q|^2 within this of 1 as already unit and leaves it untouched (Quaternion.is_unit).
+_PYQUATERNION_UNIT_TOLERANCE = 1e-14
+# pyquaternion's _fast_normalise uses a Pade approximation of the norm when |q|^2 is this close to 1.
+_PYQUATERNION_PADE_LIMIT = 2.107342e-08
+# pyquaternion's slerp falls back to normalised linear interpolation above this |cos(angle)|.
+_PYQUATERNION_SLERP_LINEAR_DOT = 0.9995
+
+# Corner signs of a box in its own frame, in the order of devkit Box.corners(): x forward, y left, z up;
+# the first four corners form the front face (x = +l/2), the last four the back face.
+_CORNER_SIGNS_XYZ = np.array(
+    [
+        [1, 1, 1, 1, -1, -1, -1, -1],
+        [1, -1, -1, 1, 1, -1, -1, 1],
+        [1, 1, -1, -1, 1, 1, -1, -1],
+    ],
+    dtype=np.float64,
+).T  # (8, 3)
+
+
+def _as_float_array(values, trailing: tuple[int, ...], name: str) -> np.ndarray:
+    array = np.asarray(values, dtype=np.float64)
+    if array.shape[array.ndim - len(trailing):] != trailing:
+        raise ValueError(f"{name} must have shape (..., {', '.join(map(str, trailing))}), got {array.shape}")
+    return array
+
+
+def normalise_quaternions(q_wxyz) -> np.ndarray:
+    """Unit quaternions, as pyquaternion's `Quaternion._normalise` makes them.
+
+    Args:
+        q_wxyz: (..., 4) quaternions [w, x, y, z], any non-zero norm.
+
+    Returns:
+        (..., 4) float64: each quaternion divided by its norm, except those pyquaternion already considers
+        unit (|q|^2 within 1e-14 of 1), which are returned unchanged; zero quaternions stay zero.
+    """
+    q = _as_float_array(q_wxyz, (4,), "q_wxyz")
+    norm_squared = np.sum(q * q, axis=-1, keepdims=True)
+    already_unit = np.abs(1.0 - norm_squared) < _PYQUATERNION_UNIT_TOLERANCE
+    norm = np.sqrt(norm_squared)
+    keep = already_unit | (norm == 0.0)
+    return np.where(keep, q, q / np.where(keep, 1.0, norm))
+
+
+def _fast_normalise_quaternions(q: np.ndarray) -> np.ndarray:
+    """pyquaternion's `_fast_normalise`, vectorised: (..., 4) -> (..., 4).
+
+    slerp uses this approximation (not `_normalise`), so interpolated rotations only agree with the devkit's
+    to the last bits if we reproduce it.
+    """
+    norm_squared = np.sum(q * q, axis=-1, keepdims=True)
+    error = np.abs(1.0 - norm_squared)
+    magnitude = np.where(error < _PYQUATERNION_PADE_LIMIT, (1.0 + norm_squared) / 2.0, np.sqrt(norm_squared))
+    keep = (error < _PYQUATERNION_UNIT_TOLERANCE) | (norm_squared == 0.0)
+    return np.where(keep, q, q / np.where(keep, 1.0, magnitude))
+
+
+def rotation_matrices(q_wxyz) -> np.ndarray:
+    """Rotation matrices of quaternions, the numbers of pyquaternion's `Quaternion(q).rotation_matrix`.
+
+    Args:
+        q_wxyz: (..., 4) quaternions [w, x, y, z]; normalised first, as pyquaternion does.
+
+    Returns:
+        (..., 3, 3) float64 rotation matrices R with `v_rotated = R @ v`.
+    """
+    w, x, y, z = np.moveaxis(normalise_quaternions(q_wxyz), -1, 0)
+    # The same products pyquaternion forms (Q(q) @ Qbar(q)^T): the diagonal keeps all four squares rather
+    # than 1 - 2(...), so the results agree to rounding for every input, not only for exact unit quaternions.
+    rows = [
+        [w * w + x * x - y * y - z * z, 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
+        [2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x)],
+        [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z],
+    ]
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+
+def rigid_transforms(translation_m, rotation_wxyz) -> np.ndarray:
+    """4x4 transforms X_from_Y from the pose of frame Y expressed in frame X.
+
+    `rigid_transforms(ego_pose.translation, ego_pose.rotation)` is `global_from_ego`;
+    `rigid_transforms(calibrated_sensor.translation, calibrated_sensor.rotation)` is `ego_from_sensor`.
+
+    Args:
+        translation_m: (..., 3) origin of Y in X, metres.
+        rotation_wxyz: (..., 4) orientation of Y in X, quaternion [w, x, y, z].
+
+    Returns:
+        (..., 4, 4) float64 homogeneous transforms mapping points in Y to X.
+    """
+    translation_m = _as_float_array(translation_m, (3,), "translation_m")
+    rotation = rotation_matrices(rotation_wxyz)
+    batch = np.broadcast_shapes(translation_m.shape[:-1], rotation.shape[:-2])
+    X_from_Y = np.zeros(batch + (4, 4))
+    X_from_Y[..., :3, :3] = rotation
+    X_from_Y[..., :3, 3] = translation_m
+    X_from_Y[..., 3, 3] = 1.0
+    return X_from_Y
+
+
+def invert_rigid(X_from_Y) -> np.ndarray:
+    """The inverse of rigid transforms, exactly (transpose of the rotation), not by a general matrix inverse.
+
+    Args:
+        X_from_Y: (..., 4, 4) rigid transforms.
+
+    Returns:
+        (..., 4, 4) float64 transforms Y_from_X.
+    """
+    X_from_Y = _as_float_array(X_from_Y, (4, 4), "X_from_Y")
+    Y_from_X_rotation = np.swapaxes(X_from_Y[..., :3, :3], -1, -2)
+    Y_from_X = np.zeros_like(X_from_Y)
+    Y_from_X[..., :3, :3] = Y_from_X_rotation
+    Y_from_X[..., :3, 3] = -np.einsum("...ij,...j->...i", Y_from_X_rotation, X_from_Y[..., :3, 3])
+    Y_from_X[..., 3, 3] = 1.0
+    return Y_from_X
+
+
+def _apply_linear(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """matrix (B..., 3, 3) applied to points (B..., 3) or (B..., K, 3); a single (3, 3) to any (..., 3)."""
+    if matrix.ndim == 2:
+        return points @ matrix.T
+    if points.ndim == matrix.ndim - 1:  # one point per matrix
+        return np.einsum("...ij,...j->...i", matrix, points)
+    if points.ndim == matrix.ndim:  # K points per matrix
+        return np.einsum("...ij,...kj->...ki", matrix, points)
+    raise ValueError(
+        f"points of shape {points.shape} do not fit transforms of shape {matrix.shape[:-2]} + (4, 4): "
+        "expected (B..., 3) or (B..., K, 3)"
+    )
+
+
+def transform_points(X_from_Y, points_Y) -> np.ndarray:
+    """Move points from frame Y to frame X.
+
+    Args:
+        X_from_Y: (4, 4) one transform, or (B..., 4, 4) a stack.
+        points_Y: points in Y, metres. With one transform any (..., 3). With a stack either (B..., 3), one
+            point per transform, or (B..., K, 3), K points per transform (e.g. (N, 8, 3) box corners).
+
+    Returns:
+        Points in X, float64, the shape of `points_Y`.
+    """
+    X_from_Y = _as_float_array(X_from_Y, (4, 4), "X_from_Y")
+    points_Y = _as_float_array(points_Y, (3,), "points_Y")
+    translation = X_from_Y[..., :3, 3]
+    rotated = _apply_linear(X_from_Y[..., :3, :3], points_Y)
+    if X_from_Y.ndim > 2 and points_Y.ndim == X_from_Y.ndim:
+        translation = translation[..., None, :]
+    return rotated + translation
+
+
+def box_corners(translation_m, size_wlh_m, rotation_wxyz) -> np.ndarray:
+    """The 8 corners of boxes, in the order of devkit `Box.corners()` (transposed).
+
+    Args:
+        translation_m: (N, 3) box centres, metres, in some frame F.
+        size_wlh_m: (N, 3) box sizes [width, length, height], metres.
+        rotation_wxyz: (N, 4) box orientations in F, quaternion [w, x, y, z]; or (N, 3, 3) rotation matrices.
+
+    Returns:
+        (N, 8, 3) float64 corners in F. Corners 0-3 are the front face (+x of the box, in the direction of
+        travel): top-left, top-right, bottom-right, bottom-left seen from the front; corners 4-7 the back
+        face in the same order.
+    """
+    translation_m = _as_float_array(translation_m, (3,), "translation_m")
+    size_wlh_m = _as_float_array(size_wlh_m, (3,), "size_wlh_m")
+    rotation = np.asarray(rotation_wxyz, dtype=np.float64)
+    F_from_box_rotation = rotation if rotation.shape[-2:] == (3, 3) else rotation_matrices(rotation)
+    half_lwh = size_wlh_m[..., [1, 0, 2]] / 2.0  # box x is length, y is width, z is height
+    corners_box = _CORNER_SIGNS_XYZ * half_lwh[..., None, :]  # (N, 8, 3)
+    return np.einsum("...ij,...kj->...ki", F_from_box_rotation, corners_box) + translation_m[..., None, :]
+
+
+def view_points(points, intrinsic, normalize: bool = True) -> np.ndarray:
+    """Project points with a view matrix, as devkit `view_points` (which pads the view to 4x4).
+
+    Args:
+        points: points in the camera frame, metres. With one view matrix any (..., 3); with a stack of
+            (B..., h, w) views (B..., 3) or (B..., K, 3), as in `transform_points`.
+        intrinsic: (h, w) or (B..., h, w) view matrix with h, w <= 4 (a 3x3 camera intrinsic for perspective).
+        normalize: divide by the third coordinate (perspective projection).
+
+    Returns:
+        Projected points, float64, the shape of `points`: [u, v, 1] in pixels when normalised (a point with
+        depth 0 gives inf/nan, as in the devkit), [u, v, depth] otherwise.
+    """
+    points = _as_float_array(points, (3,), "points")
+    intrinsic = np.asarray(intrinsic, dtype=np.float64)
+    rows, cols = intrinsic.shape[-2:]
+    if rows > 4 or cols > 4:
+        raise ValueError(f"view matrix must be at most 4x4, got {intrinsic.shape[-2:]}")
+    viewpad = np.broadcast_to(np.eye(4), intrinsic.shape[:-2] + (4, 4)).copy()
+    viewpad[..., :rows, :cols] = intrinsic
+    projected = _apply_linear(viewpad[..., :3, :3], points)
+    translation = viewpad[..., :3, 3]
+    if viewpad.ndim > 2 and points.ndim == viewpad.ndim:
+        translation = translation[..., None, :]
+    projected = projected + translation
+    if normalize:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            projected = projected / projected[..., 2:3]
+    return projected
+
+
+def quaternion_slerp(q0_wxyz, q1_wxyz, amount) -> np.ndarray:
+    """Spherical linear interpolation with pyquaternion's `Quaternion.slerp(q0, q1, amount)` semantics.
+
+    Those semantics, reproduced bit for bit where possible: both ends are normalised with pyquaternion's fast
+    (Pade) normalisation; `amount` is clipped to [0, 1]; when q0 . q1 < 0 *q0* is negated so the shorter arc is
+    taken; when q0 . q1 > 0.9995 the result is normalised linear interpolation; the result is fast-normalised.
+
+    Args:
+        q0_wxyz: (N, 4) start quaternions [w, x, y, z] (amount 0).
+        q1_wxyz: (N, 4) end quaternions (amount 1).
+        amount: (N,) or scalar interpolation parameter.
+
+    Returns:
+        (N, 4) float64 interpolated unit quaternions.
+    """
+    q0 = _fast_normalise_quaternions(_as_float_array(q0_wxyz, (4,), "q0_wxyz"))
+    q1 = _fast_normalise_quaternions(_as_float_array(q1_wxyz, (4,), "q1_wxyz"))
+    amount = np.clip(np.asarray(amount, dtype=np.float64), 0.0, 1.0)[..., None]
+    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
+    q0 = np.where(dot < 0.0, -q0, q0)
+    dot = np.abs(dot)
+
+    linear = q0 + amount * (q1 - q0)
+
+    # Only evaluated where the arc is long enough for sin(theta_0) to be safely non-zero.
+    arc = dot <= _PYQUATERNION_SLERP_LINEAR_DOT
+    theta_0 = np.arccos(np.where(arc, dot, 0.0))
+    sin_theta_0 = np.sin(theta_0)
+    theta = theta_0 * amount
+    sin_theta = np.sin(theta)
+    safe_sin_theta_0 = np.where(arc, sin_theta_0, 1.0)
+    s0 = np.cos(theta) - dot * sin_theta / safe_sin_theta_0
+    s1 = sin_theta / safe_sin_theta_0
+    spherical = s0 * q0 + s1 * q1
+
+    return _fast_normalise_quaternions(np.where(arc, spherical, linear))
+
+
+def yaw_from_quaternions(q_wxyz) -> np.ndarray:
+    """Yaw angles as pyquaternion's `Quaternion(q).yaw_pitch_roll[0]`.
+
+    For rotations about z only (every nuScenes box and ego pose, to rounding) this equals the devkit's
+    `quaternion_yaw` and `heading_from_quaternions`; for tilted rotations pyquaternion's z-y'-x'' convention
+    differs from the heading of the rotated x axis.
+
+    Args:
+        q_wxyz: (..., 4) quaternions [w, x, y, z]; normalised first, as pyquaternion does.
+
+    Returns:
+        (...,) float64 yaw in radians, in [-pi, pi].
+    """
+    w, x, y, z = np.moveaxis(normalise_quaternions(q_wxyz), -1, 0)
+    return np.arctan2(2.0 * (w * z - x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def heading_from_quaternions(q_wxyz) -> np.ndarray:
+    """Heading of the rotated x axis in the xy plane, as devkit `geometry_utils.quaternion_yaw`.
+
+    Args:
+        q_wxyz: (..., 4) quaternions [w, x, y, z].
+
+    Returns:
+        (...,) float64 angle in radians, in [-pi, pi], of R @ [1, 0, 0] projected onto the xy plane.
+    """
+    rotation = rotation_matrices(q_wxyz)
+    return np.arctan2(rotation[..., 1, 0], rotation[..., 0, 0])
