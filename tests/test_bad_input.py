@@ -1,0 +1,207 @@
+"""Bad input: every kind of problem stops the conversion with exit code 1 and a message naming the file,
+the record and the token; an existing or half-written OUT is never left looking complete."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import pytest
+
+from conftest import SYNTH_VERSION
+from nuparquet.cli.main import main
+
+V = SYNTH_VERSION
+
+
+@pytest.fixture(scope="module")
+def pristine(tmp_path_factory) -> Path:
+    """A tiny metadata-only synthetic dataset: 1 scene x 4 samples."""
+    from nuparquet.synth import synthesize
+
+    root = tmp_path_factory.mktemp("pristine") / "data"
+    synthesize(root, scenes=1, samples_per_scene=4, seed=3, version=V)
+    return root
+
+
+@pytest.fixture
+def root(pristine, tmp_path) -> Path:
+    copy = tmp_path / "data"
+    shutil.copytree(pristine / V, copy / V)
+    return copy
+
+
+def load(root: Path, table: str) -> list[dict]:
+    return json.loads((root / V / f"{table}.json").read_text())
+
+
+def save(root: Path, table: str, records) -> None:
+    (root / V / f"{table}.json").write_text(json.dumps(records, indent=1))
+
+
+def convert(root: Path, tmp_path: Path, capsys) -> tuple[int, str]:
+    code = main(["convert", str(root), "--version", V, "--out", str(tmp_path / "out"), "--quiet"])
+    captured = capsys.readouterr()
+    assert not (tmp_path / "out").exists() or code == 0
+    return code, captured.err + captured.out
+
+
+def validate(root: Path, capsys) -> tuple[int, str]:
+    code = main(["validate", str(root), "--version", V])
+    captured = capsys.readouterr()
+    return code, captured.out + captured.err
+
+
+def test_truncated_json_names_the_file(root, tmp_path, capsys):
+    path = root / V / "sample_annotation.json"
+    path.write_text(path.read_text()[: path.stat().st_size // 2])
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1
+    assert "sample_annotation.json" in message and "Malformed JSON" in message
+
+
+def test_missing_table_names_the_file(root, tmp_path, capsys):
+    (root / V / "ego_pose.json").unlink()
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1 and "ego_pose.json" in message and "missing" in message
+
+
+def test_object_instead_of_array(root, tmp_path, capsys):
+    save(root, "log", load(root, "log")[0])
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1 and "log.json" in message and "JSON object" in message
+
+
+def test_missing_required_field_names_record_and_token(root, tmp_path, capsys):
+    records = load(root, "sample")
+    del records[2]["timestamp"]
+    save(root, "sample", records)
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1
+    assert f"sample.json[2] token={records[2]['token']}" in message and "timestamp" in message
+
+
+def test_string_where_a_number_belongs(root, tmp_path, capsys):
+    records = load(root, "sample_annotation")
+    records[5]["num_lidar_pts"] = "many"
+    save(root, "sample_annotation", records)
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1
+    assert f"sample_annotation.json[5] token={records[5]['token']}" in message
+    assert "num_lidar_pts" in message and "integer" in message
+
+
+def test_non_integer_count_is_an_error_not_a_truncation(root, tmp_path, capsys):
+    records = load(root, "sample_annotation")
+    records[1]["num_radar_pts"] = 2.5
+    save(root, "sample_annotation", records)
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1 and f"sample_annotation.json[1] token={records[1]['token']}" in message
+
+
+def test_duplicate_token(root, tmp_path, capsys):
+    records = load(root, "instance")
+    records[1]["token"] = records[0]["token"]
+    save(root, "instance", records)
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1 and f"instance.json[1] token={records[0]['token']}: duplicate token" in message
+
+
+# Every foreign key the issue lists: (table, field, record index to break).
+FOREIGN_KEYS = [
+    ("sample_data", "sample_token"), ("sample_data", "ego_pose_token"), ("sample_data", "calibrated_sensor_token"),
+    ("calibrated_sensor", "sensor_token"), ("sample", "scene_token"), ("scene", "log_token"),
+    ("scene", "first_sample_token"), ("scene", "last_sample_token"), ("sample_annotation", "sample_token"),
+    ("sample_annotation", "instance_token"), ("sample_annotation", "visibility_token"),
+    ("sample_annotation", "attribute_tokens"), ("instance", "category_token"),
+    ("instance", "first_annotation_token"), ("instance", "last_annotation_token"), ("map", "log_tokens"),
+    ("sample", "prev"), ("sample", "next"), ("sample_data", "prev"), ("sample_data", "next"),
+    ("sample_annotation", "prev"), ("sample_annotation", "next"),
+]
+
+
+@pytest.mark.parametrize("table,field", FOREIGN_KEYS)
+def test_dangling_foreign_key_names_file_record_and_token(root, tmp_path, capsys, table, field):
+    records = load(root, table)
+    index = len(records) // 2 if table not in ("scene", "map") else 0
+    dangling = "f" * 32
+    if isinstance(records[index][field], list):
+        records[index][field] = records[index][field] + [dangling]
+    else:
+        records[index][field] = dangling
+    save(root, table, records)
+    code, message = validate(root, capsys)
+    assert code == 1
+    assert f"{table}.json[{index}] token={records[index]['token']}: {field} '{dangling}' does not resolve" in message
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1 and f"{table}.json[{index}]" in message
+
+
+@pytest.mark.parametrize("bad", [[math.nan, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 0.0], [1.0, 1.0, 0.0, 0.0]])
+def test_bad_quaternion(root, tmp_path, capsys, bad):
+    records = load(root, "ego_pose")
+    records[3]["rotation"] = bad
+    save(root, "ego_pose", records)
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1
+    assert f"ego_pose.json[3] token={records[3]['token']}: rotation" in message and "unit quaternion" in message
+
+
+def test_count_field_disagreeing_with_the_records(root, tmp_path, capsys):
+    records = load(root, "scene")
+    records[0]["nbr_samples"] += 1
+    save(root, "scene", records)
+    code, message = validate(root, capsys)
+    assert code == 1 and f"scene.json[0] token={records[0]['token']}: nbr_samples" in message
+
+
+def test_problems_are_listed_all_at_once_with_a_bound(root, capsys):
+    records = load(root, "sample_data")
+    for r in records:
+        r["calibrated_sensor_token"] = "0" * 32
+    save(root, "sample_data", records)
+    code, message = validate(root, capsys)
+    assert code == 1
+    assert message.count("does not resolve to a calibrated_sensor record") == 50
+    assert f"{len(records) - 50} more like the above" in message
+
+
+def test_missing_sensor_files_are_not_an_error(root, tmp_path, capsys):
+    assert not (root / "samples").exists()  # metadata only
+    code, _ = convert(root, tmp_path, capsys)
+    assert code == 0
+
+
+def test_existing_out_is_refused_and_kept(root, tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    code = main(["convert", str(root), "--version", V, "--out", str(out), "--quiet"])
+    assert code == 2 and "--overwrite" in capsys.readouterr().err
+    assert (out / "keep.txt").read_text() == "mine"
+
+
+def test_interrupted_conversion_leaves_nothing_complete_looking(root, tmp_path, monkeypatch):
+    from nuparquet.convert import derived
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(derived, "build_scenes", interrupted)
+    out = tmp_path / "out"
+    assert main(["convert", str(root), "--version", V, "--out", str(out), "--quiet"]) == 130
+    assert not out.exists()
+    assert list(tmp_path.glob(".out*")) == []  # the temporary sibling is cleaned up
+
+
+def test_failed_overwrite_keeps_the_previous_output(root, tmp_path, monkeypatch):
+    out = tmp_path / "out"
+    assert main(["convert", str(root), "--version", V, "--out", str(out), "--quiet"]) == 0
+    before = (out / "manifest.json").read_text()
+    from nuparquet.convert import derived
+
+    monkeypatch.setattr(derived, "build_instances", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    assert main(["convert", str(root), "--version", V, "--out", str(out), "--overwrite", "--quiet"]) == 130
+    assert (out / "manifest.json").read_text() == before

@@ -1,0 +1,107 @@
+"""Conversion of whole datasets: row counts, exact round trip, schemas, determinism, CLI behaviour."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import polars as pl
+import pyarrow.parquet as pq
+import pytest
+
+from conftest import EXTRACT_VERSION, SYNTH_VERSION
+from nuparquet.cli.main import main
+from nuparquet.export import export_json
+from nuparquet.schemas import core_tables, dataset_schemas, table_schemas
+
+
+def _json_tables(root: Path, version: str) -> dict[str, list[dict]]:
+    return {name: json.loads((root / version / f"{name}.json").read_text()) for name in core_tables()}
+
+
+def _assert_round_trip(source_root: Path, version: str, out: Path, tmp_path: Path) -> None:
+    exported = tmp_path / "exported"
+    export_json(out, exported)
+    for name, records in _json_tables(source_root, version).items():
+        again = json.loads((exported / f"{name}.json").read_text())
+        assert len(again) == len(records), name
+        for original, copy in zip(records, again):
+            assert list(copy) == list(original), f"{name}: key order"  # same keys, same order
+            assert copy == original, f"{name} token={original.get('token')}"
+            for key, value in original.items():  # 1 == 1.0 in Python: also check the JSON types
+                assert type(copy[key]) is type(value), f"{name}.{key}"
+
+
+def _assert_row_counts(source_root: Path, version: str, out: Path) -> None:
+    manifest = json.loads((out / "manifest.json").read_text())
+    for name, records in _json_tables(source_root, version).items():
+        assert manifest["datasets"][f"tables/{name}"]["rows"] == len(records)
+        assert pq.read_metadata(next((out / "tables" / name).glob("*.parquet"))).num_rows == len(records)
+    assert manifest["datasets"]["frames"]["rows"] == len(_json_tables(source_root, version)["sample_data"])
+    assert manifest["datasets"]["annotations"]["rows"] == len(_json_tables(source_root, version)["sample_annotation"])
+
+
+def _assert_schemas(out: Path) -> None:
+    for name, schema in table_schemas().items():
+        files = list((out / "tables" / name).glob("*.parquet"))
+        if files:
+            written = pq.read_schema(files[0])
+            assert written.remove_metadata().equals(schema.arrow_schema()), name
+    for name, schema in dataset_schemas().items():
+        written = pq.read_schema(next((out / name).glob("*.parquet")))
+        assert written.remove_metadata().equals(schema.arrow_schema()), name
+
+
+def test_real_extract_row_counts_match_the_json(extract_root, extract_out):
+    _assert_row_counts(extract_root, EXTRACT_VERSION, extract_out)
+
+
+def test_real_extract_round_trips_exactly(extract_root, extract_out, tmp_path):
+    _assert_round_trip(extract_root, EXTRACT_VERSION, extract_out, tmp_path)
+
+
+def test_real_extract_written_schemas_equal_the_schema_files(extract_out):
+    _assert_schemas(extract_out)
+
+
+def test_synthetic_row_counts_round_trip_and_schemas(synth_root, synth_out, tmp_path):
+    _assert_row_counts(synth_root, SYNTH_VERSION, synth_out)
+    _assert_round_trip(synth_root, SYNTH_VERSION, synth_out, tmp_path)
+    _assert_schemas(synth_out)
+
+
+def test_synthetic_dataset_validates_clean(synth_root, capsys):
+    assert main(["validate", str(synth_root), "--version", SYNTH_VERSION]) == 0
+    assert "no problems" in capsys.readouterr().out
+
+
+def test_conversion_is_deterministic(synth_root, synth_out, tmp_path):
+    again = tmp_path / "again"
+    assert main(["convert", str(synth_root), "--version", SYNTH_VERSION, "--out", str(again), "--quiet"]) == 0
+    for dataset in ["frames", "annotations", "scenes", "instances", "tables/sample_data"]:
+        first = pl.read_parquet(synth_out / dataset / "*.parquet")
+        second = pl.read_parquet(again / dataset / "*.parquet")
+        assert first.equals(second, null_equal=True), dataset
+
+
+def test_manifest_records_versions_counts_fingerprints_and_input_files(synth_root, synth_out):
+    manifest = json.loads((synth_out / "manifest.json").read_text())
+    assert manifest["format"] == "nuparquet" and manifest["format_version"] == 1
+    assert manifest["source"]["version"] == SYNTH_VERSION
+    assert Path(manifest["source"]["dataroot"]) == synth_root.resolve()
+    sizes = {name: info["bytes"] for name, info in manifest["source"]["files"].items()}
+    assert sizes["sample_data.json"] == (synth_root / SYNTH_VERSION / "sample_data.json").stat().st_size
+    assert {"frames", "annotations", "scenes", "instances", "tables/sample"} <= set(manifest["datasets"])
+    assert all(len(d["schema_fingerprint"]) == 16 for d in manifest["datasets"].values())
+
+
+def test_export_json_cli_refuses_existing_directory(synth_out, tmp_path):
+    target = tmp_path / "exists"
+    target.mkdir()
+    assert main(["export-json", str(synth_out), "--out", str(target)]) == 2
+
+
+@pytest.mark.parametrize("argv", [["convert", "/nonexistent/dataroot", "--version", "v1.0-mini", "--out", "/tmp/never"]])
+def test_missing_dataroot_is_a_usage_error(argv, capsys):
+    assert main(argv) == 2
+    assert "not a directory" in capsys.readouterr().err

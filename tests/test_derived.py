@@ -1,0 +1,194 @@
+"""The denormalised datasets against the devkit (real extract and synthetic data) and plain-Python
+computations from the JSON."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import pyarrow.parquet as pq
+import pytest
+
+from conftest import EXTRACT_VERSION, SYNTH_VERSION
+
+
+def read(out: Path, dataset: str) -> pl.DataFrame:
+    return pl.read_parquet(out / dataset / "*.parquet")
+
+
+@pytest.fixture(scope="module", params=["extract", "synth"])
+def case(request):
+    """(dataroot, version, converted OUT, devkit NuScenes) for the real extract and a synthetic dataset."""
+    devkit = request.getfixturevalue("devkit")
+    if request.param == "extract":
+        root, version, out = request.getfixturevalue("extract_root"), EXTRACT_VERSION, request.getfixturevalue("extract_out")
+    else:
+        root, version, out = request.getfixturevalue("synth_root"), SYNTH_VERSION, request.getfixturevalue("synth_out")
+    return root, version, out, devkit.NuScenes(version=version, dataroot=str(root), verbose=False)
+
+
+def test_velocity_equals_devkit_box_velocity_for_every_annotation(case):
+    _, _, out, nusc = case
+    annotations = read(out, "annotations").select("token", "velocity")
+    ours = dict(zip(annotations["token"].to_list(), annotations["velocity"].to_numpy()))
+    assert len(ours) == len(nusc.sample_annotation)
+    nan_count = 0
+    for record in nusc.sample_annotation:
+        expected = nusc.box_velocity(record["token"])
+        got = ours[record["token"]]
+        if np.isnan(expected).any():
+            nan_count += 1
+            assert np.isnan(got).all(), record["token"]
+        else:
+            np.testing.assert_allclose(got, expected, rtol=0, atol=1e-9)
+    assert 0 < nan_count < len(nusc.sample_annotation)  # both branches exercised
+
+
+def test_frames_carry_the_devkit_pose_calibration_channel_and_modality(case):
+    _, _, out, nusc = case
+    frames = read(out, "frames")
+    assert frames.height == len(nusc.sample_data)
+    rows = {r["token"]: r for r in frames.iter_rows(named=True)}
+    for sd in nusc.sample_data:
+        row = rows[sd["token"]]
+        pose = nusc.get("ego_pose", sd["ego_pose_token"])
+        calib = nusc.get("calibrated_sensor", sd["calibrated_sensor_token"])
+        assert row["ego_translation"] == pose["translation"] and row["ego_rotation"] == pose["rotation"]
+        assert row["sensor_translation"] == calib["translation"] and row["sensor_rotation"] == calib["rotation"]
+        assert (row["camera_intrinsic"] or []) == calib["camera_intrinsic"]
+        assert row["channel"] == sd["channel"] and row["modality"] == sd["sensor_modality"]
+        assert row["sample_token"] == sd["sample_token"] and row["timestamp"] == sd["timestamp"]
+        scene = nusc.get("scene", nusc.get("sample", sd["sample_token"])["scene_token"])
+        assert row["scene_name"] == scene["name"]
+        assert row["log_location"] == nusc.get("log", scene["log_token"])["location"]
+
+
+def test_frame_transforms_equal_the_devkit_transform_matrices(case):
+    from nuscenes.utils.geometry_utils import transform_matrix
+    from pyquaternion import Quaternion
+
+    _, _, out, nusc = case
+    frames = read(out, "frames").filter(pl.col("modality") == "camera").head(40)
+    for row in frames.iter_rows(named=True):
+        global_from_ego = transform_matrix(row["ego_translation"], Quaternion(row["ego_rotation"]))
+        ego_from_sensor = transform_matrix(row["sensor_translation"], Quaternion(row["sensor_rotation"]))
+        np.testing.assert_allclose(np.reshape(row["global_from_ego"], (4, 4)), global_from_ego, atol=1e-9)
+        np.testing.assert_allclose(np.reshape(row["ego_from_sensor"], (4, 4)), ego_from_sensor, atol=1e-12)
+        # A global point 10 m ahead of the camera lands where the devkit chain puts it.
+        point = (global_from_ego @ ego_from_sensor @ np.array([0.3, -0.2, 10.0, 1.0]))
+        pixel = np.reshape(row["image_from_global"], (4, 4)) @ point
+        intrinsic = np.array(row["camera_intrinsic"])
+        expected = intrinsic @ np.array([0.3, -0.2, 10.0])
+        np.testing.assert_allclose(pixel[:2] / pixel[2], expected[:2] / expected[2], atol=1e-6)
+
+
+def test_per_scene_annotation_counts_equal_the_devkit_full_count(case):
+    _, _, out, nusc = case
+    expected = {}
+    for scene in nusc.scene:
+        count, token = 0, scene["first_sample_token"]
+        while token:  # every sample, including the last one (list_scenes stops before it)
+            sample = nusc.get("sample", token)
+            count += len(sample["anns"])
+            token = sample["next"]
+        expected[scene["name"]] = count
+    scenes = read(out, "scenes")
+    assert dict(zip(scenes["name"], scenes["num_annotations"])) == expected
+
+
+def test_annotation_joins_match_the_devkit_records(case):
+    _, _, out, nusc = case
+    rows = {r["token"]: r for r in read(out, "annotations").iter_rows(named=True)}
+    for ann in nusc.sample_annotation[::7]:
+        row = rows[ann["token"]]
+        assert row["category_name"] == ann["category_name"]
+        assert row["attribute_names"] == [nusc.get("attribute", a)["name"] for a in ann["attribute_tokens"]]
+        assert row["visibility_level"] == int(ann["visibility_token"])
+        assert row["timestamp"] == nusc.get("sample", ann["sample_token"])["timestamp"]
+        sample = nusc.get("sample", ann["sample_token"])
+        assert row["scene_name"] == nusc.get("scene", sample["scene_token"])["name"]
+        lidar = nusc.get("sample_data", sample["data"]["LIDAR_TOP"])
+        ego = nusc.get("ego_pose", lidar["ego_pose_token"])["translation"]
+        assert row["distance_to_ego_m"] == pytest.approx(math.dist(ann["translation"][:2], ego[:2]), abs=1e-9)
+        from pyquaternion import Quaternion
+
+        assert row["yaw"] == pytest.approx(Quaternion(ann["rotation"]).yaw_pitch_roll[0], abs=1e-12)
+
+
+def test_scenes_and_instances_from_the_json(case):
+    root, version, out, _ = case
+    tables = {n: json.loads((root / version / f"{n}.json").read_text())
+              for n in ("scene", "sample", "sample_annotation", "instance", "log", "sample_data", "ego_pose",
+                        "calibrated_sensor", "sensor")}
+    sample = {s["token"]: s for s in tables["sample"]}
+    scene_of_sample = {s["token"]: s["scene_token"] for s in tables["sample"]}
+    scenes = {r["token"]: r for r in read(out, "scenes").iter_rows(named=True)}
+    for scene in tables["scene"]:
+        row = scenes[scene["token"]]
+        first, last = sample[scene["first_sample_token"]]["timestamp"], sample[scene["last_sample_token"]]["timestamp"]
+        assert (row["first_timestamp"], row["last_timestamp"]) == (first, last)
+        assert row["duration_s"] == pytest.approx((last - first) / 1e6)
+        instances = {a["instance_token"] for a in tables["sample_annotation"] if scene_of_sample[a["sample_token"]] == scene["token"]}
+        assert row["num_instances"] == len(instances)
+    # ego_distance_m: path of the LIDAR_TOP keyframe poses, by plain Python
+    sensor_channel = {s["token"]: s["channel"] for s in tables["sensor"]}
+    channel_of_calib = {c["token"]: sensor_channel[c["sensor_token"]] for c in tables["calibrated_sensor"]}
+    pose = {p["token"]: p["translation"] for p in tables["ego_pose"]}
+    path = defaultdict(list)
+    for sd in tables["sample_data"]:
+        if sd["is_key_frame"] and channel_of_calib[sd["calibrated_sensor_token"]] == "LIDAR_TOP":
+            path[scene_of_sample[sd["sample_token"]]].append((sd["timestamp"], pose[sd["ego_pose_token"]]))
+    for token, points in path.items():
+        points.sort()
+        expected = sum(math.dist(a[1], b[1]) for a, b in zip(points, points[1:]))
+        assert scenes[token]["ego_distance_m"] == pytest.approx(expected, rel=1e-12)
+    # instances: first/last timestamps and track length
+    ann = {a["token"]: a for a in tables["sample_annotation"]}
+    instances = {r["token"]: r for r in read(out, "instances").iter_rows(named=True)}
+    for inst in tables["instance"]:
+        row = instances[inst["token"]]
+        chain, token = [], inst["first_annotation_token"]
+        while token:
+            chain.append(ann[token])
+            token = ann[token]["next"]
+        assert row["nbr_annotations"] == len(chain)
+        assert row["first_timestamp"] == sample[chain[0]["sample_token"]]["timestamp"]
+        assert row["last_timestamp"] == sample[chain[-1]["sample_token"]]["timestamp"]
+        expected = sum(math.dist(a["translation"], b["translation"]) for a, b in zip(chain, chain[1:]))
+        assert row["track_length_m"] == pytest.approx(expected, rel=1e-9, abs=1e-12)
+
+
+def test_real_extract_scenes_have_their_known_split(extract_out):
+    scenes = read(extract_out, "scenes")
+    assert dict(zip(scenes["name"], scenes["split"])) == {"scene-0523": "val", "scene-0916": "mini_val"}
+
+
+def test_velocity_is_nan_for_single_annotation_track(synth_out):
+    annotations = read(synth_out, "annotations")
+    single = annotations.filter((pl.col("prev") == "") & (pl.col("next") == ""))
+    assert single.height > 0
+    assert np.isnan(single["velocity"].to_numpy()).all()
+
+
+@pytest.mark.parametrize("dataset", ["frames", "annotations"])
+def test_one_scene_filter_prunes_row_groups(extract_out, dataset):
+    """Row groups follow scene boundaries, so statistics exclude every other scene's groups."""
+    file = next((extract_out / dataset).glob("*.parquet"))
+    metadata = pq.ParquetFile(file).metadata
+    column = metadata.schema.names.index("scene_name")
+    scene = "scene-0916"
+    may_match = [g for g in range(metadata.num_row_groups)
+                 if metadata.row_group(g).column(column).statistics.min <= scene <= metadata.row_group(g).column(column).statistics.max]
+    assert metadata.num_row_groups >= 2 and 0 < len(may_match) < metadata.num_row_groups
+    # And pyarrow's dataset scanner, given the filter, reads only those row groups' rows.
+    import pyarrow.dataset as ds
+
+    fragments = list(ds.dataset(file).get_fragments(filter=ds.field("scene_name") == scene))
+    kept = [rg.id for f in fragments for rg in f.split_by_row_group(ds.field("scene_name") == scene)]
+    assert kept == may_match
+    rows_read = sum(metadata.row_group(g).num_rows for g in kept)
+    assert rows_read == pl.scan_parquet(file).filter(pl.col("scene_name") == scene).select(pl.len()).collect().item()
