@@ -1,0 +1,237 @@
+"""Open a converted nuparquet directory and query it lazily with polars.
+
+```python
+import nuparquet
+ds = nuparquet.open("OUT")                        # reads OUT/manifest.json only
+lf = ds.scan("annotations")                       # polars.LazyFrame: nothing read until .collect()
+ds.sql('SELECT channel, COUNT(*) AS n FROM frames GROUP BY channel')   # polars.DataFrame
+```
+
+`path` is a local directory or any URL polars can scan (``s3://bucket/out``, ``gs://…``, ``az://…``,
+``https://…``, ``hf://…``). Polars reads the Parquet files itself; the small ``manifest.json`` is read with
+fsspec (``pip install fsspec`` plus the filesystem's package, e.g. ``s3fs``), or with the standard library for
+``http(s)://`` when fsspec is absent. Pass credentials with ``storage_options=`` (handed to
+``polars.scan_parquet`` and to fsspec).
+
+SQL names (`Dataset.sql`): every dataset is registered under its manifest name (``frames``,
+``annotations``, ``scenes``, ``instances``, ``"tables/sample"`` — a name with a slash must be double-quoted in
+SQL), and each source table also under two plain aliases: ``sample`` and ``tables_sample``. An alias is
+skipped if it would shadow a manifest name.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+
+from nuparquet.errors import FormatError, NuparquetError, UsageError
+from nuparquet.schemas import FORMAT_VERSION
+
+MANIFEST = "manifest.json"
+FORMAT_NAME = "nuparquet"
+
+
+class QueryError(NuparquetError):
+    """A SQL query that polars cannot plan or run (syntax error, unknown table or column): exit code 1."""
+
+
+def _is_url(path: str) -> bool:
+    return "://" in path and not path.startswith("file://")
+
+
+def _read_text(url: str, storage_options: Mapping[str, Any] | None) -> str:
+    """The text of a small remote file, via fsspec (any filesystem) or urllib (http/https only)."""
+    try:
+        import fsspec
+    except ImportError:
+        fsspec = None
+    if fsspec is not None:
+        with fsspec.open(url, "rt", **dict(storage_options or {})) as f:
+            return f.read()
+    if url.startswith(("http://", "https://")):
+        import urllib.request
+
+        with urllib.request.urlopen(url, timeout=60) as response:  # noqa: S310 - the user's own URL
+            return response.read().decode()
+    raise FormatError(f"reading {url} needs fsspec (pip install fsspec and the filesystem's package, e.g. s3fs)")
+
+
+class Dataset:
+    """A converted nuparquet directory: its manifest and one lazy polars scan per dataset.
+
+    Attributes: `root` (the path or URL as given, without a trailing slash), `manifest` (the parsed
+    manifest.json), `datasets` (names, in manifest order), `dataroot` (the nuScenes dataroot it was converted
+    from, as recorded in the manifest), `version` (the source version, e.g. ``v1.0-mini``).
+    """
+
+    def __init__(self, root: str, manifest: dict, storage_options: Mapping[str, Any] | None = None):
+        self.root = root
+        self.manifest = manifest
+        self.storage_options = dict(storage_options) if storage_options else None
+        self._entries: dict[str, dict] = dict(manifest["datasets"])
+
+    def __repr__(self) -> str:
+        return f"<nuparquet.Dataset {self.root!r} {self.version} datasets={len(self.datasets)}>"
+
+    @property
+    def is_remote(self) -> bool:
+        return _is_url(self.root)
+
+    @property
+    def datasets(self) -> list[str]:
+        return list(self._entries)
+
+    @property
+    def dataroot(self) -> str | None:
+        return self.manifest.get("source", {}).get("dataroot")
+
+    @property
+    def version(self) -> str | None:
+        return self.manifest.get("source", {}).get("version")
+
+    def _entry(self, name: str) -> dict:
+        if name not in self._entries:
+            names = sorted(self.datasets, key=lambda n: n.startswith("tables/"))  # derived datasets first
+            raise UsageError(f"no dataset {name!r} in {self.root}; valid names: {', '.join(names)}")
+        return self._entries[name]
+
+    def location(self, name: str) -> str:
+        """The directory (path or URL) of dataset `name`."""
+        return f"{self.root}/{self._entry(name).get('path', name)}"
+
+    def scan(self, name: str, **scan_options: Any) -> pl.LazyFrame:
+        """A lazy scan of dataset `name` (``"annotations"``, ``"frames"``, ``"tables/sample"``, ...).
+
+        Nothing is read here: polars reads only the columns and row groups the collected query needs
+        (row-group statistics prune filters on sorted columns such as ``scene_name``). `scan_options` go to
+        `polars.scan_parquet`.
+        """
+        location = self.location(name)
+        if not self.is_remote and not Path(location).is_dir():
+            raise FormatError(f"{self.root}: dataset {name!r} is listed in {MANIFEST} but {location} is missing")
+        options: dict[str, Any] = {"hive_partitioning": True}
+        if self.storage_options:
+            options["storage_options"] = self.storage_options
+        options.update(scan_options)
+        return pl.scan_parquet(f"{location}/**/*.parquet", **options)
+
+    def files(self, name: str) -> list[tuple[str, int]]:
+        """The Parquet files of dataset `name` with their sizes in bytes (local directories only)."""
+        if self.is_remote:
+            raise UsageError("listing files needs a local directory")
+        location = Path(self.location(name))
+        return [(str(p), p.stat().st_size) for p in sorted(location.rglob("*.parquet"))]
+
+    def sql_names(self) -> dict[str, str]:
+        """Every SQL name `sql` registers, mapped to the dataset it stands for."""
+        names = {name: name for name in self.datasets}
+        for name in self.datasets:
+            if name.startswith("tables/"):
+                table = name.removeprefix("tables/")
+                for alias in (table, f"tables_{table}"):
+                    names.setdefault(alias, name)
+        return names
+
+    def sql_context(self) -> pl.SQLContext:
+        """A polars SQLContext with every dataset registered lazily under the names of `sql_names`."""
+        context = pl.SQLContext()
+        scans = {name: self.scan(name) for name in self.datasets}
+        for sql_name, name in self.sql_names().items():
+            context.register(sql_name, scans[name])
+        return context
+
+    def sql(self, query: str, *, lazy: bool = False) -> pl.DataFrame | pl.LazyFrame:
+        """Run polars SQL over every dataset (see the module docstring for the names) and collect the result.
+
+        With ``lazy=True`` the LazyFrame is returned instead (only planning errors are raised here). Raises
+        `QueryError` with polars' message for bad SQL, unknown tables or columns.
+        """
+        try:
+            result = self.sql_context().execute(query, eager=False)
+            return result if lazy else result.collect()
+        except pl.exceptions.PolarsError as exc:
+            message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            hint = ""
+            lowered = message.lower()
+            if "not found" in lowered and ("relation" in lowered or "table" in lowered):
+                derived = [n for n in self.datasets if not n.startswith("tables/")]
+                tables = [n.removeprefix("tables/") for n in self.datasets if n.startswith("tables/")]
+                hint = (f" (datasets: {', '.join(derived)}; source tables: {', '.join(tables)}, "
+                        'each also as "tables/<name>" and tables_<name>)')
+            raise QueryError(f"SQL failed: {message}{hint}") from exc
+
+    def row_count(self, name: str) -> int:
+        """Rows of dataset `name`, from the Parquet footers (no data pages read)."""
+        return int(self.scan(name).select(pl.len()).collect().item())
+
+    def inventory(self) -> pl.DataFrame:
+        """One row per dataset: ``dataset``, ``rows`` (counted from the Parquet footers), ``manifest_rows``,
+        ``files`` and ``bytes`` on disk (for a URL: from the manifest, ``files`` null)."""
+        rows = []
+        for name in self.datasets:
+            entry = self._entries[name]
+            if self.is_remote:
+                files, size = None, entry.get("bytes")
+            else:
+                listing = self.files(name)
+                files, size = len(listing), sum(s for _, s in listing)
+            rows.append({"dataset": name, "rows": self.row_count(name), "manifest_rows": entry.get("rows"),
+                         "files": files, "bytes": size})
+        return pl.DataFrame(rows, schema={"dataset": pl.String, "rows": pl.Int64, "manifest_rows": pl.Int64,
+                                          "files": pl.Int64, "bytes": pl.Int64})
+
+
+def _check_manifest(manifest: Any, where: str) -> dict:
+    if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
+        raise FormatError(f"{where}: not a nuparquet output ({MANIFEST} does not say \"format\": \"{FORMAT_NAME}\")")
+    version = manifest.get("format_version")
+    if not isinstance(version, int):
+        raise FormatError(f"{where}: {MANIFEST} has no integer format_version")
+    if version > FORMAT_VERSION:
+        raise FormatError(
+            f"{where}: written in nuparquet format {version}, newer than this nuparquet reads ({FORMAT_VERSION}); "
+            "upgrade nuparquet")
+    if version < FORMAT_VERSION:
+        raise FormatError(
+            f"{where}: written in nuparquet format {version}, older than this nuparquet reads ({FORMAT_VERSION}); "
+            "convert the dataroot again with `nuparquet convert --overwrite`")
+    if not isinstance(manifest.get("datasets"), dict) or not manifest["datasets"]:
+        raise FormatError(f"{where}: {MANIFEST} lists no datasets")
+    return manifest
+
+
+def open_dataset(path: str | os.PathLike, *, storage_options: Mapping[str, Any] | None = None) -> Dataset:
+    """Open the nuparquet output directory `path` (local path or URL): read and check its manifest.
+
+    Raises `FormatError` if `path` does not exist, is not a nuparquet output, or was written in another
+    format version.
+    """
+    text_path = os.fspath(path)
+    if _is_url(text_path):
+        root = text_path.rstrip("/")
+        try:
+            text = _read_text(f"{root}/{MANIFEST}", storage_options)
+        except FormatError:
+            raise
+        except (OSError, ValueError) as exc:  # FileNotFoundError, HTTPError, ... from fsspec or urllib
+            raise FormatError(f"{root}: cannot read {MANIFEST} ({exc}); not a nuparquet output?") from exc
+    else:
+        local = Path(text_path.removeprefix("file://")).expanduser()
+        if not local.exists():
+            raise FormatError(f"{local}: no such directory")
+        if not local.is_dir():
+            raise FormatError(f"{local}: not a directory (expected a nuparquet output directory)")
+        if not (local / MANIFEST).is_file():
+            raise FormatError(f"{local}: not a nuparquet output (no {MANIFEST}; create one with `nuparquet convert`)")
+        root = str(local.resolve())
+        text = (local / MANIFEST).read_text()
+    try:
+        manifest = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise FormatError(f"{root}: {MANIFEST} is not valid JSON ({exc})") from exc
+    return Dataset(root, _check_manifest(manifest, root), storage_options)

@@ -1,0 +1,166 @@
+"""PNG charts of the canned query results (matplotlib, Agg backend: no display needed).
+
+Each `plot_*` function takes the collected result of one query in `nuparquet.queries` and writes one PNG;
+`write_plots(ds, out_dir)` runs the queries and writes them all.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # headless; must precede pyplot
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import polars as pl  # noqa: E402
+
+from nuparquet import queries  # noqa: E402
+
+DPI = 110
+MAX_CATEGORIES = 10  # distance histogram: the most frequent categories, the rest as "other"
+MAX_SCENES = 12  # ego speed: curves drawn (the first scenes by name)
+
+
+def _save(fig, path: Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def _empty(ax, what: str) -> None:
+    ax.text(0.5, 0.5, f"no {what}", ha="center", va="center", transform=ax.transAxes)
+    ax.set_axis_off()
+
+
+def plot_class_distribution(distribution: pl.DataFrame, path: Path, *, title: str = "Class distribution") -> Path:
+    """Horizontal bars of annotations and instances per category (log scale), from `class_distribution`."""
+    data = distribution.sort("num_annotations")
+    fig, ax = plt.subplots(figsize=(9, 1.2 + 0.32 * max(data.height, 1)), layout="constrained")
+    if data.is_empty():
+        _empty(ax, "annotations")
+        return _save(fig, path)
+    y = np.arange(data.height)
+    ax.barh(y + 0.2, data["num_annotations"], height=0.4, label="annotations", color="tab:blue")
+    ax.barh(y - 0.2, data["num_instances"], height=0.4, label="instances (tracks)", color="tab:orange")
+    for yi, n in zip(y, data["num_annotations"]):
+        ax.text(n, yi + 0.2, f" {n:,}", va="center", fontsize=7)
+    ax.set_yticks(y, data["category_name"].to_list(), fontsize=8)
+    ax.set_xscale("log")
+    ax.set_xlabel("count (log scale)")
+    ax.set_title(title)
+    ax.legend(loc="lower right")
+    return _save(fig, path)
+
+
+def plot_distance_histogram(histogram: pl.DataFrame, path: Path, *, title: str = "Distance to ego vehicle",
+                            max_categories: int = MAX_CATEGORIES) -> Path:
+    """Stacked bars of annotation counts per distance bin, one colour per category, from `distance_histogram`."""
+    fig, ax = plt.subplots(figsize=(10, 5.5), layout="constrained")
+    if histogram.is_empty():
+        _empty(ax, "annotations with a distance")
+        return _save(fig, path)
+    totals = histogram.group_by("category_name").agg(pl.col("count").sum()).sort(["count", "category_name"],
+                                                                                 descending=[True, False])
+    top = totals["category_name"].head(max_categories).to_list()
+    data = histogram.with_columns(
+        pl.when(pl.col("category_name").is_in(top)).then(pl.col("category_name")).otherwise(pl.lit("other"))
+        .alias("group"))
+    groups = top + (["other"] if totals.height > len(top) else [])
+    starts = np.sort(data["bin_start_m"].unique().to_numpy())
+    width = float((data["bin_end_m"] - data["bin_start_m"]).first())
+    bottom = np.zeros(len(starts))
+    colours = plt.get_cmap("tab20")
+    for i, group in enumerate(groups):
+        counts = (data.filter(pl.col("group") == group).group_by("bin_start_m").agg(pl.col("count").sum()))
+        heights = np.zeros(len(starts))
+        heights[np.searchsorted(starts, counts["bin_start_m"].to_numpy())] = counts["count"].to_numpy()
+        ax.bar(starts, heights, width=width, bottom=bottom, align="edge", label=group, color=colours(i % 20),
+               edgecolor="white", linewidth=0.3)
+        bottom += heights
+    ax.set_xlabel("xy distance from the ego vehicle (m)")
+    ax.set_ylabel("annotations")
+    ax.set_title(title)
+    ax.legend(fontsize=7, ncols=2)
+    return _save(fig, path)
+
+
+def plot_points_per_box(points: pl.DataFrame, path: Path, *, sensor: str = "lidar",
+                        title: str | None = None) -> Path:
+    """Box plot of points per box by category from `points_per_box` statistics.
+
+    Boxes span the 25th-75th percentile with the median line; whiskers reach the 5th and 95th percentiles.
+    Symmetric-log y axis, so empty boxes (0 points) stay visible; the share of empty boxes is printed on top.
+    """
+    data = points.sort("category_name")
+    fig, ax = plt.subplots(figsize=(max(6, 0.55 * data.height + 2), 6), layout="constrained")
+    if data.is_empty():
+        _empty(ax, "annotations")
+        return _save(fig, path)
+    stats = [
+        {"label": name, "med": row[f"{sensor}_p50"], "q1": row[f"{sensor}_p25"], "q3": row[f"{sensor}_p75"],
+         "whislo": row[f"{sensor}_p05"], "whishi": row[f"{sensor}_p95"], "mean": row[f"{sensor}_mean"]}
+        for name, row in zip(data["category_name"], data.iter_rows(named=True))
+    ]
+    ax.bxp(stats, showfliers=False, showmeans=True, patch_artist=True,
+           boxprops={"facecolor": "tab:blue", "alpha": 0.5})
+    ax.set_yscale("symlog", linthresh=1)
+    top = max(1.0, float(data[f"{sensor}_p95"].max()))
+    for x, share in enumerate(data[f"{sensor}_zero_share"], start=1):
+        ax.text(x, top * 1.6, f"{share:.0%}", ha="center", fontsize=7, color="tab:red")
+    ax.set_ylim(-0.2, top * 3)
+    ax.set_xticks(range(1, data.height + 1), data["category_name"].to_list(), rotation=60, ha="right", fontsize=8)
+    ax.set_ylabel(f"{sensor} points per box (symlog)")
+    ax.set_title(title or f"{sensor.capitalize()} points per box (box: p25-p75, whiskers: p5-p95, "
+                          "triangle: mean; red: share of boxes with 0 points)", fontsize=9)
+    return _save(fig, path)
+
+
+def plot_ego_speed(motion: pl.DataFrame, path: Path, *, max_scenes: int = MAX_SCENES,
+                   title: str = "Ego speed (LIDAR_TOP keyframes)") -> Path:
+    """Ego speed over time, one line per scene (the first `max_scenes` scenes by name), from `ego_motion`."""
+    fig, ax = plt.subplots(figsize=(10, 5), layout="constrained")
+    scenes = sorted(motion["scene_name"].unique().to_list())
+    if not scenes:
+        _empty(ax, "LIDAR_TOP keyframes")
+        return _save(fig, path)
+    shown = scenes[:max_scenes]
+    for scene_name in shown:
+        rows = motion.filter(pl.col("scene_name") == scene_name).sort("time_s")
+        ax.plot(rows["time_s"], rows["speed_mps"], marker=".", markersize=3, linewidth=1, label=scene_name)
+    ax.set_xlabel("time since the scene's first keyframe (s)")
+    ax.set_ylabel("speed (m/s)")
+    suffix = f" — first {len(shown)} of {len(scenes)} scenes" if len(shown) < len(scenes) else ""
+    ax.set_title(title + suffix)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, ncols=2 if len(shown) > 6 else 1)
+    return _save(fig, path)
+
+
+def write_plots(ds, out_dir: Path, *, scene: str | Sequence[str] | None = None,
+                results: dict[str, pl.DataFrame] | None = None) -> list[Path]:
+    """Write the four charts of `nuparquet stats --plots` into `out_dir`; returns their paths.
+
+    `results` may hold already collected `queries.summary` sections (``class_distribution``,
+    ``distance_histogram``, ``points_per_box``, ``ego_motion``) to avoid running them again.
+    """
+    results = dict(results or {})
+    needed = [s for s in ("class_distribution", "distance_histogram", "points_per_box", "ego_motion")
+              if s not in results]
+    if needed:
+        lazy = queries.summary(ds, scene=scene, sections=needed)
+        results.update(zip(lazy, pl.collect_all(list(lazy.values()))))
+    out_dir = Path(out_dir)
+    where = f" — {scene}" if isinstance(scene, str) else ""
+    return [
+        plot_class_distribution(results["class_distribution"], out_dir / "class_distribution.png",
+                                title=f"Annotations and instances per category{where}"),
+        plot_distance_histogram(results["distance_histogram"], out_dir / "distance_histogram.png",
+                                title=f"Distance from the ego vehicle by category{where}"),
+        plot_points_per_box(results["points_per_box"], out_dir / "lidar_points_per_box.png"),
+        plot_ego_speed(results["ego_motion"], out_dir / "ego_speed.png"),
+    ]
