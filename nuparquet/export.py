@@ -37,12 +37,12 @@ def export_json(dataset_dir: Path | str, out: Path | str, *, overwrite: bool = F
                 on_table(name)
             source = table_schemas()[name].source if name in table_schemas() else f"{name}.json"
             _write_table(dataset_dir / manifest["datasets"][f"tables/{name}"]["path"], tmp / source,
-                         info["key_order"], name)
+                         info["key_order"], name, set(info.get("json_fields", ())))
             written.append(Path(out) / source)
     return written
 
 
-def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str) -> None:
+def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str, json_fields: set[str]) -> None:
     empty_list_fields = {f.name for f in table_schemas()[name].fields if f.empty_list_is_null} \
         if name in table_schemas() else set()
     files = sorted(parquet_dir.glob("*.parquet"))
@@ -55,6 +55,8 @@ def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str)
                 for key, values in zip(key_order, columns):
                     if key in empty_list_fields:
                         values[:] = [[] if v is None else v for v in values]
+                    elif key in json_fields:  # fields the schema does not know, kept as raw JSON text
+                        values[:] = [None if v is None else json.loads(v) for v in values]
                 for values in zip(*columns):
                     out.write("\n" if first else ",\n")
                     first = False

@@ -6,10 +6,13 @@ DuckDB 2.1 s / 0.55 GB RSS, orjson (GC off) 3.6 s / 3.8 GB, json.load 7-11 s / 2
 9.1 s / 4.0 GB. Only DuckDB parses straight into columns without building a Python object per field, so
 it is the only one that keeps a whole trainval conversion inside 4 GB.
 
-DuckDB coerces silently when told a type (1.5 into BIGINT gives 2, 1 into VARCHAR gives "1"), so each
-file is read twice: first its types are detected over *every* record (`sample_size=-1`) and checked
-against `schemas/tables`, then it is read with explicit column types that are known to be lossless. A
-mismatch sends that field down a diagnostic query that names every offending record.
+DuckDB coerces silently when told a type (1.5 read as BIGINT gives 2, 1 read as VARCHAR gives "1"), and
+detecting types over every record costs a full extra parse. So each file is read in two cheap passes:
+1. the set of keys of every record (`json_keys` over `read_json_objects`, ~half a parse): finds fields
+   the schema does not know, whatever record they first appear in, and the source key order;
+2. one typed read in which every scalar field arrives as raw JSON and is checked (`json_type`) and cast
+   in the same query, so a wrong JSON type is reported per record instead of coerced.
+Fields the schema does not know are kept as their raw JSON text and written back verbatim by export-json.
 """
 
 from __future__ import annotations
@@ -27,10 +30,6 @@ from nuparquet.errors import UsageError
 from nuparquet.problems import Problem
 from nuparquet.schemas import Field, Schema, table_schemas
 
-# JSON value kinds (duckdb json_type) accepted for each schema type, and the DuckDB type to read it as.
-_INT_KINDS = {"UBIGINT", "BIGINT"}
-_DETECTED_INTS = {"BIGINT", "UBIGINT", "INTEGER", "HUGEINT", "UHUGEINT", "SMALLINT", "TINYINT", "UINTEGER"}
-_DETECTED_STRINGS = {"VARCHAR", "DATE", "TIME", "TIMESTAMP", "UUID"}  # DuckDB sniffs dates out of strings
 
 
 @dataclass
@@ -42,6 +41,7 @@ class SourceTable:
     table: pa.Table
     key_order: list[str]  # the JSON key order of the source records
     float_fields: list[str] = field(default_factory=list)  # int fields the source stores as JSON floats
+    json_fields: list[str] = field(default_factory=list)  # fields the schema does not know: raw JSON text
 
 
 @dataclass
@@ -114,44 +114,110 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
         empty = pa.table({f.name: pa.array([], f.arrow_type) for f in schema.fields})
         return SourceTable(schema.name, path, empty, schema.names), []
 
-    src = f"read_json({_sql_path(path)}, format='array', records=true, maximum_object_size=1073741824"
-    try:
-        detected = con.sql(f"DESCRIBE SELECT * FROM {src}, sample_size=-1)").fetchall()
+    objects = f"read_json_objects({_sql_path(path)}, format='array', maximum_object_size=1073741824)"
+    try:  # pass 1: every record's keys (and whether it is an object at all)
+        key_sets = con.sql(f"SELECT json_type(json) AS kind, json_keys(json) AS keys, count(*) AS n "
+                           f"FROM {objects} GROUP BY ALL ORDER BY n DESC").fetchall()
     except duckdb.Error as exc:
         return None, [Problem(file, _duckdb_message(exc))]
-    detected_types = {row[0]: row[1] for row in detected}
+    if any(kind != "OBJECT" for kind, _, _ in key_sets):
+        rows = con.sql(f"SELECT idx, kind FROM (SELECT row_number() OVER () - 1 AS idx, json_type(json) AS kind "
+                       f"FROM {objects}) WHERE kind != 'OBJECT' ORDER BY idx LIMIT 50").fetchall()
+        return None, [Problem(file, f"record is a JSON {kind.lower()}, not an object", idx) for idx, kind in rows]
+    key_order = list(key_sets[0][1])  # the most common record layout
+    for _, keys, _ in key_sets[1:]:
+        key_order += [k for k in keys if k not in key_order]
 
-    problems: list[Problem] = []
-    columns: dict[str, str] = {}
-    float_fields: list[str] = []
-    for f in schema.fields:
-        if f.name not in detected_types:
-            if f.required:
-                problems.append(Problem(file, f"required field {f.name!r} is missing from every record"))
-            continue
-        read_as = _read_type(f, detected_types[f.name])
-        if read_as is None:
-            problems += _diagnose_field(con, src, file, f)
-            continue
-        columns[f.name] = read_as
-        if f.json_float_ok and read_as == "DOUBLE":
-            float_fields.append(f.name)
-    known = set(schema.names)
-    for name, detected_type in detected_types.items():  # fields the schema does not know: kept as found
-        if name not in known:
-            columns[name] = "VARCHAR" if detected_type in _DETECTED_STRINGS else detected_type
+    known = {f.name for f in schema.fields}
+    extras = [k for k in key_order if k not in known]
+    present = set(key_order)
+    fields = [f for f in schema.fields if f.name in present]
+    problems = [Problem(file, f"required field {f.name!r} is missing from every record")
+                for f in schema.fields if f.required and f.name not in present]
     if problems:
         return None, problems
 
+    columns = {f.name: _duckdb_type(f) for f in fields} | dict.fromkeys(extras, "JSON")
     spec = "{" + ", ".join(f"{_sql_ident(k)}: '{v}'" for k, v in columns.items()) + "}"
-    try:
-        raw = con.sql(f"SELECT * FROM {src}, columns={spec})").to_arrow_table()
-    except duckdb.Error as exc:
-        return None, [Problem(file, _duckdb_message(exc))]
+    select = []
+    for f in fields:
+        select += _typed_select(f)
+    select += [_sql_ident(k) for k in extras]
+    src = f"read_json({_sql_path(path)}, format='array', records=true, maximum_object_size=1073741824, columns={spec})"
+    try:  # pass 2: the typed read, with a per-record check of every scalar field's JSON type
+        raw = con.sql(f"SELECT {', '.join(select)} FROM {src}").to_arrow_table()
+    except duckdb.Error as exc:  # a list field of the wrong shape: name the records
+        problems = [p for f in fields if f.type.startswith(("list", "fixed_size_list"))
+                    for p in _diagnose_field(con, src.replace(f", columns={spec}", ""), file, f)]
+        return None, problems or [Problem(file, _duckdb_message(exc))]
+
+    problems, float_fields = _check_kinds(raw, fields, file)
+    if problems:
+        return None, problems
+    raw = raw.drop_columns([c for c in raw.column_names if c.startswith("__")])
     table, problems = _to_schema_types(raw, schema, file, float_fields)
     if problems:
         return None, problems
-    return SourceTable(schema.name, path, table, list(detected_types), float_fields), []
+    return SourceTable(schema.name, path, table, key_order, float_fields, extras), []
+
+
+_SCALAR_KINDS = {"string": ("VARCHAR",), "bool": ("BOOLEAN",), "int64": ("UBIGINT", "BIGINT"),
+                 "float64": ("UBIGINT", "BIGINT", "DOUBLE")}
+_SCALAR_WORDS = {"string": "a string", "bool": "a boolean", "int64": "an integer", "float64": "a number"}
+
+
+def _typed_select(f: Field) -> list[str]:
+    """SELECT items for one field: its typed value plus, for scalars, `__ok_<name>` (right JSON type) and
+    for int fields that may be JSON floats `__float_<name>` and the value as DOUBLE."""
+    col = _sql_ident(f.name)
+    if f.type not in _SCALAR_KINDS:
+        return [col]
+    kinds = _SCALAR_KINDS[f.type] + (("DOUBLE",) if f.json_float_ok else ()) + (("NULL",) if not f.required else ())
+    kind_list = ", ".join(f"'{k}'" for k in kinds)
+    ok = f"coalesce(json_type({col}) IN ({kind_list}), {'false' if f.required else 'true'}) AS {_sql_ident('__ok_' + f.name)}"
+    if f.type == "string":
+        value = f"{col} ->> '$'"
+    elif f.type == "bool":
+        value = f"TRY_CAST({col} AS BOOLEAN)"
+    elif f.type == "float64":
+        value = f"TRY_CAST({col} AS DOUBLE)"
+    else:  # int64: never let DuckDB round a JSON float into it
+        value = f"CASE WHEN json_type({col}) IN ('UBIGINT', 'BIGINT') THEN TRY_CAST({col} AS BIGINT) END"
+    items = [f"{value} AS {col}", ok]
+    if f.json_float_ok:
+        items += [f"json_type({col}) = 'DOUBLE' AS {_sql_ident('__float_' + f.name)}",
+                  f"TRY_CAST({col} AS DOUBLE) AS {_sql_ident('__double_' + f.name)}"]
+    return items
+
+
+def _check_kinds(raw: pa.Table, fields: list[Field], file: str) -> tuple[list[Problem], list[str]]:
+    """Records whose scalar fields had the wrong JSON type; and the int fields stored as JSON floats
+    (their `__double_` column replaces the int one: float64 keeps them losslessly)."""
+    problems: list[Problem] = []
+    float_fields: list[str] = []
+    tokens = raw.column("token") if "token" in raw.column_names else None
+    for f in fields:
+        if f.type not in _SCALAR_KINDS:
+            continue
+        ok = raw.column("__ok_" + f.name)
+        if not pc.all(ok).as_py():
+            bad = pc.indices_nonzero(pc.invert(ok.combine_chunks())).to_pylist()
+            for idx in bad[:50]:
+                token = tokens[idx].as_py() if tokens is not None else None
+                problems.append(Problem(file, f"field {f.name!r} must be {_SCALAR_WORDS[f.type]}, got "
+                                              f"{_describe_value(raw.column(f.name)[idx].as_py())}", idx, token))
+            if len(bad) > 50:
+                problems.append(Problem(file, f"... {len(bad) - 50} more records with a bad {f.name!r}"))
+        if f.json_float_ok and pc.any(raw.column("__float_" + f.name)).as_py():
+            float_fields.append(f.name)
+    for name in float_fields:
+        i = raw.column_names.index(name)
+        raw = raw.set_column(i, name, raw.column("__double_" + name))
+    return problems, float_fields
+
+
+def _describe_value(value) -> str:
+    return "a missing value or null" if value is None else f"{value!r}"
 
 
 def _sql_ident(name: str) -> str:
@@ -163,60 +229,28 @@ def _duckdb_message(exc: duckdb.Error) -> str:
     return text.replace("Invalid Input Error: ", "").replace("Binder Error: ", "")
 
 
-def _read_type(f: Field, detected: str) -> str | None:
-    """The DuckDB type to read field `f` with, or None when the detected JSON type does not fit."""
-    t = f.type
-    if detected in ("NULL", '"NULL"', "JSON[]") and (f.nullable or f.empty_list_is_null):
-        return _duckdb_type(f)  # all null, or all empty lists (a dataset without cameras)
-    if t == "string":
-        return "VARCHAR" if detected in _DETECTED_STRINGS else None
-    if t == "bool":
-        return "BOOLEAN" if detected == "BOOLEAN" else None
-    if t == "int64":
-        if detected in _DETECTED_INTS:
-            return "BIGINT"
-        if detected == "DOUBLE" and f.json_float_ok:
-            return "DOUBLE"
-        return None
-    if t == "float64":
-        return "DOUBLE" if detected == "DOUBLE" or detected in _DETECTED_INTS else None
-    if t == "list<string>":
-        return "VARCHAR[]" if detected in ("VARCHAR[]", "JSON[]", "NULL[]") else None
-    if t.startswith("fixed_size_list<fixed_size_list<float64>"):
-        ok = {"DOUBLE[][]", "BIGINT[][]", "UBIGINT[][]", "JSON[]", "NULL[]"}
-        return "DOUBLE[][]" if detected in ok else None
-    if t.startswith("fixed_size_list<float64>"):
-        return "DOUBLE[]" if detected in ("DOUBLE[]", "BIGINT[]", "UBIGINT[]") else None
-    raise AssertionError(f"no JSON reading rule for schema type {t}")
-
-
 def _duckdb_type(f: Field) -> str:
-    return {"string": "VARCHAR", "bool": "BOOLEAN", "int64": "BIGINT", "float64": "DOUBLE",
-            "list<string>": "VARCHAR[]"}.get(f.type, "DOUBLE[][]" if f.type.count("fixed_size_list") == 2 else "DOUBLE[]")
+    """How DuckDB reads a field: scalars as raw JSON (checked and cast in SQL), lists as typed lists."""
+    if f.type == "list<string>":
+        return "VARCHAR[]"
+    if f.type.startswith("fixed_size_list"):
+        return "DOUBLE[][]" if f.type.count("fixed_size_list") == 2 else "DOUBLE[]"
+    return "JSON"
 
 
-def _accepted_kinds(f: Field) -> tuple[set[str], str]:
-    """JSON kinds (json_type / json_structure) a field may hold, and a word for the error message."""
-    t = f.type
-    if t == "string":
-        return {"VARCHAR"}, "a string"
-    if t == "bool":
-        return {"BOOLEAN"}, "a boolean"
-    if t == "int64":
-        return (_INT_KINDS | {"DOUBLE"} if f.json_float_ok else _INT_KINDS), "an integer"
-    if t == "float64":
-        return _INT_KINDS | {"DOUBLE"}, "a number"
-    if t == "list<string>":
+def _accepted_structures(f: Field) -> tuple[set[str], str]:
+    """JSON structures (duckdb json_structure) a list field may hold, and a word for the error message."""
+    if f.type == "list<string>":
         return {'["VARCHAR"]', '["NULL"]'}, "a list of strings"
-    if t.count("fixed_size_list") == 2:
+    if f.type.count("fixed_size_list") == 2:
         return {'[["DOUBLE"]]', '[["UBIGINT"]]', '[["BIGINT"]]', '["NULL"]'}, "a 3x3 list of numbers or []"
     return {'["DOUBLE"]', '["UBIGINT"]', '["BIGINT"]'}, "a list of numbers"
 
 
 def _diagnose_field(con: duckdb.DuckDBPyConnection, src: str, file: str, f: Field, limit: int = 50) -> list[Problem]:
     """Name every record whose value of `f` has the wrong JSON type (the slow path, only on error)."""
-    kinds, word = _accepted_kinds(f)
-    probe = "json_type" if f.type in ("string", "bool", "int64", "float64") else "json_structure"
+    kinds, word = _accepted_structures(f)
+    probe = "json_structure"
     col = _sql_ident(f.name)
     query = f"""
         SELECT idx, token, kind FROM (
@@ -230,8 +264,6 @@ def _diagnose_field(con: duckdb.DuckDBPyConnection, src: str, file: str, f: Fiel
     out = []
     for idx, token, kind in rows:
         got = "missing" if kind is None else f"JSON {kind.lower()}"
-        if f.type == "int64" and kind == "DOUBLE":
-            got = "a non-integer number (would be truncated)"
         out.append(Problem(file, f"field {f.name!r} must be {word}, got {got}", idx, token))
     return out
 

@@ -78,7 +78,7 @@ def convert(dataroot: Path | str, version: str, out: Path | str, *, overwrite: b
                 "created_utc": utc_now(),
                 "source": {"dataroot": str(Path(dataroot).resolve()), "version": version, "files": result.files},
                 "datasets": datasets,
-                "tables": {name: {"key_order": s.key_order, "float_fields": s.float_fields}
+                "tables": {name: {"key_order": s.key_order, "float_fields": s.float_fields, "json_fields": s.json_fields}
                            for name, s in result.tables.items()},
             }
             step("write manifest")
