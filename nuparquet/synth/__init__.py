@@ -1,0 +1,127 @@
+"""Deterministic synthetic datasets in the exact nuScenes layout (`nuparquet synth`).
+
+`synthesize(out_dir, scenes=N)` writes a dataroot that the nuscenes-devkit and nuparquet both read:
+
+    out_dir/<version>/{attribute,calibrated_sensor,...,visibility}.json   the 13 tables
+    out_dir/maps/<map token>.png                                         tiny placeholder semantic maps
+    out_dir/samples/<CHANNEL>/..., out_dir/sweeps/<CHANNEL>/...          with images and/or lidar
+
+It is a producer of nuScenes JSON like any real dataset: nothing else in nuparquet depends on its internals.
+Same arguments -> byte-identical tables (tokens come from a seeded generator, never from the clock).
+
+Modules: `taxonomy` (names and calibration style), `plan` (logs, scene start times, rigs), `timeline`
+(sample and sensor timestamps), `world` (road, ego motion, objects, annotations), `tables` (JSON),
+`sensors` (JPEG / lidar / radar files), `rigid` (quaternions and boxes).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from nuparquet.errors import UsageError
+from nuparquet.synth.plan import plan_logs
+from nuparquet.synth.sensors import SceneSensors
+from nuparquet.synth.tables import (
+    TABLES, SceneTokens, TableWriter, frame_filenames, global_records, map_token, random_tokens, scene_records,
+)
+from nuparquet.synth.taxonomy import KEYFRAME_INTERVAL_US
+from nuparquet.synth.timeline import make_timeline
+from nuparquet.synth.world import build_scene
+
+__all__ = ["synthesize"]
+
+MAP_SIZE_PX = 64
+
+
+def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images: bool = False,
+               with_lidar: bool = False, seed: int = 0, version: str = "v1.0-synth",
+               progress: bool = False) -> Path:
+    """Write a synthetic nuScenes-format dataroot and return its path (`out_dir`).
+
+    scenes: number of scenes (named scene-0001, ...), spread over logs of several locations.
+    samples_per_scene: keyframes per scene, 2 Hz (40 = a 20 s scene, like nuScenes).
+    with_images: write the 6 camera JPEGs of every keyframe and sweep (boxes painted in category colours).
+    with_lidar: write the LIDAR_TOP `.pcd.bin` and the 5 radar `.pcd` files of every keyframe and sweep.
+    Without either, only the tables and maps are written (trainval scale takes minutes, not hours).
+
+    The tables are written to a temporary sibling and renamed to `out_dir/<version>` when complete; an
+    existing `out_dir/<version>` is replaced.
+    """
+    _check_arguments(scenes, samples_per_scene, seed, version)
+    dataroot = Path(out_dir)
+    dataroot.mkdir(parents=True, exist_ok=True)
+    table_dir = dataroot / version
+    partial_dir = dataroot / f".{version}.partial"
+    if partial_dir.exists():
+        shutil.rmtree(partial_dir)
+    partial_dir.mkdir()
+
+    scene_duration_s = (samples_per_scene - 1) * KEYFRAME_INTERVAL_US / 1e6
+    logs = plan_logs(seed, scenes, scene_duration_s, lambda rng: random_tokens(rng, 1)[0])
+    writers = {name: TableWriter(partial_dir / f"{name}.json") for name in TABLES}
+    try:
+        for name, records in global_records(logs).items():
+            writers[name].write_dicts(records)
+        bar = _progress_bar(scenes, with_images or with_lidar) if progress else None
+        for log in logs:
+            for scene_index, start_us in zip(log.scene_indices, log.scene_start_us):
+                rng = np.random.default_rng([seed, 1, scene_index])
+                world = build_scene(rng, make_timeline(rng, start_us, samples_per_scene),
+                                    log.location.drives_on_right)
+                tokens = SceneTokens.draw(rng, world)
+                filenames = frame_filenames(world, log.logfile)
+                for name, records in scene_records(world, tokens, log, _scene_name(scene_index, scenes),
+                                                   filenames).items():
+                    writers[name].write(records)
+                if with_images or with_lidar:
+                    SceneSensors(world, log.rig, seed, scene_index).write(
+                        dataroot, filenames, images=with_images, point_clouds=with_lidar)
+                if bar is not None:
+                    bar.update(1)
+        if bar is not None:
+            bar.close()
+    finally:
+        for writer in writers.values():
+            writer.close()
+
+    _write_maps(dataroot, sorted({log.location.name for log in logs}))
+    if table_dir.exists():
+        shutil.rmtree(table_dir)
+    os.replace(partial_dir, table_dir)
+    return dataroot
+
+
+def _check_arguments(scenes, samples_per_scene, seed, version) -> None:
+    if not isinstance(scenes, (int, np.integer)) or scenes < 1:
+        raise UsageError(f"scenes must be a positive integer, got {scenes!r}")
+    if not isinstance(samples_per_scene, (int, np.integer)) or samples_per_scene < 1:
+        raise UsageError(f"samples per scene must be a positive integer, got {samples_per_scene!r}")
+    if not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise UsageError(f"seed must be a non-negative integer, got {seed!r}")
+    if not version or "/" in version or "\\" in version or version.startswith("."):
+        raise UsageError(f"version must be a plain folder name such as v1.0-synth, got {version!r}")
+
+
+def _scene_name(scene_index: int, scenes: int) -> str:
+    return f"scene-{scene_index + 1:0{max(4, len(str(scenes)))}d}"
+
+
+def _write_maps(dataroot: Path, locations: list[str]) -> None:
+    """Tiny blank semantic-prior PNGs: the devkit asserts at start-up that every map file exists."""
+    maps_dir = dataroot / "maps"
+    maps_dir.mkdir(exist_ok=True)
+    ok, png = cv2.imencode(".png", np.zeros((MAP_SIZE_PX, MAP_SIZE_PX), dtype=np.uint8))
+    for location in locations:
+        (maps_dir / f"{map_token(location)}.png").write_bytes(png.tobytes())
+
+
+def _progress_bar(scenes: int, with_files: bool):
+    from tqdm import tqdm  # only when asked: the library is quiet by default
+
+    return tqdm(total=scenes, unit="scene", desc="synth" + (" (with sensor files)" if with_files else ""),
+                dynamic_ncols=True)
