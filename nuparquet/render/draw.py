@@ -111,7 +111,7 @@ def clip_box_segments(corners_cam_m, intrinsic, near_m: float = NEAR_PLANE_M) ->
     keep = (z_start >= near_m) | (z_end >= near_m)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = (near_m - z_start) / (z_end - z_start)  # where the line crosses the near plane
-    crossing = start + t[..., None] * (end - start)
+        crossing = start + t[..., None] * (end - start)
     crossing[..., 2] = near_m  # exactly on the plane, whatever the rounding
     start = np.where((z_start < near_m)[..., None], crossing, start)
     end = np.where((z_end < near_m)[..., None], crossing, end)

@@ -200,8 +200,13 @@ def _raise_unknown(dataset, options: RenderOptions) -> None:
     )
 
 
-def plan_outputs(cameras: pl.DataFrame, options: RenderOptions) -> tuple[tuple[str, ...], np.ndarray]:
+def plan_outputs(
+    cameras: pl.DataFrame, samples: pl.DataFrame, options: RenderOptions
+) -> tuple[tuple[str, ...], np.ndarray]:
     """Which camera row goes into each tile of each output frame.
+
+    One channel: every row, in time order. Mosaic of keyframes: one output per sample. Mosaic of all frames:
+    devkit `render_scene`'s time steps between the first and last sample (see `mosaic`).
 
     Returns:
         channels: (C,) the tile channels (one, or the six of MOSAIC_LAYOUT).
@@ -227,23 +232,20 @@ def plan_outputs(cameras: pl.DataFrame, options: RenderOptions) -> tuple[tuple[s
         columns = np.array([column_of[c] for c in exploded["channel"].to_list()], dtype=np.int64)
         rows[outputs, columns] = exploded["row"].to_numpy()
         return CAMERA_CHANNELS, rows
-    # Every frame: devkit render_scene, time steps of 1 / fps between the first and last sample.
-    sample_times = keyframes["timestamp"]
-    first_keyframe_us = int(sample_times.min()) if keyframes.height else int(cameras["timestamp"].min())
-    last_keyframe_us = int(sample_times.max()) if keyframes.height else int(cameras["timestamp"].max())
-    times_us = time_steps_us(first_keyframe_us, last_keyframe_us, options.frame_rate)
-    first_sample = keyframes.sort("timestamp").head(1)["sample_token"].to_list()
+    # Every frame: devkit render_scene, time steps of 1 / fps from the scene's first to its last sample.
+    samples = samples.sort("timestamp")
+    first_sample_token = samples["token"][0]
+    times_us = time_steps_us(int(samples["timestamp"][0]), int(samples["timestamp"][-1]), options.frame_rate)
+    timestamps = cameras["timestamp"].to_numpy()
+    starts = (cameras["sample_token"] == first_sample_token).to_numpy() & cameras["is_key_frame"].to_numpy()
     rows = np.full((len(times_us), len(CAMERA_CHANNELS)), -1, dtype=np.int64)
     for column, channel in enumerate(CAMERA_CHANNELS):  # six channels
         channel_index = channel_rows[channel]
         if len(channel_index) == 0:
             continue
-        timestamps = cameras["timestamp"].to_numpy()[channel_index]
-        is_start = (cameras["sample_token"].to_numpy()[channel_index] == (first_sample[0] if first_sample else None)) & (
-            cameras["is_key_frame"].to_numpy()[channel_index]
-        )
-        start = int(np.argmax(is_start)) if is_start.any() else 0
-        rows[:, column] = channel_index[match_frames_by_time(timestamps, start, times_us)]
+        # The devkit starts each camera at its keyframe of the first sample.
+        start = int(np.argmax(starts[channel_index])) if starts[channel_index].any() else 0
+        rows[:, column] = channel_index[match_frames_by_time(timestamps[channel_index], start, times_us)]
     return CAMERA_CHANNELS, rows
 
 
@@ -380,7 +382,7 @@ def render(dataset_or_path, options: RenderOptions) -> RenderResult:
     cameras = scene.cameras
     full_width, full_height = int(cameras["width"].max()), int(cameras["height"].max())
     tile_size = (max(2, round(full_width * options.scale)), max(2, round(full_height * options.scale)))
-    channels, plan = plan_outputs(cameras, options)
+    channels, plan = plan_outputs(cameras, scene.samples, options)
     overlay = build_overlay(cameras, scene.annotations, scene.samples, tile_size, options)
     out_size = mosaic_size(*tile_size) if options.mosaic else tile_size
 
