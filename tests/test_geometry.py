@@ -38,7 +38,8 @@ def test_rotation_matrices_equal_pyquaternion(rng):
 
 def test_rotation_matrices_are_orthonormal_with_determinant_one(rng):
     rotation = geometry.rotation_matrices(random_quaternions(rng))
-    np.testing.assert_allclose(rotation @ np.swapaxes(rotation, 1, 2), np.broadcast_to(np.eye(3), rotation.shape), atol=1e-12)
+    identity = np.broadcast_to(np.eye(3), rotation.shape)
+    np.testing.assert_allclose(rotation @ np.swapaxes(rotation, 1, 2), identity, atol=1e-12)
     np.testing.assert_allclose(np.linalg.det(rotation), 1.0, atol=1e-12)
 
 
@@ -144,9 +145,11 @@ def test_view_points_equals_devkit_for_perspective_and_orthographic_views(rng):
 
     intrinsic = np.array([[1266.4, 0.0, 816.3], [0.0, 1266.4, 491.5], [0.0, 0.0, 1.0]])
     points_camera = rng.uniform([-20, -10, 0.2], [20, 10, 80], size=(N, 3))
-    for view, normalize in ((intrinsic, True), (intrinsic, False), (rng.normal(size=(3, 4)), False), (np.eye(2), False)):
+    views = ((intrinsic, True), (intrinsic, False), (rng.normal(size=(3, 4)), False), (np.eye(2), False))
+    for view, normalize in views:
         expected = view_points(points_camera.T, view, normalize=normalize).T
-        np.testing.assert_allclose(geometry.view_points(points_camera, view, normalize=normalize), expected, rtol=1e-13, atol=1e-9)
+        projected = geometry.view_points(points_camera, view, normalize=normalize)
+        np.testing.assert_allclose(projected, expected, rtol=1e-13, atol=1e-9)
 
 
 def test_view_points_takes_one_intrinsic_per_box(rng):
@@ -158,7 +161,8 @@ def test_view_points_takes_one_intrinsic_per_box(rng):
     corners_camera = rng.uniform([-20, -10, 0.2], [20, 10, 80], size=(10, 8, 3))
     projected = geometry.view_points(corners_camera, intrinsics, normalize=True)
     for i in range(10):
-        np.testing.assert_allclose(projected[i], view_points(corners_camera[i].T, intrinsics[i], normalize=True).T, rtol=1e-13)
+        expected = view_points(corners_camera[i].T, intrinsics[i], normalize=True).T
+        np.testing.assert_allclose(projected[i], expected, rtol=1e-13)
 
 
 def test_quaternion_slerp_equals_pyquaternion_slerp(rng):

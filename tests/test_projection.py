@@ -143,7 +143,8 @@ def assert_lidar_matches_devkit(nusc, monkeypatch, out: Path, dataroot: Path, sc
     if scene_name is not None:
         frames = frames.filter(pl.col("scene_name") == scene_name)
     frames = frames.collect()
-    lidar_of_sample = {row["sample_token"]: row for row in frames.filter(pl.col("channel") == "LIDAR_TOP").iter_rows(named=True)}
+    lidar_rows = frames.filter(pl.col("channel") == "LIDAR_TOP").iter_rows(named=True)
+    lidar_of_sample = {row["sample_token"]: row for row in lidar_rows}
     counts = {"images": 0, "points": 0, "boundary_points": 0, "max_error_px": 0.0, "max_depth_error_m": 0.0}
     for camera in frames.filter(pl.col("modality") == "camera").iter_rows(named=True):
         lidar = lidar_of_sample[camera["sample_token"]]
@@ -167,7 +168,8 @@ def assert_lidar_matches_devkit(nusc, monkeypatch, out: Path, dataroot: Path, sc
             np.abs(devkit_uv[differ, 0] - 1), np.abs(devkit_uv[differ, 0] - (width - 1)),
             np.abs(devkit_uv[differ, 1] - 1), np.abs(devkit_uv[differ, 1] - (height - 1)),
         ]) if len(differ) else np.zeros(0)
-        near_edge = (margin_px < LIDAR_EDGE_TOLERANCE_PX) | (np.abs(devkit_depth_m[differ] - 1.0) < LIDAR_DEPTH_TOLERANCE_M)
+        near_depth_limit = np.abs(devkit_depth_m[differ] - 1.0) < LIDAR_DEPTH_TOLERANCE_M
+        near_edge = (margin_px < LIDAR_EDGE_TOLERANCE_PX) | near_depth_limit
         assert near_edge.all(), f"points {differ[~near_edge]} of {lidar['token']} in {camera['token']}"
 
         both = np.isin(index, np.flatnonzero(devkit_keep))
@@ -294,7 +296,8 @@ def small_tables(frame_timestamp: int, is_key_frame: bool = False, frame_sample:
     ego_from_camera_rotation = [0.5, -0.5, 0.5, -0.5]
     frames = pl.DataFrame(
         {
-            "token": ["f"], "sample_token": [frame_sample], "timestamp": [frame_timestamp], "is_key_frame": [is_key_frame],
+            "token": ["f"], "sample_token": [frame_sample], "timestamp": [frame_timestamp],
+            "is_key_frame": [is_key_frame],
             "width": [1600], "height": [900],
             "ego_translation": [[0.0, 0.0, 0.0]], "ego_rotation": [IDENTITY],
             "sensor_translation": [[0.0, 0.0, 1.5]], "sensor_rotation": [ego_from_camera_rotation],
@@ -308,7 +311,8 @@ def small_tables(frame_timestamp: int, is_key_frame: bool = False, frame_sample:
 
 
 def boxes_by_token(frames, annotations, samples) -> dict[str, dict]:
-    return {row["annotation_token"]: row for row in boxes_for_frames(frames, annotations, samples).iter_rows(named=True)}
+    boxes = boxes_for_frames(frames, annotations, samples)
+    return {row["annotation_token"]: row for row in boxes.iter_rows(named=True)}
 
 
 def test_sweep_box_is_interpolated_for_instances_in_both_samples_and_dropped_when_only_in_previous():
@@ -334,6 +338,17 @@ def test_keyframe_and_first_sample_sweep_use_their_sample_boxes_unchanged():
     assert not any(row["interpolated"] for row in keyframe.values())
     assert set(first_sample_sweep) == {"a-both-0", "a-gone-0"}
     assert not any(row["interpolated"] for row in first_sample_sweep.values())
+
+
+def test_duplicate_instance_in_previous_sample_gives_one_box_from_the_last_like_devkit_dict():
+    frames, annotations, samples = small_tables(frame_timestamp=1500)
+    duplicate = annotations.filter(pl.col("token") == "a-both-0").with_columns(
+        pl.lit("a-both-0-dup").alias("token"), pl.lit([14.0, 0.0, 0.0], dtype=pl.Array(pl.Float64, 3)).alias("translation")
+    )
+    boxes = boxes_for_frames(frames, pl.concat([annotations, duplicate]), samples)
+    assert boxes.height == 2
+    both = boxes.filter(pl.col("annotation_token") == "a-both-1")
+    np.testing.assert_allclose(both["translation"].to_numpy()[0], [17.0, 0.0, 0.0], atol=1e-12)
 
 
 def test_missing_previous_sample_is_an_error_not_silently_uninterpolated_boxes():

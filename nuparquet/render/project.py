@@ -147,7 +147,10 @@ def boxes_for_frames(
                 "instance_token",
                 pl.col("translation").alias("prev_translation"),
                 pl.col("rotation").alias("prev_rotation"),
-            ),
+            )
+            # The devkit maps instance -> previous annotation with a dict, so a (malformed) duplicate instance
+            # in one sample yields one box, the last one, rather than one box per duplicate.
+            .unique(["prev_sample_token", "instance_token"], keep="last", maintain_order=True),
             on=["prev_sample_token", "instance_token"],
             how="left",
         )
@@ -172,7 +175,9 @@ def boxes_for_frames(
         # The devkit divides Python ints; microsecond timestamps are exact in float64, so this rounds the same.
         with np.errstate(divide="ignore", invalid="ignore"):
             amount = np.where(t1 != t0, (t - t0).astype(np.float64) / (t1 - t0).astype(np.float64), 1.0)
-        rotation_wxyz[rows] = geometry.quaternion_slerp(_stack(part["prev_rotation"], (4,)), rotation_wxyz[rows], amount)
+        rotation_wxyz[rows] = geometry.quaternion_slerp(
+            _stack(part["prev_rotation"], (4,)), rotation_wxyz[rows], amount
+        )
 
     return joined.select(
         "frame_index", "frame_token", "annotation_token", "instance_token", "category_name",
@@ -357,9 +362,8 @@ def project_boxes(
     center_global_m = _stack(boxes["translation"], (3,))
     center_ego_m = geometry.transform_points(ego_from_global, center_global_m)
     center_camera_m = geometry.transform_points(camera_from_ego, center_ego_m)
-    camera_from_box_rotation = (
-        camera_from_ego[:, :3, :3] @ ego_from_global[:, :3, :3] @ geometry.rotation_matrices(_stack(boxes["rotation"], (4,)))
-    )
+    global_from_box_rotation = geometry.rotation_matrices(_stack(boxes["rotation"], (4,)))
+    camera_from_box_rotation = camera_from_ego[:, :3, :3] @ ego_from_global[:, :3, :3] @ global_from_box_rotation
     corners_camera_m = geometry.box_corners(center_camera_m, _stack(boxes["size"], (3,)), camera_from_box_rotation)
 
     corners_px = geometry.view_points(corners_camera_m, intrinsic, normalize=True)[..., :2]
@@ -426,7 +430,9 @@ def project_lidar_to_image(
     global_from_lidar_ego = geometry.rigid_transforms(lidar_frame["ego_translation"], lidar_frame["ego_rotation"])
     lidar_ego_from_lidar = geometry.rigid_transforms(lidar_frame["sensor_translation"], lidar_frame["sensor_rotation"])
     global_from_camera_ego = geometry.rigid_transforms(camera_frame["ego_translation"], camera_frame["ego_rotation"])
-    camera_ego_from_camera = geometry.rigid_transforms(camera_frame["sensor_translation"], camera_frame["sensor_rotation"])
+    camera_ego_from_camera = geometry.rigid_transforms(
+        camera_frame["sensor_translation"], camera_frame["sensor_rotation"]
+    )
 
     # Step by step rather than one composed matrix, the order the devkit applies them.
     points_global_m = geometry.transform_points(
