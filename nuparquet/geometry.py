@@ -140,8 +140,8 @@ def _apply_linear(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
         return points @ matrix.T
     if points.ndim == matrix.ndim - 1:  # one point per matrix
         return np.einsum("...ij,...j->...i", matrix, points)
-    if points.ndim == matrix.ndim:  # K points per matrix
-        return np.einsum("...ij,...kj->...ki", matrix, points)
+    if points.ndim == matrix.ndim:  # K points per matrix: (K, 3) @ (3, 3)^T per batch item
+        return points @ np.swapaxes(matrix, -1, -2)
     raise ValueError(
         f"points of shape {points.shape} do not fit transforms of shape {matrix.shape[:-2]} + (4, 4): "
         "expected (B..., 3) or (B..., K, 3)"
@@ -187,7 +187,7 @@ def box_corners(translation_m, size_wlh_m, rotation_wxyz) -> np.ndarray:
     F_from_box_rotation = rotation if rotation.shape[-2:] == (3, 3) else rotation_matrices(rotation)
     half_lwh = size_wlh_m[..., [1, 0, 2]] / 2.0  # box x is length, y is width, z is height
     corners_box = _CORNER_SIGNS_XYZ * half_lwh[..., None, :]  # (N, 8, 3)
-    return np.einsum("...ij,...kj->...ki", F_from_box_rotation, corners_box) + translation_m[..., None, :]
+    return corners_box @ np.swapaxes(F_from_box_rotation, -1, -2) + translation_m[..., None, :]
 
 
 def view_points(points, intrinsic, normalize: bool = True) -> np.ndarray:

@@ -167,11 +167,15 @@ def boxes_for_frames(
     rotation_wxyz = _stack(joined["rotation"], (4,))
     if interpolate.any():
         rows = np.flatnonzero(interpolate)
-        part = joined[rows]
+        part = joined.select(
+            "prev_sample_timestamp", "sample_timestamp", "frame_timestamp", "prev_translation", "prev_rotation"
+        )[rows]
         t0 = part["prev_sample_timestamp"].to_numpy().astype(np.int64)
         t1 = part["sample_timestamp"].to_numpy().astype(np.int64)
         t = np.maximum(t0, np.minimum(t1, part["frame_timestamp"].to_numpy().astype(np.int64)))
-        translation_m[rows] = _interp_two_points(t, t0, t1, _stack(part["prev_translation"], (3,)), translation_m[rows])
+        translation_m[rows] = _interp_two_points(
+            t, t0, t1, _stack(part["prev_translation"], (3,)), translation_m[rows]
+        )
         # The devkit divides Python ints; microsecond timestamps are exact in float64, so this rounds the same.
         with np.errstate(divide="ignore", invalid="ignore"):
             amount = np.where(t1 != t0, (t - t0).astype(np.float64) / (t1 - t0).astype(np.float64), 1.0)
