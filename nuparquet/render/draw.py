@@ -130,8 +130,8 @@ def clip_box_segments(corners_cam_m, intrinsic, near_m: float = NEAR_PLANE_M) ->
 def _kept_extent(segments_px, keep) -> tuple[np.ndarray, np.ndarray]:
     """(M, 2) low and high corner of the bounding box of each box's kept end points (+inf / -inf if none)."""
     usable = keep[..., None, None] & np.isfinite(segments_px)
-    points = segments_px.reshape(len(segments_px), -1, 2)
-    usable = usable.reshape(len(segments_px), -1, 2)
+    points = segments_px.reshape(len(segments_px), 28, 2)  # 14 segments x 2 ends
+    usable = usable.reshape(len(segments_px), 28, 2)
     low = np.where(usable, points, np.inf).min(axis=1)
     high = np.where(usable, points, -np.inf).max(axis=1)
     return low, high

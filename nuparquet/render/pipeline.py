@@ -502,7 +502,7 @@ def render(dataset_or_path, options: RenderOptions) -> RenderResult:
                 writer.write(picture)
             if frames_dir is not None:
                 target = frames_dir / f"{written:05d}.{options.frame_format}"
-                image_writes.append(pool.submit(_write_image, target, picture.copy() if options.mosaic else picture))
+                image_writes.append(pool.submit(_write_image, target, picture))  # never modified after this
             written += 1
             progress.update(1)
 
