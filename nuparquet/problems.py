@@ -15,6 +15,7 @@ class Problem:
     message: str
     index: int | None = None  # 0-based record index in the JSON array
     token: str | None = None
+    omitted: int = 0  # > 0: a summary standing for this many further problems of the same check
 
     def __str__(self) -> str:
         where = self.file if self.index is None else f"{self.file}[{self.index}]"
@@ -23,10 +24,17 @@ class Problem:
         return f"{where}: {self.message}"
 
 
+def count_problems(problems: list[Problem]) -> int:
+    return sum(p.omitted or 1 for p in problems)
+
+
 def format_problems(problems: list[Problem], limit: int = MAX_REPORTED) -> str:
-    lines = [str(p) for p in problems[:limit]]
-    if len(problems) > limit:
-        lines.append(f"... and {len(problems) - limit} more problems ({len(problems)} in all)")
+    """The first `limit` problems, then how many were not shown, then each check's summary of omissions."""
+    listed = [p for p in problems if not p.omitted]
+    lines = [str(p) for p in listed[:limit]]
+    if len(listed) > limit:
+        lines.append(f"... and {len(listed) - limit} more problems not shown")
+    lines += [f"{p.file}: ... {p.message}" for p in problems if p.omitted]
     return "\n".join(lines)
 
 
@@ -35,5 +43,5 @@ class ProblemsFound(InputError):
 
     def __init__(self, problems: list[Problem]):
         self.problems = problems
-        n = len(problems)
+        n = count_problems(problems)
         super().__init__(f"{n} problem{'s' if n != 1 else ''} in the input:\n{format_problems(problems)}")

@@ -151,7 +151,7 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
                     for p in _diagnose_field(con, src.replace(f", columns={spec}", ""), file, f)]
         return None, problems or [Problem(file, _duckdb_message(exc))]
 
-    problems, float_fields = _check_kinds(raw, fields, file)
+    raw, problems, float_fields = _check_kinds(raw, fields, file)
     if problems:
         return None, problems
     raw = raw.drop_columns([c for c in raw.column_names if c.startswith("__")])
@@ -190,7 +190,7 @@ def _typed_select(f: Field) -> list[str]:
     return items
 
 
-def _check_kinds(raw: pa.Table, fields: list[Field], file: str) -> tuple[list[Problem], list[str]]:
+def _check_kinds(raw: pa.Table, fields: list[Field], file: str) -> tuple[pa.Table, list[Problem], list[str]]:
     """Records whose scalar fields had the wrong JSON type; and the int fields stored as JSON floats
     (their `__double_` column replaces the int one: float64 keeps them losslessly)."""
     problems: list[Problem] = []
@@ -207,13 +207,13 @@ def _check_kinds(raw: pa.Table, fields: list[Field], file: str) -> tuple[list[Pr
                 problems.append(Problem(file, f"field {f.name!r} must be {_SCALAR_WORDS[f.type]}, got "
                                               f"{_describe_value(raw.column(f.name)[idx].as_py())}", idx, token))
             if len(bad) > 50:
-                problems.append(Problem(file, f"... {len(bad) - 50} more records with a bad {f.name!r}"))
+                problems.append(Problem(file, f"{len(bad) - 50} more records with a bad {f.name!r}", omitted=len(bad) - 50))
         if f.json_float_ok and pc.any(raw.column("__float_" + f.name)).as_py():
             float_fields.append(f.name)
     for name in float_fields:
         i = raw.column_names.index(name)
         raw = raw.set_column(i, name, raw.column("__double_" + name))
-    return problems, float_fields
+    return raw, problems, float_fields
 
 
 def _describe_value(value) -> str:

@@ -31,7 +31,7 @@ def check_integrity(tables: dict[str, SourceTable], limit: int = MAX_REPORTED) -
         for row in rows.head(limit).iter_rows(named=True):
             problems.append(Problem(files[table], message(row), row["_idx"], row.get("token")))
         if rows.height > limit:
-            problems.append(Problem(files[table], f"... {rows.height - limit} more like the above"))
+            problems.append(Problem(files[table], f"{rows.height - limit} more like the above", omitted=rows.height - limit))
 
     for name, df in frames.items():
         schema = table_schemas()[name]

@@ -77,7 +77,9 @@ def test_float_fields_are_kept_as_float64_and_recorded(lyft_like):
     table = pl.read_parquet(out / "tables/sample_data/*.parquet")
     assert table.schema["timestamp"] == pl.Float64
     assert (table["timestamp"] % 1 == 0.25).all()
-    assert pl.read_parquet(out / "tables/log/*.parquet")["map_token"][0] == "extra field kept as found"
+    # A field the schema does not know is kept as its raw JSON text (and recorded as such).
+    assert json.loads(pl.read_parquet(out / "tables/log/*.parquet")["map_token"][0]) == "extra field kept as found"
+    assert manifest["tables"]["log"]["json_fields"] == ["map_token"]
 
 
 def test_shared_ego_pose_joins_into_both_frames(lyft_like):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from nuparquet.convert import validate
-from nuparquet.problems import format_problems
+from nuparquet.problems import count_problems, format_problems
 
 
 def register(sub) -> None:
@@ -25,7 +25,8 @@ def run(args) -> int:
     result, problems = validate(args.dataroot, args.version)
     if problems:
         print(format_problems(problems, limit=args.max_problems))
-        print(f"{len(problems)} problem{'s' if len(problems) != 1 else ''} found")
+        n = count_problems(problems)
+        print(f"{n} problem{'s' if n != 1 else ''} found")
         return 1
     rows = sum(t.table.num_rows for t in result.tables.values())
     print(f"ok: {len(result.tables)} tables, {rows:,} records, no problems")
