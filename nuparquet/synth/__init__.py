@@ -10,8 +10,9 @@ It is a producer of nuScenes JSON like any real dataset: nothing else in nuparqu
 Same arguments -> byte-identical tables (tokens come from a seeded generator, never from the clock).
 
 Modules: `taxonomy` (names and calibration style), `plan` (logs, scene start times, rigs), `timeline`
-(sample and sensor timestamps), `world` (road, ego motion, objects, annotations), `tables` (JSON),
-`sensors` (JPEG / lidar / radar files), `rigid` (quaternions and boxes).
+(sample and sensor timestamps), `road` (centreline and speed profiles), `world` (ego motion, objects,
+annotations), `tables` (JSON), `sensors` (JPEG / lidar / radar files), `rigid` (quaternions and boxes),
+`tokens`.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from nuparquet.errors import UsageError
 from nuparquet.synth.plan import plan_logs
 from nuparquet.synth.sensors import SceneSensors
 from nuparquet.synth.tables import (
-    TABLES, SceneTokens, TableWriter, frame_filenames, global_records, map_token, random_tokens, scene_records,
+    TABLES, SceneTokens, TableWriter, frame_filenames, global_records, map_token, scene_records,
 )
 from nuparquet.synth.taxonomy import KEYFRAME_INTERVAL_US
 from nuparquet.synth.timeline import make_timeline
@@ -62,14 +63,31 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     partial_dir.mkdir()
 
     scene_duration_s = (samples_per_scene - 1) * KEYFRAME_INTERVAL_US / 1e6
-    logs = plan_logs(seed, scenes, scene_duration_s, lambda rng: random_tokens(rng, 1)[0])
-    writers = {name: TableWriter(partial_dir / f"{name}.json") for name in TABLES}
+    logs = plan_logs(seed, scenes, scene_duration_s)
+    try:
+        _write_tables_and_files(dataroot, partial_dir, logs, seed, scenes, samples_per_scene,
+                                images=with_images, point_clouds=with_lidar, progress=progress)
+    except BaseException:  # interrupted or failed: leave nothing that could pass for a complete version folder
+        shutil.rmtree(partial_dir, ignore_errors=True)
+        raise
+    _write_maps(dataroot, sorted({log.location.name for log in logs}))
+    if table_dir.exists():
+        shutil.rmtree(table_dir)
+    os.replace(partial_dir, table_dir)
+    return dataroot
+
+
+def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, scenes: int, samples_per_scene: int,
+                            *, images: bool, point_clouds: bool, progress: bool) -> None:
+    """Generate the scenes one by one (one scene in memory at a time) and stream them into the tables."""
+    writers = {name: TableWriter(table_dir / f"{name}.json") for name in TABLES}
+    bar = _progress_bar(scenes, images or point_clouds) if progress else None
     try:
         for name, records in global_records(logs).items():
             writers[name].write_dicts(records)
-        bar = _progress_bar(scenes, with_images or with_lidar) if progress else None
         for log in logs:
             for scene_index, start_us in zip(log.scene_indices, log.scene_start_us):
+                # One generator per scene: its random draws do not depend on the other scenes.
                 rng = np.random.default_rng([seed, 1, scene_index])
                 world = build_scene(rng, make_timeline(rng, start_us, samples_per_scene),
                                     log.location.drives_on_right)
@@ -78,22 +96,16 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
                 for name, records in scene_records(world, tokens, log, _scene_name(scene_index, scenes),
                                                    filenames).items():
                     writers[name].write(records)
-                if with_images or with_lidar:
+                if images or point_clouds:
                     SceneSensors(world, log.rig, seed, scene_index).write(
-                        dataroot, filenames, images=with_images, point_clouds=with_lidar)
+                        dataroot, filenames, images=images, point_clouds=point_clouds)
                 if bar is not None:
                     bar.update(1)
+    finally:
         if bar is not None:
             bar.close()
-    finally:
         for writer in writers.values():
             writer.close()
-
-    _write_maps(dataroot, sorted({log.location.name for log in logs}))
-    if table_dir.exists():
-        shutil.rmtree(table_dir)
-    os.replace(partial_dir, table_dir)
-    return dataroot
 
 
 def _check_arguments(scenes, samples_per_scene, seed, version) -> None:
@@ -116,6 +128,8 @@ def _write_maps(dataroot: Path, locations: list[str]) -> None:
     maps_dir = dataroot / "maps"
     maps_dir.mkdir(exist_ok=True)
     ok, png = cv2.imencode(".png", np.zeros((MAP_SIZE_PX, MAP_SIZE_PX), dtype=np.uint8))
+    if not ok:
+        raise RuntimeError("OpenCV could not encode a PNG")
     for location in locations:
         (maps_dir / f"{map_token(location)}.png").write_bytes(png.tobytes())
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from nuparquet.synth.rigid import quat_from_axis_angle, quat_from_matrix, quat_from_yaw, quat_multiply
 from nuparquet.synth.taxonomy import CAMERA_HEIGHT_PX, CAMERA_WIDTH_PX, CHANNELS, LOCATIONS, Location
+from nuparquet.synth.tokens import random_tokens
 
 SCENES_PER_LOG = 12.5  # nuScenes trainval: 850 scenes in 68 logs
 SCENE_GAP_S = (5.0, 90.0)  # idle time between two scenes of one log
@@ -73,9 +74,9 @@ def make_rig(rng: np.random.Generator) -> Rig:
     return Rig(translation, rotation, intrinsic)
 
 
-def plan_logs(seed: int, scenes: int, scene_duration_s: float, make_token) -> list[LogPlan]:
+def plan_logs(seed: int, scenes: int, scene_duration_s: float) -> list[LogPlan]:
     """Spread `scenes` over logs (at least two logs in two locations when there are two scenes or more),
-    consecutive scene indices per log. `make_token(rng)` draws one token."""
+    consecutive scene indices per log."""
     rng = np.random.default_rng([seed, 0])
     n_logs = min(scenes, max(2, round(scenes / SCENES_PER_LOG)))
     log_of_scene = (np.arange(scenes) * n_logs) // scenes
@@ -95,7 +96,7 @@ def plan_logs(seed: int, scenes: int, scene_duration_s: float, make_token) -> li
         gaps_us = rng.uniform(*SCENE_GAP_S, len(scene_indices)) * 1e6
         starts = start_us + np.cumsum(np.r_[0.0, gaps_us[:-1] + scene_duration_s * 1e6]).astype(np.int64)
         logs.append(LogPlan(
-            token=make_token(rng), logfile=logfile, vehicle=vehicle, date_captured=date.isoformat(),
+            token=random_tokens(rng, 1)[0], logfile=logfile, vehicle=vehicle, date_captured=date.isoformat(),
             location=location, rig=make_rig(rng), scene_indices=scene_indices,
             scene_start_us=tuple(int(s) for s in starts),
         ))

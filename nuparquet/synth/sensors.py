@@ -132,6 +132,8 @@ class SceneSensors:
                 made_dirs.add(path.parent)
             if modality == "camera":
                 ok, jpeg = cv2.imencode(".jpg", self.camera_image(frame), [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+                if not ok:
+                    raise RuntimeError(f"OpenCV could not encode {filename}")
                 path.write_bytes(jpeg.tobytes())
             elif modality == "lidar":
                 self.lidar_points(frame).astype(np.float32).tofile(path)

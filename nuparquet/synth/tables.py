@@ -16,9 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from nuparquet.synth.plan import LogPlan
-from nuparquet.synth.taxonomy import (
-    ATTRIBUTES, CAMERA_HEIGHT_PX, CAMERA_WIDTH_PX, CATEGORIES, CHANNELS, VISIBILITIES, name_token,
-)
+from nuparquet.synth.taxonomy import ATTRIBUTES, CAMERA_HEIGHT_PX, CAMERA_WIDTH_PX, CATEGORIES, CHANNELS, VISIBILITIES
+from nuparquet.synth.tokens import name_token, random_tokens
 from nuparquet.synth.world import SceneWorld
 
 TABLES = ("attribute", "calibrated_sensor", "category", "ego_pose", "instance", "log", "map", "sample",
@@ -44,12 +43,6 @@ _INSTANCE = ('{\n"token": "%s",\n"category_token": "%s",\n"nbr_annotations": %d,
 CATEGORY_TOKENS = [name_token("category", c.name) for c in CATEGORIES]
 ATTRIBUTE_TOKENS = [name_token("attribute", name) for name, _ in ATTRIBUTES]
 SENSOR_TOKENS = [name_token("sensor", c.name) for c in CHANNELS]
-
-
-def random_tokens(rng: np.random.Generator, n: int) -> list[str]:
-    """n uuid4-like tokens (32 lowercase hex characters) drawn from the seeded generator."""
-    raw = rng.bytes(16 * n).hex()
-    return [raw[i:i + 32] for i in range(0, 32 * n, 32)]
 
 
 def map_token(location: str) -> str:

@@ -8,14 +8,7 @@ nuScenes runs on the synthetic data unchanged.
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass
-
-
-def name_token(kind: str, name: str) -> str:
-    """A 32-hex token derived from a vocabulary entry's name: the same in every seed and run, like the fixed
-    tokens of nuScenes' global tables."""
-    return hashlib.md5(f"nuparquet.synth/{kind}/{name}".encode()).hexdigest()
 
 
 @dataclass(frozen=True)

@@ -19,12 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from nuparquet.synth.rigid import quat_from_axis_angle, quat_from_yaw, quat_multiply
+from nuparquet.synth.road import Road, make_road, travel_profile
 from nuparquet.synth.taxonomy import ATTRIBUTE_INDEX, CATEGORIES, CATEGORY_INDEX
 from nuparquet.synth.timeline import Timeline
 
-MAX_SPEED_MPS = 15.0
-MAX_CURVATURE_PER_M = 1.0 / 38.0  # keeps the innermost row (15.5 m off the centreline) from folding over
-PATH_STEP_M = 0.5
 TIME_STEP_S = 0.02
 ANNOTATION_RADIUS_M = (38.0, 55.0)
 # Scales every row's density; tuned so that 850 scenes x 40 samples give ~1.17M annotations (~34 per sample)
@@ -113,76 +111,6 @@ class SceneWorld:
     def annotation_has_next(self) -> np.ndarray:
         a = self.annotation_instance
         return np.r_[a[:-1] == a[1:], False]
-
-
-@dataclass(frozen=True)
-class _Road:
-    s_m: np.ndarray  # (P,) arc-length grid
-    xy_m: np.ndarray  # (P, 2) global centreline
-    heading_rad: np.ndarray  # (P,) unwrapped heading of the centreline
-
-    def at(self, s_m: np.ndarray, lateral_m: np.ndarray | float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """Global (..., 2) position and heading at arc length s and lateral offset (positive = left)."""
-        heading = np.interp(s_m, self.s_m, self.heading_rad)
-        x = np.interp(s_m, self.s_m, self.xy_m[:, 0]) - np.sin(heading) * lateral_m
-        y = np.interp(s_m, self.s_m, self.xy_m[:, 1]) + np.cos(heading) * lateral_m
-        return np.stack([x, y], axis=-1), heading
-
-
-def _smooth_profile(rng: np.random.Generator, t_s: np.ndarray, knots: np.ndarray, spacing_s: float) -> np.ndarray:
-    """Values at times t_s that pass through `knots` (one every spacing_s from t_s[0]) with zero slope at each
-    knot: smooth (C1) speed profiles without overshoot."""
-    u = (t_s - t_s[0]) / spacing_s
-    k = np.clip(np.floor(u).astype(int), 0, knots.size - 2)
-    blend = 0.5 - 0.5 * np.cos(np.pi * np.clip(u - k, 0.0, 1.0))
-    return knots[k] + (knots[k + 1] - knots[k]) * blend
-
-
-def _speed_knots(rng: np.random.Generator, n: int, style: str) -> np.ndarray:
-    if style == "cruise":
-        knots = rng.uniform(7.0, 14.0, n)
-    elif style == "urban":
-        knots = rng.uniform(2.0, 9.0, n)
-    elif style == "stop_and_go":
-        knots = rng.uniform(4.0, 11.0, n)
-        stop = rng.integers(1, max(n - 2, 2))
-        knots[stop:stop + 2] = 0.0
-    else:  # "waiting": standing still, maybe pulling away at the end
-        knots = np.zeros(n)
-        go = int(n * rng.uniform(0.5, 1.0))
-        knots[go:] = rng.uniform(1.0, 5.0, n - go)
-    return np.clip(knots, 0.0, MAX_SPEED_MPS)
-
-
-def _travel(rng: np.random.Generator, t_s: np.ndarray, style: str) -> tuple[np.ndarray, np.ndarray]:
-    """(T,) speed [m/s] and distance travelled [m] (0 at t_s == 0) on the dense time grid."""
-    spacing_s = 3.0
-    n = int(np.ceil((t_s[-1] - t_s[0]) / spacing_s)) + 2
-    speed = np.clip(_smooth_profile(rng, t_s, _speed_knots(rng, n, style), spacing_s), 0.0, MAX_SPEED_MPS)
-    distance = np.r_[0.0, np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(t_s))]
-    return speed, distance - np.interp(0.0, t_s, distance)
-
-
-def _make_road(rng: np.random.Generator, s_lo: float, s_hi: float, ego_end_m: float) -> tuple[_Road, list[float]]:
-    s = np.arange(s_lo, s_hi + PATH_STEP_M, PATH_STEP_M)
-    wavelength = rng.uniform(150.0, 400.0)
-    curvature = 0.003 * np.sin(2 * np.pi * s / wavelength + rng.uniform(0, 2 * np.pi))  # gentle meander
-    turns = []
-    for _ in range(rng.choice([0, 1, 1, 2])):
-        angle = rng.choice([-1.0, 1.0]) * rng.uniform(0.3, np.pi / 2)
-        length = max(80.0 * abs(angle), 50.0) + rng.uniform(0.0, 40.0)  # peak curvature 2*angle/length <= 1/40
-        start = rng.uniform(-0.5 * length, max(ego_end_m - 0.5 * length, -0.5 * length + 1.0))
-        inside = (s >= start) & (s <= start + length)
-        curvature[inside] += angle / length * (1 - np.cos(2 * np.pi * (s[inside] - start) / length))
-        turns.append(angle)
-    curvature = np.clip(curvature, -MAX_CURVATURE_PER_M, MAX_CURVATURE_PER_M)
-    heading = np.r_[0.0, np.cumsum(0.5 * (curvature[1:] + curvature[:-1]) * PATH_STEP_M)]
-    heading += rng.uniform(-np.pi, np.pi) - np.interp(0.0, s, heading)
-    step = np.stack([np.cos(heading), np.sin(heading)], axis=-1) * PATH_STEP_M
-    xy = np.r_[np.zeros((1, 2)), np.cumsum(0.5 * (step[1:] + step[:-1]), axis=0)]
-    origin = rng.uniform([300.0, 300.0], [2500.0, 1800.0])  # map-frame coordinates like the real maps'
-    xy += origin - np.array([np.interp(0.0, s, xy[:, 0]), np.interp(0.0, s, xy[:, 1])])
-    return _Road(s, xy, heading), turns
 
 
 def _choose(rng: np.random.Generator, mixture: dict[str, float], n: int) -> np.ndarray:
@@ -277,89 +205,83 @@ def _describe(style: str, turns: list[float], category: np.ndarray, rows_present
     return ", ".join(words)
 
 
-def build_scene(rng: np.random.Generator, timeline: Timeline, drives_on_right: bool) -> SceneWorld:
-    sample_t_s = (timeline.sample_timestamp_us - timeline.sample_timestamp_us[0]) / 1e6  # (K,)
-    frame_t_s = (timeline.frame_timestamp_us - timeline.sample_timestamp_us[0]) / 1e6  # (M,)
-    t_grid_s = np.arange(min(frame_t_s.min(), 0.0) - 0.5, max(frame_t_s.max(), 1.0) + 0.5, TIME_STEP_S)
+@dataclass(frozen=True)
+class _Objects:
+    """Every candidate object of a scene at the sample times, before the annotation radius is applied."""
 
-    style = rng.choice(["cruise", "urban", "stop_and_go", "waiting"], p=[0.4, 0.3, 0.18, 0.12])
-    _, ego_travel = _travel(rng, t_grid_s, str(style))
-    ego_s_frame = np.interp(frame_t_s, t_grid_s, ego_travel)  # (M,)
-    ego_s_sample = np.interp(sample_t_s, t_grid_s, ego_travel)  # (K,)
+    category: np.ndarray  # (N,) index into CATEGORIES
+    size_m: np.ndarray  # (N, 3) [width, length, height]
+    xy_m: np.ndarray  # (N, K, 2) global position
+    yaw_rad: np.ndarray  # (N, K)
+    speed_mps: np.ndarray  # (N, K)
+    motion: np.ndarray  # (N,) str: the motion of the object's row
+    radius_m: np.ndarray  # (N,) annotation radius around the ego car
 
-    # Every row's travel profile, to know how much road the objects need.
-    side = 1.0 if drives_on_right else -1.0
-    row_speed_knot_style = {"traffic": "cruise", "cycling": "urban"}
-    row_speed, row_travel = [], []
+    def __getitem__(self, keep: np.ndarray) -> _Objects:
+        return _Objects(*(getattr(self, f)[keep] for f in self.__dataclass_fields__))
+
+
+def _row_motions(rng, t_grid_s: np.ndarray, sample_t_s: np.ndarray) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Speed [m/s] and distance travelled [m] of every row in ROWS at the sample times: (K,) arrays."""
+    speeds, travels = [], []
     for row in ROWS:
-        if row.motion in row_speed_knot_style:
-            speed, travel = _travel(rng, t_grid_s, row_speed_knot_style[row.motion] if rng.random() > 0.2
-                                    else "stop_and_go")
+        if row.motion in ("traffic", "cycling"):
+            style = "stop_and_go" if rng.random() < 0.2 else ("cruise" if row.motion == "traffic" else "urban")
+            speed, travel = travel_profile(rng, t_grid_s, style)
             if row.motion == "cycling":
                 speed, travel = 0.6 * speed, 0.6 * travel
         elif row.motion == "walking":
-            walk = rng.uniform(1.1, 1.6)
-            speed, travel = np.full_like(t_grid_s, walk), walk * t_grid_s
+            walk_mps = rng.uniform(1.1, 1.6)
+            speed, travel = np.full_like(t_grid_s, walk_mps), walk_mps * t_grid_s
         else:
             speed, travel = np.zeros_like(t_grid_s), np.zeros_like(t_grid_s)
-        row_speed.append(np.interp(sample_t_s, t_grid_s, speed))
-        row_travel.append(np.interp(sample_t_s, t_grid_s, travel))
-    max_travel = max(float(np.abs(t).max()) for t in row_travel)
-    radius_hi = ANNOTATION_RADIUS_M[1]
-    ego_lo, ego_hi = float(ego_s_frame.min()), float(ego_s_frame.max())
-    road, turns = _make_road(rng, ego_lo - radius_hi - max_travel - 60.0, ego_hi + radius_hi + max_travel + 60.0,
-                             ego_hi)
+        speeds.append(np.interp(sample_t_s, t_grid_s, speed))
+        travels.append(np.interp(sample_t_s, t_grid_s, travel))
+    return speeds, travels
 
-    # Ego poses at every frame: on the centreline of its own lane, small pitch/roll like a real suspension.
-    ego_xy, ego_heading = road.at(ego_s_frame)
-    pitch = np.deg2rad(0.25) * np.sin(2 * np.pi * frame_t_s / rng.uniform(3, 9) + rng.uniform(0, 6.3))
-    roll = np.deg2rad(0.15) * np.sin(2 * np.pi * frame_t_s / rng.uniform(3, 9) + rng.uniform(0, 6.3))
-    ego_rotation = quat_multiply(quat_multiply(quat_from_yaw(ego_heading),
-                                               quat_from_axis_angle((0.0, 1.0, 0.0), pitch)),
-                                 quat_from_axis_angle((1.0, 0.0, 0.0), roll))
-    ego_translation = np.c_[ego_xy, np.zeros(len(ego_xy))]
 
-    # Objects, row by row, at the sample times.
+def _ego_poses(rng, road: Road, ego_s_m: np.ndarray, t_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(M, 3) translations and (M, 4) rotations of global_from_ego: on the centreline of its lane, with the
+    small pitch and roll of a real suspension, z = 0 like the real ego poses."""
+    xy, heading = road.at(ego_s_m)
+    pitch = np.deg2rad(0.25) * np.sin(2 * np.pi * t_s / rng.uniform(3, 9) + rng.uniform(0, 2 * np.pi))
+    roll = np.deg2rad(0.15) * np.sin(2 * np.pi * t_s / rng.uniform(3, 9) + rng.uniform(0, 2 * np.pi))
+    rotation = quat_multiply(quat_multiply(quat_from_yaw(heading), quat_from_axis_angle((0.0, 1.0, 0.0), pitch)),
+                             quat_from_axis_angle((1.0, 0.0, 0.0), roll))
+    return np.c_[xy, np.zeros(len(xy))], rotation
+
+
+def _place_objects(rng, road: Road, row_speeds, row_travels, ego_lo_m: float, ego_hi_m: float,
+                   drives_on_right: bool) -> tuple[_Objects, list[str]]:
+    """Objects of every populated row over the stretch of road they can be seen from, and the rows' names."""
+    side = 1.0 if drives_on_right else -1.0
+    reach_m = ANNOTATION_RADIUS_M[1] + 5.0
     busy = rng.uniform(0.6, 1.4)
-    categories, sizes, xys, yaws, speeds, motions, radii, present = [], [], [], [], [], [], [], []
-    for row, speed, travel in zip(ROWS, row_speed, row_travel):
+    parts, present = [], []
+    for row, speed, travel in zip(ROWS, row_speeds, row_travels):
         if rng.random() >= row.presence:
             continue
         present.append(row.name)
-        density = DENSITY_SCALE * busy * rng.uniform(0.6, 1.4) / row.presence  # absent rows are made up for where present
-        lo = ego_lo - radius_hi - 5.0 - (travel.max() if row.direction > 0 else 0.0)
-        hi = ego_hi + radius_hi + 5.0 + (travel.max() if row.direction < 0 else 0.0)
-        category, size, s0, yaw_offset = _place_row(rng, row, density, lo, hi)
-        if category.size == 0:
-            continue
+        density = DENSITY_SCALE * busy * rng.uniform(0.6, 1.4) / row.presence  # absent rows are made up for
+        lo = ego_lo_m - reach_m - (travel.max() if row.direction > 0 else 0.0)
+        hi = ego_hi_m + reach_m + (travel.max() if row.direction < 0 else 0.0)
+        category, size, s0_m, yaw_offset = _place_row(rng, row, density, lo, hi)
         jitter_m = rng.normal(0.0, 0.12, category.size) if row.motion == "static" else np.zeros(category.size)
-        lateral = side * (row.lateral_m + jitter_m)
-        s = s0[:, None] + row.direction * travel[None, :]  # (N, K)
-        xy, heading = road.at(s, lateral[:, None])
-        categories.append(category)
-        sizes.append(size)
-        xys.append(xy)
-        yaws.append(heading + yaw_offset[:, None])
-        speeds.append(np.broadcast_to(speed, s.shape))
-        motions.append(np.full(category.size, row.motion))
-        radii.append(rng.uniform(*ANNOTATION_RADIUS_M, category.size))
-    if categories:
-        category = np.concatenate(categories)
-        size = np.concatenate(sizes)
-        xy = np.concatenate(xys)  # (N, K, 2)
-        yaw = np.concatenate(yaws)  # (N, K)
-        speed = np.concatenate(speeds)
-        motion = np.concatenate(motions)
-        radius = np.concatenate(radii)
-    else:  # an empty road: no instances, no annotations
-        category, size = np.zeros(0, np.int64), np.zeros((0, 3))
-        xy, yaw, speed = np.zeros((0, len(sample_t_s), 2)), np.zeros((0, len(sample_t_s))), np.zeros((0, len(sample_t_s)))
-        motion, radius = np.zeros(0, str), np.zeros(0)
+        s_m = s0_m[:, None] + row.direction * travel[None, :]  # (N, K)
+        xy, heading = road.at(s_m, side * (row.lateral_m + jitter_m)[:, None])
+        parts.append(_Objects(category, size, xy, heading + yaw_offset[:, None], np.broadcast_to(speed, s_m.shape),
+                              np.full(category.size, row.motion), rng.uniform(*ANNOTATION_RADIUS_M, category.size)))
+    k = row_speeds[0].size
+    if not parts:  # an empty road: no instances, no annotations
+        parts.append(_Objects(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, k, 2)), np.zeros((0, k)),
+                              np.zeros((0, k)), np.zeros(0, str), np.zeros(0)))
+    return _Objects(*(np.concatenate([getattr(p, f) for p in parts]) for f in _Objects.__dataclass_fields__)), present
 
-    ego_xy_sample, _ = road.at(ego_s_sample)  # (K, 2)
-    distance = np.linalg.norm(xy - ego_xy_sample[None], axis=-1)  # (N, K)
-    start, end = _first_run(distance <= radius[:, None])
-    # Occlusion and annotator choices: some tracks start late or end early, a few have one annotation.
+
+def _tracks(rng, in_range: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(N, K) in-range mask -> first sample (N,) and exclusive end (N,) of each object's track: its first run
+    in range, then occlusion and annotator choices: some tracks start late or end early, a few are single."""
+    start, end = _first_run(in_range)
     n = start.size
     length = end - start
     cut = (rng.random(n) < 0.12) & (length > 1)
@@ -367,40 +289,65 @@ def build_scene(rng: np.random.Generator, timeline: Timeline, drives_on_right: b
     new_end = new_start + 1 + (rng.random(n) * (end - new_start - 1)).astype(int)
     single = (rng.random(n) < 0.03) & (length > 1)
     start, end = np.where(cut, new_start, start), np.where(cut, new_end, end)
-    end = np.where(single, start + 1, end)
+    return start, np.where(single, start + 1, end)
+
+
+def _sensor_counts(rng, distance_m: np.ndarray, size_m: np.ndarray, is_vehicle: np.ndarray):
+    """(A,) distances to the ego car, (A, 3) sizes, (A,) bool -> visibility level (1..4), num_lidar_pts and
+    num_radar_pts: fewer with distance and lower visibility, 0 for many far boxes, as in the real data."""
+    score = 1.0 - distance_m / 60.0 + rng.normal(0.0, 0.25, distance_m.size)
+    visibility = 1 + np.digitize(score, [0.2, 0.4, 0.55])
+    cross_section_m2 = np.maximum(size_m[:, 0], size_m[:, 1]) * size_m[:, 2]
+    visible_fraction = np.array([0.0, 0.2, 0.5, 0.7, 1.0])[visibility]
+    lam_lidar = 3000.0 * cross_section_m2 * visible_fraction / np.maximum(distance_m, 3.0) ** 2
+    num_lidar = rng.poisson(np.minimum(lam_lidar, 4000.0))
+    lam_radar = np.where(is_vehicle, 6.0, 0.4) * visible_fraction * np.clip(1.0 - distance_m / 70.0, 0.0, 1.0)
+    return visibility.astype(np.int64), num_lidar.astype(np.int64), rng.poisson(lam_radar).astype(np.int64)
+
+
+def build_scene(rng: np.random.Generator, timeline: Timeline, drives_on_right: bool) -> SceneWorld:
+    """Ego poses for every frame of the timeline and the annotations of every sample."""
+    sample_t_s = (timeline.sample_timestamp_us - timeline.sample_timestamp_us[0]) / 1e6  # (K,)
+    frame_t_s = (timeline.frame_timestamp_us - timeline.sample_timestamp_us[0]) / 1e6  # (M,)
+    t_grid_s = np.arange(min(frame_t_s.min(), 0.0) - 0.5, max(frame_t_s.max(), 1.0) + 0.5, TIME_STEP_S)
+
+    style = str(rng.choice(["cruise", "urban", "stop_and_go", "waiting"], p=[0.4, 0.3, 0.18, 0.12]))
+    _, ego_travel_m = travel_profile(rng, t_grid_s, style)
+    ego_s_frame = np.interp(frame_t_s, t_grid_s, ego_travel_m)  # (M,)
+    ego_s_sample = np.interp(sample_t_s, t_grid_s, ego_travel_m)  # (K,)
+    row_speeds, row_travels = _row_motions(rng, t_grid_s, sample_t_s)
+
+    # The road must reach as far as any object that comes within annotation range during the scene.
+    max_travel_m = max(float(np.abs(t).max()) for t in row_travels)
+    ego_lo, ego_hi = float(ego_s_frame.min()), float(ego_s_frame.max())
+    margin_m = ANNOTATION_RADIUS_M[1] + max_travel_m + 60.0
+    road, turns = make_road(rng, ego_lo - margin_m, ego_hi + margin_m, ego_hi)
+    ego_translation, ego_rotation = _ego_poses(rng, road, ego_s_frame, frame_t_s)
+
+    objects, present = _place_objects(rng, road, row_speeds, row_travels, ego_lo, ego_hi, drives_on_right)
+    ego_xy_sample, _ = road.at(ego_s_sample)  # (K, 2)
+    distance = np.linalg.norm(objects.xy_m - ego_xy_sample[None], axis=-1)  # (N, K)
+    start, end = _tracks(rng, distance <= objects.radius_m[:, None])
     keep = end > start
-    category, size, xy, yaw, speed, motion = category[keep], size[keep], xy[keep], yaw[keep], speed[keep], motion[keep]
-    distance, start, end = distance[keep], start[keep], end[keep]
+    objects, distance, start, end = objects[keep], distance[keep], start[keep], end[keep]
 
     n_ann = end - start
     first = np.r_[0, np.cumsum(n_ann)[:-1]].astype(np.int64)
-    ann_instance = np.repeat(np.arange(category.size), n_ann)
+    ann_instance = np.repeat(np.arange(objects.category.size), n_ann)
     ann_sample = np.arange(n_ann.sum()) - np.repeat(first, n_ann) + np.repeat(start, n_ann)
-    attribute = _attributes(rng, category, motion, speed)[ann_instance, ann_sample]
-    ann_size = size[ann_instance]
-    ann_xy = xy[ann_instance, ann_sample]
-    ann_z = 0.5 * ann_size[:, 2] + rng.normal(0.0, 0.02, ann_instance.size)
-    ann_translation = np.round(np.c_[ann_xy, ann_z], 3)
-    ann_yaw = yaw[ann_instance, ann_sample]
-    ann_yaw = (ann_yaw + np.pi) % (2 * np.pi) - np.pi
-    ann_distance = distance[ann_instance, ann_sample]
-
-    # Visibility falls with distance; lidar/radar returns with distance, size and visibility (0 when far).
-    score = 1.0 - ann_distance / 60.0 + rng.normal(0.0, 0.25, ann_distance.size)
-    visibility = 1 + np.digitize(score, [0.2, 0.4, 0.55])
-    cross_section_m2 = np.maximum(ann_size[:, 0], ann_size[:, 1]) * ann_size[:, 2]
-    visible_fraction = np.array([0.0, 0.2, 0.5, 0.7, 1.0])[visibility]
-    lam_lidar = 3000.0 * cross_section_m2 * visible_fraction / np.maximum(ann_distance, 3.0) ** 2
-    num_lidar = rng.poisson(np.minimum(lam_lidar, 4000.0))
-    is_vehicle = np.array([CATEGORIES[c].group in ("vehicle", "cycle") for c in category])[ann_instance]
-    lam_radar = np.where(is_vehicle, 6.0, 0.4) * visible_fraction * np.clip(1.0 - ann_distance / 70.0, 0.0, 1.0)
-    num_radar = rng.poisson(lam_radar)
-
+    attribute = _attributes(rng, objects.category, objects.motion, objects.speed_mps)[ann_instance, ann_sample]
+    ann_size = objects.size_m[ann_instance]
+    ann_z = 0.5 * ann_size[:, 2] + rng.normal(0.0, 0.02, ann_instance.size)  # box centre above flat ground
+    ann_translation = np.round(np.c_[objects.xy_m[ann_instance, ann_sample], ann_z], 3)  # mm, like the real data
+    ann_yaw = (objects.yaw_rad[ann_instance, ann_sample] + np.pi) % (2 * np.pi) - np.pi
+    is_vehicle = np.array([CATEGORIES[c].group in ("vehicle", "cycle") for c in objects.category], dtype=bool)
+    visibility, num_lidar, num_radar = _sensor_counts(rng, distance[ann_instance, ann_sample], ann_size,
+                                                      is_vehicle[ann_instance])
     return SceneWorld(
         timeline=timeline,
         ego_translation_m=ego_translation,
         ego_rotation=ego_rotation,
-        instance_category=category,
+        instance_category=objects.category,
         instance_first_annotation=first,
         instance_n_annotations=n_ann.astype(np.int64),
         annotation_instance=ann_instance,
@@ -409,8 +356,8 @@ def build_scene(rng: np.random.Generator, timeline: Timeline, drives_on_right: b
         annotation_size_m=ann_size,
         annotation_rotation=quat_from_yaw(ann_yaw),
         annotation_attribute=attribute,
-        annotation_visibility=visibility.astype(np.int64),
-        annotation_num_lidar_pts=num_lidar.astype(np.int64),
-        annotation_num_radar_pts=num_radar.astype(np.int64),
-        description=_describe(str(style), turns, category, present),
+        annotation_visibility=visibility,
+        annotation_num_lidar_pts=num_lidar,
+        annotation_num_radar_pts=num_radar,
+        description=_describe(style, turns, objects.category, present),
     )

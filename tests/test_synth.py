@@ -1,0 +1,399 @@
+"""The synthetic generator writes what a nuScenes user expects: the exact layout and schema, consistent
+linkage, devkit compatibility, painted images that line up with the devkit's boxes, lidar/radar files the
+devkit reads, and byte-identical output for the same seed."""
+
+from __future__ import annotations
+
+import json
+import re
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from nuparquet.errors import UsageError
+from nuparquet.synth import synthesize
+from conftest import EXTRACT_ROOT, EXTRACT_VERSION, SYNTH_VERSION
+
+REPO = Path(__file__).resolve().parent.parent
+TABLES = ("attribute", "calibrated_sensor", "category", "ego_pose", "instance", "log", "map", "sample",
+          "sample_annotation", "sample_data", "scene", "sensor", "visibility")
+NUSCENES_CHANNELS = {"CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_BACK_RIGHT", "CAM_BACK", "CAM_BACK_LEFT", "CAM_FRONT_LEFT",
+                     "LIDAR_TOP", "RADAR_FRONT", "RADAR_FRONT_LEFT", "RADAR_FRONT_RIGHT", "RADAR_BACK_LEFT",
+                     "RADAR_BACK_RIGHT"}
+
+
+def load_tables(root: Path, version: str = SYNTH_VERSION) -> dict[str, list[dict]]:
+    return {name: json.loads((root / version / f"{name}.json").read_text()) for name in TABLES}
+
+
+def by_token(records: list[dict]) -> dict[str, dict]:
+    return {r["token"]: r for r in records}
+
+
+@pytest.fixture(scope="session")
+def tables(synth_root) -> dict[str, list[dict]]:
+    return load_tables(synth_root)
+
+
+@pytest.fixture(scope="session")
+def nusc(synth_root, devkit):
+    return devkit.NuScenes(SYNTH_VERSION, dataroot=str(synth_root), verbose=False)
+
+
+# -- determinism ----------------------------------------------------------------------------------------------
+
+def table_bytes(root: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted((root / SYNTH_VERSION).glob("*.json"))}
+
+
+def test_same_seed_gives_byte_identical_tables_and_another_seed_does_not(tmp_path):
+    for name, seed in (("a", 5), ("b", 5), ("c", 6)):
+        synthesize(tmp_path / name, scenes=3, samples_per_scene=5, seed=seed, version=SYNTH_VERSION)
+    a, b, c = (table_bytes(tmp_path / name) for name in "abc")
+    assert sorted(a) == sorted(f"{t}.json" for t in TABLES)
+    assert a == b
+    assert a["sample_annotation.json"] != c["sample_annotation.json"]
+    assert a["ego_pose.json"] != c["ego_pose.json"]
+
+
+def test_sensor_files_are_deterministic_too(synth_root, tmp_path):
+    again = tmp_path / "again"
+    synthesize(again, scenes=2, samples_per_scene=6, with_images=True, with_lidar=True, seed=7, version=SYNTH_VERSION)
+    for pattern in ("samples/CAM_FRONT/*.jpg", "sweeps/LIDAR_TOP/*.pcd.bin", "samples/RADAR_FRONT/*.pcd"):
+        first = sorted(synth_root.glob(pattern))
+        assert first and [p.name for p in first] == [p.name for p in sorted(again.glob(pattern))]
+        assert all(p.read_bytes() == (again / p.relative_to(synth_root)).read_bytes() for p in first[:5])
+
+
+# -- layout and schema ----------------------------------------------------------------------------------------
+
+def test_files_have_the_json_layout_and_key_order_of_the_real_tables(synth_root, tables):
+    for name in TABLES:
+        text = (synth_root / SYNTH_VERSION / f"{name}.json").read_text()
+        assert text == json.dumps(tables[name], indent=0), name  # the real tables' layout
+        schema = json.loads((REPO / "schemas" / "tables" / f"{name}.json").read_text())
+        expected = [f["name"] for f in schema["fields"]]
+        assert tables[name], name
+        assert all(list(record) == expected for record in tables[name]), name
+        real = EXTRACT_ROOT / EXTRACT_VERSION / f"{name}.json"
+        if real.is_file():  # and the real extract agrees, field for field, in order
+            assert list(json.loads(real.read_text())[0]) == expected, name
+
+
+def test_vocabulary_is_nuscenes(tables, devkit):
+    from nuscenes.utils.color_map import get_colormap
+
+    assert {s["channel"] for s in tables["sensor"]} == NUSCENES_CHANNELS
+    assert {c["name"] for c in tables["category"]} <= set(get_colormap())
+    assert [v["token"] for v in tables["visibility"]] == ["1", "2", "3", "4"]
+    assert list(tables["map"][0]) == ["category", "token", "filename", "log_tokens"]
+    assert list(tables["visibility"][0]) == ["description", "token", "level"]
+    assert {a["name"] for a in tables["attribute"]} == {
+        "vehicle.moving", "vehicle.stopped", "vehicle.parked", "cycle.with_rider", "cycle.without_rider",
+        "pedestrian.sitting_lying_down", "pedestrian.standing", "pedestrian.moving"}
+    assert len({log["location"] for log in tables["log"]}) >= 2
+    assert all(re.fullmatch(r"scene-\d{4}", s["name"]) for s in tables["scene"])
+    tokens = [r["token"] for name in ("sample", "sample_data", "sample_annotation", "instance", "scene", "log")
+              for r in tables[name]]
+    assert all(re.fullmatch(r"[0-9a-f]{32}", t) for t in tokens)
+
+
+def test_filenames_and_image_sizes_follow_nuscenes(tables):
+    channel_of = {c["token"]: s["channel"] for c in tables["calibrated_sensor"] for s in tables["sensor"]
+                  if s["token"] == c["sensor_token"]}
+    logfiles = {log["logfile"] for log in tables["log"]}
+    for sd in tables["sample_data"]:
+        channel = channel_of[sd["calibrated_sensor_token"]]
+        folder, name = re.fullmatch(r"(samples|sweeps)/[A-Z_]+/(.+)", sd["filename"]).groups()
+        assert folder == ("samples" if sd["is_key_frame"] else "sweeps")
+        logfile, file_channel, stamp = re.fullmatch(r"(.+)__([A-Z_]+)__(\d+)\.(?:jpg|pcd\.bin|pcd)", name).groups()
+        assert logfile in logfiles and file_channel == channel and int(stamp) == sd["timestamp"]
+        ext = {"CAM": ".jpg", "LIDAR": ".pcd.bin", "RADAR": ".pcd"}[channel.split("_")[0]]
+        assert sd["filename"].endswith(ext) and sd["filename"][: -len(ext)].count(".") == 0
+        if channel.startswith("CAM"):
+            assert (sd["fileformat"], sd["width"], sd["height"]) == ("jpg", 1600, 900)
+        else:
+            assert (sd["fileformat"], sd["width"], sd["height"]) == ("pcd", 0, 0)
+
+
+def test_camera_calibrations_look_forward_along_z_with_1600x900_intrinsics(tables):
+    from pyquaternion import Quaternion
+
+    sensors = by_token(tables["sensor"])
+    for cs in tables["calibrated_sensor"]:
+        if sensors[cs["sensor_token"]]["modality"] != "camera":
+            assert cs["camera_intrinsic"] == []
+            continue
+        ego_from_camera = Quaternion(cs["rotation"]).rotation_matrix
+        assert abs(ego_from_camera[2, 2]) < 0.05  # optical axis (z) horizontal
+        assert ego_from_camera[2, 1] < -0.99  # image y points down
+        k = np.array(cs["camera_intrinsic"])
+        assert k.shape == (3, 3) and 700 < k[0, 0] < 1400 and 700 < k[0, 2] < 900 and 400 < k[1, 2] < 520
+
+
+# -- linkage --------------------------------------------------------------------------------------------------
+
+def test_prev_next_links_resolve_within_their_table_and_are_mutual(tables):
+    for name in ("sample", "sample_data", "sample_annotation"):
+        records = by_token(tables[name])
+        for r in records.values():
+            if r["prev"]:
+                assert records[r["prev"]]["next"] == r["token"], name
+            if r["next"]:
+                assert records[r["next"]]["prev"] == r["token"], name
+
+
+def test_scene_and_sample_chains_are_consistent(tables):
+    samples = by_token(tables["sample"])
+    for scene in tables["scene"]:
+        chain = [samples[scene["first_sample_token"]]]
+        while chain[-1]["next"]:
+            chain.append(samples[chain[-1]["next"]])
+        assert chain[0]["prev"] == "" and chain[-1]["token"] == scene["last_sample_token"]
+        assert len(chain) == scene["nbr_samples"]
+        assert all(s["scene_token"] == scene["token"] for s in chain)
+        gaps = np.diff([s["timestamp"] for s in chain])
+        assert np.all((gaps > 450_000) & (gaps < 550_000))  # 2 Hz keyframes
+    assert sum(s["nbr_samples"] for s in tables["scene"]) == len(tables["sample"])
+
+
+def test_channel_chains_have_one_keyframe_per_sample_and_sweeps_belong_to_the_next_keyframe(tables):
+    samples = by_token(tables["sample"])
+    sample_data = by_token(tables["sample_data"])
+    ego_poses = by_token(tables["ego_pose"])
+    channel_of = {c["token"]: s["channel"] for c in tables["calibrated_sensor"] for s in tables["sensor"]
+                  if s["token"] == c["sensor_token"]}
+    keyframes = defaultdict(list)
+    chains = 0
+    for head in (sd for sd in tables["sample_data"] if sd["prev"] == ""):
+        chain = [head]
+        while chain[-1]["next"]:
+            chain.append(sample_data[chain[-1]["next"]])
+        chains += 1
+        channel = channel_of[head["calibrated_sensor_token"]]
+        assert all(channel_of[sd["calibrated_sensor_token"]] == channel for sd in chain)
+        assert chain[0]["is_key_frame"] and chain[-1]["is_key_frame"]  # like the real scenes
+        stamps = [sd["timestamp"] for sd in chain]
+        assert stamps == sorted(stamps) and len(set(stamps)) == len(stamps)
+        next_keyframe_sample = None
+        for sd in reversed(chain):  # walking backwards, the latest keyframe seen is the next one in time
+            if sd["is_key_frame"]:
+                next_keyframe_sample = sd["sample_token"]
+                keyframes[(sd["sample_token"], channel)].append(sd)
+                assert abs(sd["timestamp"] - samples[sd["sample_token"]]["timestamp"]) < 50_000
+            else:
+                assert sd["sample_token"] == next_keyframe_sample
+                sample = samples[sd["sample_token"]]
+                assert samples[sample["prev"]]["timestamp"] < sd["timestamp"] < sample["timestamp"]
+        period_ms = np.median(np.diff(stamps)) / 1000
+        expected = {"CAM": (70, 95), "LIDAR": (45, 55), "RADAR": (65, 85)}[channel.split("_")[0]]
+        assert expected[0] <= period_ms <= expected[1], (channel, period_ms)  # ~12 Hz, 20 Hz, ~13 Hz
+    assert chains == len(tables["scene"]) * len(NUSCENES_CHANNELS)
+    assert len(keyframes) == len(tables["sample"]) * len(NUSCENES_CHANNELS)
+    assert all(len(v) == 1 for v in keyframes.values())
+    lidar_keyframes = [v[0] for (_, channel), v in keyframes.items() if channel == "LIDAR_TOP"]
+    assert all(sd["timestamp"] == samples[sd["sample_token"]]["timestamp"] for sd in lidar_keyframes)
+    for sd in tables["sample_data"]:
+        assert sd["ego_pose_token"] == sd["token"]
+        assert ego_poses[sd["token"]]["timestamp"] == sd["timestamp"]
+    assert len(ego_poses) == len(sample_data)
+
+
+def test_instance_tracks_cover_consecutive_samples(tables):
+    samples = by_token(tables["sample"])
+    annotations = by_token(tables["sample_annotation"])
+    scene_of = {s["token"]: s["scene_token"] for s in tables["sample"]}
+    first_sample = {s["token"]: s["first_sample_token"] for s in tables["scene"]}
+    last_sample = {s["token"]: s["last_sample_token"] for s in tables["scene"]}
+    counts, late, early = [], 0, 0
+    for instance in tables["instance"]:
+        track = [annotations[instance["first_annotation_token"]]]
+        assert track[0]["prev"] == ""
+        while track[-1]["next"]:
+            nxt = annotations[track[-1]["next"]]
+            assert samples[nxt["sample_token"]]["prev"] == track[-1]["sample_token"]
+            track.append(nxt)
+        assert track[-1]["token"] == instance["last_annotation_token"]
+        assert len(track) == instance["nbr_annotations"]
+        assert all(a["instance_token"] == instance["token"] for a in track)
+        counts.append(len(track))
+        scene = scene_of[track[0]["sample_token"]]
+        late += track[0]["sample_token"] != first_sample[scene]
+        early += track[-1]["sample_token"] != last_sample[scene]
+    assert sum(counts) == len(annotations)
+    assert min(counts) == 1  # single-annotation tracks exist
+    assert max(counts) == max(s["nbr_samples"] for s in tables["scene"])  # and tracks over a whole scene
+    assert late > 0 and early > 0
+
+
+def test_annotations_are_plausible(tables):
+    categories = by_token(tables["category"])
+    attributes = by_token(tables["attribute"])
+    instances = by_token(tables["instance"])
+    annotations = tables["sample_annotation"]
+    assert len(annotations) / len(tables["sample"]) > 15
+    moving = 0
+    for a in annotations:
+        category = categories[instances[a["instance_token"]]["category_token"]]["name"]
+        names = [attributes[t]["name"] for t in a["attribute_tokens"]]
+        if category.startswith("human.pedestrian"):
+            assert len(names) == 1 and names[0].startswith("pedestrian.")
+        elif category in ("vehicle.bicycle", "vehicle.motorcycle"):
+            assert len(names) == 1 and names[0].startswith("cycle.")
+        elif category.startswith("vehicle."):
+            assert len(names) == 1 and names[0].startswith("vehicle.")
+        else:
+            assert names == []
+        moving += names == ["vehicle.moving"]
+        assert a["visibility_token"] in {"1", "2", "3", "4"}
+        assert all(s > 0 for s in a["size"]) and np.isfinite(a["translation"]).all()
+        assert a["num_lidar_pts"] >= 0 and a["num_radar_pts"] >= 0
+    assert moving > 0
+    assert any(a["num_lidar_pts"] == 0 for a in annotations) and any(a["num_lidar_pts"] > 100 for a in annotations)
+
+
+def test_quaternions_are_unit_norm(tables):
+    for name in ("ego_pose", "calibrated_sensor", "sample_annotation"):
+        q = np.array([r["rotation"] for r in tables[name]])
+        assert np.all(np.abs(np.linalg.norm(q, axis=1) - 1.0) < 1e-9), name
+
+
+def test_ego_moves_smoothly_at_plausible_speeds(tables):
+    samples = by_token(tables["sample"])
+    poses = by_token(tables["ego_pose"])
+    lidar = {sd["sample_token"]: poses[sd["token"]] for sd in tables["sample_data"]
+             if sd["is_key_frame"] and sd["filename"].startswith("samples/LIDAR_TOP/")}
+    for scene in tables["scene"]:
+        tokens = [scene["first_sample_token"]]
+        while samples[tokens[-1]]["next"]:
+            tokens.append(samples[tokens[-1]]["next"])
+        xy = np.array([lidar[t]["translation"][:2] for t in tokens])
+        t_s = np.array([lidar[t]["timestamp"] for t in tokens]) / 1e6
+        speed = np.linalg.norm(np.diff(xy, axis=0), axis=1) / np.diff(t_s)
+        assert np.all(speed <= 15.5)
+
+
+# -- devkit ---------------------------------------------------------------------------------------------------
+
+def test_devkit_loads_it_and_answers_the_usual_questions(nusc):
+    sample = nusc.sample[len(nusc.sample) // 2]
+    assert set(sample["data"]) == NUSCENES_CHANNELS
+    path, boxes, intrinsic = nusc.get_sample_data(sample["data"]["CAM_FRONT"])
+    assert Path(path).is_file() and intrinsic.shape == (3, 3)
+    velocities = np.array([nusc.box_velocity(a["token"]) for a in nusc.sample_annotation])
+    single = np.array([a["prev"] == "" and a["next"] == "" for a in nusc.sample_annotation])
+    assert np.isnan(velocities[single]).all() and np.isfinite(velocities[~single]).all()
+    assert np.nanmax(np.linalg.norm(velocities[~single], axis=1)) < 25.0
+
+
+def test_camera_images_show_the_category_colour_at_the_projected_centre_of_each_unoccluded_box(nusc):
+    """Expected pixels come from the devkit alone: get_sample_data's boxes (interpolated for sweeps),
+    view_points, and the devkit's colormap. A box counts when no nearer painted box covers its centre."""
+    import cv2
+    from nuscenes.utils.color_map import get_colormap
+    from nuscenes.utils.geometry_utils import BoxVisibility, view_points
+
+    colormap = get_colormap()
+    checked = {"keyframe": 0, "sweep": 0}
+    for sd in nusc.sample_data:
+        if sd["sensor_modality"] != "camera":
+            continue
+        path, boxes, intrinsic = nusc.get_sample_data(sd["token"], box_vis_level=BoxVisibility.NONE)
+        image = cv2.imread(path)
+        assert image.shape == (900, 1600, 3)
+        painted = sorted((b for b in boxes if (b.corners()[2] >= 0.1).all()), key=lambda b: b.center[2])
+        hulls = [cv2.convexHull(view_points(b.corners(), intrinsic, normalize=True)[:2].T.astype(np.float32))
+                 for b in painted]
+        for i, box in enumerate(painted):
+            u, v = view_points(box.center[:, None], intrinsic, normalize=True)[:2, 0]
+            size_px = np.ptp(hulls[i][:, 0, :], axis=0)
+            if not (8 <= u < 1592 and 8 <= v < 892) or size_px.min() < 30:
+                continue
+            if any(cv2.pointPolygonTest(hull, (float(u), float(v)), True) > -4 for hull in hulls[:i]):
+                continue  # a nearer box is painted over this one's centre
+            patch = image[int(v) - 2:int(v) + 3, int(u) - 2:int(u) + 3].reshape(-1, 3).astype(int)
+            rgb = np.median(patch, axis=0)[::-1]
+            assert np.abs(rgb - colormap[box.name]).max() <= 24, (sd["filename"], box.name, rgb)
+            checked["keyframe" if sd["is_key_frame"] else "sweep"] += 1
+    assert checked["keyframe"] >= 100 and checked["sweep"] >= 400, checked
+
+
+def test_lidar_files_are_float32_rows_of_five_with_num_lidar_pts_on_each_box(nusc, synth_root):
+    from nuscenes.utils.data_classes import LidarPointCloud
+    from nuscenes.utils.geometry_utils import points_in_box
+
+    files = sorted((synth_root / "sweeps" / "LIDAR_TOP").glob("*.pcd.bin"))
+    assert files
+    for path in files:
+        scan = np.fromfile(path, dtype=np.float32)
+        assert scan.size % 5 == 0 and scan.size > 5 * 1000
+        points = scan.reshape(-1, 5)
+        assert np.isfinite(points).all()
+        assert set(np.unique(points[:, 4])) <= set(range(32))  # ring index
+    matching = total = 0
+    for sample in nusc.sample:
+        path, boxes, _ = nusc.get_sample_data(sample["data"]["LIDAR_TOP"])
+        cloud = LidarPointCloud.from_file(path)
+        for box in boxes:
+            total += 1
+            matching += points_in_box(box, cloud.points[:3]).sum() == nusc.get("sample_annotation", box.token)[
+                "num_lidar_pts"]
+    assert matching >= 0.95 * total  # exact except where two boxes overlap
+
+
+def test_radar_files_load_in_the_devkit(nusc):
+    from nuscenes.utils.data_classes import RadarPointCloud
+
+    for sample in nusc.sample[:3]:
+        for channel in ("RADAR_FRONT", "RADAR_BACK_LEFT"):
+            cloud = RadarPointCloud.from_file(nusc.get_sample_data_path(sample["data"][channel]))
+            assert cloud.points.shape[0] == 18 and cloud.points.shape[1] >= 1
+
+
+def test_every_map_file_exists(synth_root, tables):
+    import cv2
+
+    for record in tables["map"]:
+        assert cv2.imread(str(synth_root / record["filename"])) is not None
+    assert sorted(t for m in tables["map"] for t in m["log_tokens"]) == sorted(log["token"] for log in tables["log"])
+
+
+# -- API and CLI ----------------------------------------------------------------------------------------------
+
+def test_bad_arguments_raise_usage_errors(tmp_path):
+    with pytest.raises(UsageError):
+        synthesize(tmp_path, scenes=0)
+    with pytest.raises(UsageError):
+        synthesize(tmp_path, scenes=1, samples_per_scene=0)
+    with pytest.raises(UsageError):
+        synthesize(tmp_path, scenes=1, seed=-1)
+
+
+def test_cli_writes_a_dataset_and_exits_0(tmp_path, capsys):
+    from nuparquet.cli.main import main
+
+    out = tmp_path / "cli"
+    assert main(["synth", str(out), "--scenes", "2", "--samples-per-scene", "3", "--seed", "4", "--quiet"]) == 0
+    assert len(json.loads((out / "v1.0-synth" / "sample.json").read_text())) == 6
+    assert "wrote" in capsys.readouterr().err
+
+
+def test_cli_exits_2_for_zero_scenes(tmp_path, capsys):
+    from nuparquet.cli.main import main
+
+    assert main(["synth", str(tmp_path / "x"), "--scenes", "0"]) == 2
+    assert "--scenes" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
+
+def test_palette_is_the_devkit_colormap():
+    from nuscenes.utils.color_map import get_colormap
+
+    from nuparquet.palette import CATEGORY_RGB, category_rgb
+
+    assert CATEGORY_RGB == get_colormap()
+    assert category_rgb("vehicle.car") == (255, 158, 0)
+    unknown = category_rgb("lyft.other_vehicle")
+    assert unknown == category_rgb("lyft.other_vehicle") and all(40 <= c <= 215 for c in unknown)
