@@ -20,7 +20,7 @@ import polars as pl  # noqa: E402
 from nuparquet import queries  # noqa: E402
 
 DPI = 110
-MAX_CATEGORIES = 10  # distance histogram: the most frequent categories, the rest as "other"
+MAX_CATEGORIES = 9  # distance histogram: the most frequent categories, the rest as "other"
 MAX_SCENES = 12  # ego speed: curves drawn (the first scenes by name)
 
 
@@ -51,6 +51,7 @@ def plot_class_distribution(distribution: pl.DataFrame, path: Path, *, title: st
         ax.text(n, yi + 0.2, f" {n:,}", va="center", fontsize=7)
     ax.set_yticks(y, data["category_name"].to_list(), fontsize=8)
     ax.set_xscale("log")
+    ax.set_xlim(0.7, float(data["num_annotations"].max()) * 2.5)  # room for the labels
     ax.set_xlabel("count (log scale)")
     ax.set_title(title)
     ax.legend(loc="lower right")
@@ -74,12 +75,13 @@ def plot_distance_histogram(histogram: pl.DataFrame, path: Path, *, title: str =
     starts = np.sort(data["bin_start_m"].unique().to_numpy())
     width = float((data["bin_end_m"] - data["bin_start_m"]).first())
     bottom = np.zeros(len(starts))
-    colours = plt.get_cmap("tab20")
+    palette = [c for i, c in enumerate(plt.get_cmap("tab10").colors) if i != 7]  # tab10 without its grey
     for i, group in enumerate(groups):
         counts = (data.filter(pl.col("group") == group).group_by("bin_start_m").agg(pl.col("count").sum()))
         heights = np.zeros(len(starts))
         heights[np.searchsorted(starts, counts["bin_start_m"].to_numpy())] = counts["count"].to_numpy()
-        ax.bar(starts, heights, width=width, bottom=bottom, align="edge", label=group, color=colours(i % 20),
+        ax.bar(starts, heights, width=width, bottom=bottom, align="edge", label=group,
+               color="0.6" if group == "other" else palette[i % len(palette)],
                edgecolor="white", linewidth=0.3)
         bottom += heights
     ax.set_xlabel("xy distance from the ego vehicle (m)")
@@ -129,11 +131,14 @@ def plot_ego_speed(motion: pl.DataFrame, path: Path, *, max_scenes: int = MAX_SC
         _empty(ax, "LIDAR_TOP keyframes")
         return _save(fig, path)
     shown = scenes[:max_scenes]
+    if len(shown) > 10:
+        ax.set_prop_cycle(color=plt.get_cmap("tab20").colors)  # distinct colours beyond ten lines
     for scene_name in shown:
         rows = motion.filter(pl.col("scene_name") == scene_name).sort("time_s")
         ax.plot(rows["time_s"], rows["speed_mps"], marker=".", markersize=3, linewidth=1, label=scene_name)
     ax.set_xlabel("time since the scene's first keyframe (s)")
     ax.set_ylabel("speed (m/s)")
+    ax.set_ylim(bottom=0)
     suffix = f" — first {len(shown)} of {len(scenes)} scenes" if len(shown) < len(scenes) else ""
     ax.set_title(title + suffix)
     ax.grid(alpha=0.3)

@@ -16,14 +16,15 @@ population deviations (ddof=0, as ``numpy.std``); quantiles interpolate linearly
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypeAlias
 
 import polars as pl
 
 if TYPE_CHECKING:
     from nuparquet.dataset import Dataset
 
-Source = "Dataset | pl.LazyFrame | pl.DataFrame"
+    Source: TypeAlias = Dataset | pl.LazyFrame | pl.DataFrame  # a Dataset, or the LazyFrame a query names
+    Scene: TypeAlias = str | Sequence[str] | None
 US_PER_S = 1_000_000
 QUANTILES = (0.05, 0.25, 0.5, 0.75, 0.95)
 
@@ -66,7 +67,7 @@ def _keys(by_scene: bool, *rest: str) -> list[str]:
 
 # --- annotations -----------------------------------------------------------------------------------------------
 
-def class_distribution(annotations: Source, *, by_scene: bool = False, scene=None) -> pl.LazyFrame:
+def class_distribution(annotations: Source, *, by_scene: bool = False, scene: Scene = None) -> pl.LazyFrame:
     """How many annotations and instances does each category have, and how big are its boxes?
 
     One row per category (per scene and category with ``by_scene=True``): ``num_annotations``,
@@ -90,7 +91,7 @@ def class_distribution(annotations: Source, *, by_scene: bool = False, scene=Non
     )
 
 
-def attribute_counts(annotations: Source, *, by_category: bool = False, scene=None) -> pl.LazyFrame:
+def attribute_counts(annotations: Source, *, by_category: bool = False, scene: Scene = None) -> pl.LazyFrame:
     """How often is each attribute given to an annotation? (`NuScenes.list_attributes()`.)
 
     One row per attribute name (per category and attribute with ``by_category=True``): ``count`` = the number
@@ -109,7 +110,7 @@ def attribute_counts(annotations: Source, *, by_category: bool = False, scene=No
     )
 
 
-def visibility_by_category(annotations: Source, *, scene=None) -> pl.LazyFrame:
+def visibility_by_category(annotations: Source, *, scene: Scene = None) -> pl.LazyFrame:
     """How visible are the boxes of each category in the cameras?
 
     One row per (category, ``visibility_level``: the visibility bin 1..4 of the source, null if the token is
@@ -136,7 +137,7 @@ def _point_stats(column: str, prefix: str) -> list[pl.Expr]:
     ]
 
 
-def points_per_box(annotations: Source, *, scene=None) -> pl.LazyFrame:
+def points_per_box(annotations: Source, *, scene: Scene = None) -> pl.LazyFrame:
     """How many lidar and radar points fall inside the boxes of each category?
 
     One row per category: ``num_boxes``; for ``lidar`` (``num_lidar_pts``) and ``radar`` (``num_radar_pts``)
@@ -153,7 +154,7 @@ def points_per_box(annotations: Source, *, scene=None) -> pl.LazyFrame:
     )
 
 
-def distance_histogram(annotations: Source, *, bin_width_m: float = 10.0, scene=None) -> pl.LazyFrame:
+def distance_histogram(annotations: Source, *, bin_width_m: float = 10.0, scene: Scene = None) -> pl.LazyFrame:
     """How far from the ego vehicle are the boxes of each category?
 
     Histogram of ``distance_to_ego_m`` (xy distance from the box centre to the ego position of the sample's
@@ -177,7 +178,7 @@ def distance_histogram(annotations: Source, *, bin_width_m: float = 10.0, scene=
 
 # --- instances -------------------------------------------------------------------------------------------------
 
-def track_stats(instances: Source, *, by_scene: bool = False, scene=None) -> pl.LazyFrame:
+def track_stats(instances: Source, *, by_scene: bool = False, scene: Scene = None) -> pl.LazyFrame:
     """How long are the tracks (instances) of each category, in annotations, seconds and metres?
 
     One row per category (per scene and category with ``by_scene=True``; an instance belongs to the scene of
@@ -203,7 +204,7 @@ def track_stats(instances: Source, *, by_scene: bool = False, scene=None) -> pl.
 
 # --- scenes ----------------------------------------------------------------------------------------------------
 
-def scene_summary(scenes: Source, annotations: Source | None = None, *, scene=None) -> pl.LazyFrame:
+def scene_summary(scenes: Source, annotations: Source | None = None, *, scene: Scene = None) -> pl.LazyFrame:
     """What does each scene hold? (`NuScenes.list_scenes()`, and more.)
 
     One row per scene, sorted by start time as list_scenes: ``name``, ``description``, ``start_utc`` (first
@@ -238,7 +239,7 @@ def scene_summary(scenes: Source, annotations: Source | None = None, *, scene=No
 
 # --- frames ----------------------------------------------------------------------------------------------------
 
-def ego_motion(frames: Source, *, channel: str = "LIDAR_TOP", scene=None) -> pl.LazyFrame:
+def ego_motion(frames: Source, *, channel: str = "LIDAR_TOP", scene: Scene = None) -> pl.LazyFrame:
     """How fast does the ego vehicle drive and accelerate over each scene?
 
     From the ego poses of the keyframes of `channel` (LIDAR_TOP: one per sample), in time order per scene:
@@ -269,7 +270,7 @@ def ego_motion(frames: Source, *, channel: str = "LIDAR_TOP", scene=None) -> pl.
     )
 
 
-def ego_speed_summary(frames: Source, *, channel: str = "LIDAR_TOP", scene=None) -> pl.LazyFrame:
+def ego_speed_summary(frames: Source, *, channel: str = "LIDAR_TOP", scene: Scene = None) -> pl.LazyFrame:
     """How far and how fast did the ego vehicle drive in each scene? (A summary of `ego_motion`.)
 
     One row per scene: ``keyframes``, ``duration_s``, ``distance_m`` (sum of the steps between keyframes),
@@ -288,7 +289,7 @@ def ego_speed_summary(frames: Source, *, channel: str = "LIDAR_TOP", scene=None)
     )
 
 
-def channel_rates(frames: Source, *, by_scene: bool = False, scene=None) -> pl.LazyFrame:
+def channel_rates(frames: Source, *, by_scene: bool = False, scene: Scene = None) -> pl.LazyFrame:
     """How many keyframes and sweeps does each sensor channel record, and at what rate?
 
     One row per channel (per scene and channel with ``by_scene=True``): ``modality``, ``num_frames``,
@@ -298,7 +299,7 @@ def channel_rates(frames: Source, *, by_scene: bool = False, scene=None) -> pl.L
     """
     lf = _for_scene(_lazy(frames, "frames"), scene)
     key_ts = pl.col("timestamp").filter(pl.col("is_key_frame"))
-    per_scene = (
+    counts = (
         lf.select("scene_name", pl.col("channel").cast(pl.String), pl.col("modality").cast(pl.String),
                   "timestamp", "is_key_frame")
         .group_by("scene_name", "channel")
@@ -309,24 +310,19 @@ def channel_rates(frames: Source, *, by_scene: bool = False, scene=None) -> pl.L
             (pl.col("timestamp").max() - pl.col("timestamp").min()).alias("span_us"),
             (key_ts.max() - key_ts.min()).fill_null(0).alias("key_span_us"),
         )
+        .with_columns((pl.col("num_frames") - 1).alias("frame_intervals"),
+                      (pl.col("num_keyframes") - 1).clip(lower_bound=0).alias("key_intervals"))
     )
-    if not by_scene:
-        per_scene = (
-            per_scene.with_columns((pl.col("num_frames") - 1).alias("frame_intervals"),
-                                   (pl.col("num_keyframes") - 1).clip(lower_bound=0).alias("key_intervals"))
-            .group_by("channel")
-            .agg(pl.col("modality").first(), pl.col("num_frames", "num_keyframes", "span_us", "key_span_us",
-                                                    "frame_intervals", "key_intervals").sum())
-        )
-    else:
-        per_scene = per_scene.with_columns((pl.col("num_frames") - 1).alias("frame_intervals"),
-                                           (pl.col("num_keyframes") - 1).clip(lower_bound=0).alias("key_intervals"))
+    if not by_scene:  # intervals and spans add up over scenes; the gaps between scenes are not time spanned
+        counts = counts.group_by("channel").agg(
+            pl.col("modality").first(),
+            pl.col("num_frames", "num_keyframes", "span_us", "key_span_us", "frame_intervals", "key_intervals").sum())
 
     def rate(intervals: str, span: str) -> pl.Expr:
         return pl.when(pl.col(span) > 0).then(pl.col(intervals) * US_PER_S / pl.col(span)).otherwise(None)
 
     return (
-        per_scene.with_columns(
+        counts.with_columns(
             (pl.col("num_frames") - pl.col("num_keyframes")).alias("num_sweeps"),
             rate("frame_intervals", "span_us").alias("frame_hz"),
             rate("key_intervals", "key_span_us").alias("keyframe_hz"),
@@ -344,7 +340,7 @@ SECTIONS = ("scenes", "class_distribution", "attributes", "visibility", "points_
 EXTRA_SECTIONS = ("class_distribution_by_scene", "channel_rates_by_scene", "ego_motion")
 
 
-def summary(ds: Dataset, *, scene=None, sections: Sequence[str] = SECTIONS,
+def summary(ds: Dataset, *, scene: Scene = None, sections: Sequence[str] = SECTIONS,
             bin_width_m: float = 10.0) -> dict[str, pl.LazyFrame]:
     """The canned results `nuparquet stats` prints, by section name (`SECTIONS`; `EXTRA_SECTIONS` on request)."""
     builders = {
