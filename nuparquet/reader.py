@@ -7,11 +7,13 @@ DuckDB 2.1 s / 0.55 GB RSS, orjson (GC off) 3.6 s / 3.8 GB, json.load 7-11 s / 2
 it is the only one that keeps a whole trainval conversion inside 4 GB.
 
 DuckDB coerces silently when told a type (1.5 read as BIGINT gives 2, 1 read as VARCHAR gives "1"), and
-detecting types over every record costs a full extra parse. So each file is read in two cheap passes:
-1. the set of keys of every record (`json_keys` over `read_json_objects`, ~half a parse): finds fields
-   the schema does not know, whatever record they first appear in, and the source key order;
-2. one typed read in which every scalar field arrives as raw JSON and is checked (`json_type`) and cast
-   in the same query, so a wrong JSON type is reported per record instead of coerced.
+its own type detection over every record (`sample_size=-1`) costs a slow extra parse. So each file is
+read in two passes:
+1. the layouts of all records, grouped: their keys (`json_keys`: fields the schema does not know, in
+   whatever record they first appear, and the source key order) and the JSON type of every scalar field
+   (`json_type` with a list of paths). A field with a wrong type sends only that field down a
+   diagnostic query naming every offending record; an int field with JSON floats is read as float64.
+2. a plain typed read with explicit column types, now known to convert losslessly.
 Fields the schema does not know are kept as their raw JSON text and written back verbatim by export-json.
 """
 
@@ -115,46 +117,47 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
         return SourceTable(schema.name, path, empty, schema.names), []
 
     objects = f"read_json_objects({_sql_path(path)}, format='array', maximum_object_size=1073741824)"
-    try:  # pass 1: every record's keys (and whether it is an object at all)
-        key_sets = con.sql(f"SELECT json_type(json) AS kind, json_keys(json) AS keys, count(*) AS n "
-                           f"FROM {objects} GROUP BY ALL ORDER BY n DESC").fetchall()
+    scalars = [f for f in schema.fields if f.type in _SCALAR_KINDS]
+    paths = "[" + ", ".join(_json_path(f.name) for f in scalars) + "]"
+    try:  # pass 1: the layouts of all records: their keys and the JSON type of every scalar field
+        layouts = con.sql(f"SELECT json_type(json) AS kind, json_keys(json) AS keys, json_type(json, {paths}) AS types, "
+                          f"count(*) AS n FROM {objects} GROUP BY ALL ORDER BY n DESC").fetchall()
     except duckdb.Error as exc:
         return None, [Problem(file, _duckdb_message(exc))]
-    if any(kind != "OBJECT" for kind, _, _ in key_sets):
+    if any(kind != "OBJECT" for kind, *_ in layouts):
         rows = con.sql(f"SELECT idx, kind FROM (SELECT row_number() OVER () - 1 AS idx, json_type(json) AS kind "
                        f"FROM {objects}) WHERE kind != 'OBJECT' ORDER BY idx LIMIT 50").fetchall()
         return None, [Problem(file, f"record is a JSON {kind.lower()}, not an object", idx) for idx, kind in rows]
-    key_order = list(key_sets[0][1])  # the most common record layout
-    for _, keys, _ in key_sets[1:]:
+    key_order = list(layouts[0][1])  # the most common record layout
+    for _, keys, _, _ in layouts[1:]:
         key_order += [k for k in keys if k not in key_order]
 
     known = {f.name for f in schema.fields}
     extras = [k for k in key_order if k not in known]
     present = set(key_order)
-    fields = [f for f in schema.fields if f.name in present]
     problems = [Problem(file, f"required field {f.name!r} is missing from every record")
                 for f in schema.fields if f.required and f.name not in present]
+    seen = {f.name: {types[i] for _, _, types, _ in layouts} for i, f in enumerate(scalars)}
+    float_fields = [f.name for f in scalars if f.json_float_ok and "DOUBLE" in seen[f.name]]
+    for f in scalars:
+        allowed = set(_allowed_kinds(f))
+        if f.name in present and not seen[f.name] <= allowed:
+            problems += _diagnose_scalar(con, objects, file, f, allowed)
     if problems:
         return None, problems
 
-    columns = {f.name: _duckdb_type(f) for f in fields} | dict.fromkeys(extras, "JSON")
+    # pass 2: a plain typed read; pass 1 proved every value has a type that converts losslessly.
+    fields = [f for f in schema.fields if f.name in present]
+    columns = {f.name: "DOUBLE" if f.name in float_fields else _duckdb_type(f) for f in fields}
+    columns |= dict.fromkeys(extras, "JSON")
     spec = "{" + ", ".join(f"{_sql_ident(k)}: '{v}'" for k, v in columns.items()) + "}"
-    select = []
-    for f in fields:
-        select += _typed_select(f)
-    select += [_sql_ident(k) for k in extras]
-    src = f"read_json({_sql_path(path)}, format='array', records=true, maximum_object_size=1073741824, columns={spec})"
-    try:  # pass 2: the typed read, with a per-record check of every scalar field's JSON type
-        raw = con.sql(f"SELECT {', '.join(select)} FROM {src}").to_arrow_table()
+    src = f"read_json({_sql_path(path)}, format='array', records=true, maximum_object_size=1073741824"
+    try:
+        raw = con.sql(f"SELECT * FROM {src}, columns={spec})").to_arrow_table()
     except duckdb.Error as exc:  # a list field of the wrong shape: name the records
         problems = [p for f in fields if f.type.startswith(("list", "fixed_size_list"))
-                    for p in _diagnose_field(con, src.replace(f", columns={spec}", ""), file, f)]
+                    for p in _diagnose_field(con, src + ")", file, f)]
         return None, problems or [Problem(file, _duckdb_message(exc))]
-
-    raw, problems, float_fields = _check_kinds(raw, fields, file)
-    if problems:
-        return None, problems
-    raw = raw.drop_columns([c for c in raw.column_names if c.startswith("__")])
     table, problems = _to_schema_types(raw, schema, file, float_fields)
     if problems:
         return None, problems
@@ -166,58 +169,37 @@ _SCALAR_KINDS = {"string": ("VARCHAR",), "bool": ("BOOLEAN",), "int64": ("UBIGIN
 _SCALAR_WORDS = {"string": "a string", "bool": "a boolean", "int64": "an integer", "float64": "a number"}
 
 
-def _typed_select(f: Field) -> list[str]:
-    """SELECT items for one field: its typed value plus, for scalars, `__ok_<name>` (right JSON type) and
-    for int fields that may be JSON floats `__float_<name>` and the value as DOUBLE."""
-    col = _sql_ident(f.name)
-    if f.type not in _SCALAR_KINDS:
-        return [col]
-    kinds = _SCALAR_KINDS[f.type] + (("DOUBLE",) if f.json_float_ok else ()) + (("NULL",) if not f.required else ())
-    kind_list = ", ".join(f"'{k}'" for k in kinds)
-    ok = f"coalesce(json_type({col}) IN ({kind_list}), {'false' if f.required else 'true'}) AS {_sql_ident('__ok_' + f.name)}"
-    if f.type == "string":
-        value = f"{col} ->> '$'"
-    elif f.type == "bool":
-        value = f"TRY_CAST({col} AS BOOLEAN)"
-    elif f.type == "float64":
-        value = f"TRY_CAST({col} AS DOUBLE)"
-    else:  # int64: never let DuckDB round a JSON float into it
-        value = f"CASE WHEN json_type({col}) IN ('UBIGINT', 'BIGINT') THEN TRY_CAST({col} AS BIGINT) END"
-    items = [f"{value} AS {col}", ok]
-    if f.json_float_ok:
-        items += [f"json_type({col}) = 'DOUBLE' AS {_sql_ident('__float_' + f.name)}",
-                  f"TRY_CAST({col} AS DOUBLE) AS {_sql_ident('__double_' + f.name)}"]
-    return items
+def _allowed_kinds(f: Field) -> tuple[str | None, ...]:
+    """JSON types (duckdb json_type; None for an absent key) field `f` may hold."""
+    kinds: tuple[str | None, ...] = _SCALAR_KINDS[f.type] + (("DOUBLE",) if f.json_float_ok else ())
+    return kinds if f.required else kinds + ("NULL", None)
 
 
-def _check_kinds(raw: pa.Table, fields: list[Field], file: str) -> tuple[pa.Table, list[Problem], list[str]]:
-    """Records whose scalar fields had the wrong JSON type; and the int fields stored as JSON floats
-    (their `__double_` column replaces the int one: float64 keeps them losslessly)."""
-    problems: list[Problem] = []
-    float_fields: list[str] = []
-    tokens = raw.column("token") if "token" in raw.column_names else None
-    for f in fields:
-        if f.type not in _SCALAR_KINDS:
-            continue
-        ok = raw.column("__ok_" + f.name)
-        if not pc.all(ok).as_py():
-            bad = pc.indices_nonzero(pc.invert(ok.combine_chunks())).to_pylist()
-            for idx in bad[:50]:
-                token = tokens[idx].as_py() if tokens is not None else None
-                problems.append(Problem(file, f"field {f.name!r} must be {_SCALAR_WORDS[f.type]}, got "
-                                              f"{_describe_value(raw.column(f.name)[idx].as_py())}", idx, token))
-            if len(bad) > 50:
-                problems.append(Problem(file, f"{len(bad) - 50} more records with a bad {f.name!r}", omitted=len(bad) - 50))
-        if f.json_float_ok and pc.any(raw.column("__float_" + f.name)).as_py():
-            float_fields.append(f.name)
-    for name in float_fields:
-        i = raw.column_names.index(name)
-        raw = raw.set_column(i, name, raw.column("__double_" + name))
-    return raw, problems, float_fields
+def _json_path(name: str) -> str:
+    return "'$.\"" + name.replace("'", "''").replace('"', '\\"') + "\"'"
 
 
-def _describe_value(value) -> str:
-    return "a missing value or null" if value is None else f"{value!r}"
+def _diagnose_scalar(con: duckdb.DuckDBPyConnection, objects: str, file: str, f: Field, allowed: set,
+                     limit: int = 50) -> list[Problem]:
+    """Every record whose scalar field `f` has a JSON type outside `allowed` (the slow path, only on error)."""
+    kinds = ", ".join(f"'{k}'" for k in allowed if k is not None)
+    path = _json_path(f.name)
+    where = f"kind IS NULL OR kind NOT IN ({kinds})" if None not in allowed else f"kind NOT IN ({kinds})"
+    query = f"""
+        SELECT idx, token, kind, value FROM (
+            SELECT row_number() OVER () - 1 AS idx, json_extract_string(json, '$.token') AS token,
+                   json_type(json, {path}) AS kind, json_extract(json, {path})::VARCHAR AS value FROM {objects})
+        WHERE {where} ORDER BY idx"""
+    rows = con.sql(query).fetchall()
+    problems = []
+    for idx, token, kind, value in rows[:limit]:
+        got = "a missing value or null" if kind in (None, "NULL") else f"{value}"
+        if f.type == "int64" and kind == "DOUBLE":
+            got += " (not an integer: it would be truncated)"
+        problems.append(Problem(file, f"field {f.name!r} must be {_SCALAR_WORDS[f.type]}, got {got}", idx, token))
+    if len(rows) > limit:
+        problems.append(Problem(file, f"{len(rows) - limit} more records with a bad {f.name!r}", omitted=len(rows) - limit))
+    return problems
 
 
 def _sql_ident(name: str) -> str:
@@ -230,12 +212,11 @@ def _duckdb_message(exc: duckdb.Error) -> str:
 
 
 def _duckdb_type(f: Field) -> str:
-    """How DuckDB reads a field: scalars as raw JSON (checked and cast in SQL), lists as typed lists."""
-    if f.type == "list<string>":
-        return "VARCHAR[]"
+    """The DuckDB type a field is read as (lists of numbers as variable lists: lengths are checked after)."""
     if f.type.startswith("fixed_size_list"):
         return "DOUBLE[][]" if f.type.count("fixed_size_list") == 2 else "DOUBLE[]"
-    return "JSON"
+    return {"string": "VARCHAR", "bool": "BOOLEAN", "int64": "BIGINT", "float64": "DOUBLE",
+            "list<string>": "VARCHAR[]"}[f.type]
 
 
 def _accepted_structures(f: Field) -> tuple[set[str], str]:

@@ -9,7 +9,6 @@ from __future__ import annotations
 import polars as pl
 
 from nuparquet.problems import MAX_REPORTED, Problem
-from nuparquet.reader import SourceTable
 from nuparquet.schemas import table_schemas
 
 QUATERNION_NORM_TOLERANCE = 1e-6
@@ -20,11 +19,12 @@ _COUNTS = [("scene", "nbr_samples", "sample", "scene_token"),
            ("instance", "nbr_annotations", "sample_annotation", "instance_token")]
 
 
-def check_integrity(tables: dict[str, SourceTable], limit: int = MAX_REPORTED) -> list[Problem]:
-    """All problems across tables: unique tokens, resolving foreign keys (including every non-empty
-    prev/next), count fields, and finite unit quaternions. At most `limit` problems per check."""
-    frames = {name: pl.from_arrow(t.table).with_row_index("_idx") for name, t in tables.items()}
-    files = {name: t.path.name for name, t in tables.items()}
+def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) -> list[Problem]:
+    """All problems across the parsed tables (by table name): unique tokens, resolving foreign keys
+    (including every non-empty prev/next), count fields, and finite unit quaternions. At most `limit`
+    problems per check, plus a count of the rest."""
+    frames = {name: df.with_row_index("_idx") for name, df in tables.items()}
+    files = {name: table_schemas()[name].source for name in tables}
     problems: list[Problem] = []
 
     def report(table: str, rows: pl.DataFrame, message) -> None:

@@ -2,6 +2,10 @@
 
 Joins happen in polars; derived geometry (transforms, velocity, yaw, path lengths) in vectorised numpy.
 Nothing here loops over records. Inputs are the polars frames of the source tables by name.
+
+frames and annotations are built a batch of scenes at a time (`scene_batches`): at trainval scale the
+whole frames table with its three 4x4 matrices would need several GB at once, while every join and
+derivation here stays inside one scene (tracks and sensor chains never cross scenes).
 """
 
 from __future__ import annotations
@@ -35,9 +39,10 @@ def _matrix_column(values: np.ndarray) -> pl.Series:
     return pl.Series(values.reshape(len(values), 16), dtype=pl.Array(pl.Float64, 16))
 
 
-def build_frames(t: dict[str, pl.DataFrame]) -> pl.DataFrame:
-    """One row per sample_data with its pose, calibration, sensor, sample, scene, log and 4x4 transforms."""
-    sample_data = _as_int(t["sample_data"], "timestamp", "width", "height")
+def build_frames(t: dict[str, pl.DataFrame], sample_data: pl.DataFrame, samples: pl.DataFrame) -> pl.DataFrame:
+    """One row per row of `sample_data` (a batch of scenes) with its pose, calibration, sensor, sample,
+    scene, log and 4x4 transforms. `samples` is `sample_lookup(t)`."""
+    sample_data = _as_int(sample_data, "timestamp", "width", "height")
     frames = (
         sample_data.lazy()
         .join(t["ego_pose"].lazy().select(
@@ -49,7 +54,7 @@ def build_frames(t: dict[str, pl.DataFrame]) -> pl.DataFrame:
             "camera_intrinsic"), on="calibrated_sensor_token", how="left")
         .join(t["sensor"].lazy().select(pl.col("token").alias("sensor_token"), "channel", "modality"),
               on="sensor_token", how="left")
-        .join(_sample_scene_log(t).lazy(), on="sample_token", how="left")
+        .join(samples.lazy().drop("sample_timestamp"), on="sample_token", how="left")
         .with_columns(time_utc=pl.from_epoch("timestamp", time_unit="us").dt.replace_time_zone("UTC"))
         .sort("scene_name", "channel", "timestamp", "token")
         .collect()
@@ -71,8 +76,8 @@ def build_frames(t: dict[str, pl.DataFrame]) -> pl.DataFrame:
     )
 
 
-def _sample_scene_log(t: dict[str, pl.DataFrame]) -> pl.DataFrame:
-    """sample_token -> scene_token, scene_name, log_location (plus the sample timestamp)."""
+def sample_lookup(t: dict[str, pl.DataFrame]) -> pl.DataFrame:
+    """sample_token -> scene_token, scene_name, log_location, sample_timestamp (one row per sample)."""
     return (
         _as_int(t["sample"], "timestamp").select(pl.col("token").alias("sample_token"), "scene_token",
                                                  pl.col("timestamp").alias("sample_timestamp"))
@@ -84,32 +89,51 @@ def _sample_scene_log(t: dict[str, pl.DataFrame]) -> pl.DataFrame:
     )
 
 
-def reference_channel(frames: pl.DataFrame) -> str | None:
+def scene_batches(t: dict[str, pl.DataFrame], samples: pl.DataFrame, scenes_per_batch: int) -> pl.DataFrame:
+    """sample_token -> `_batch`: scenes in name order, `scenes_per_batch` to a batch."""
+    order = t["scene"].select(pl.col("token").alias("scene_token"), "name").sort("name", "scene_token")
+    order = order.with_columns(_batch=(pl.int_range(pl.len()) // scenes_per_batch).cast(pl.Int32))
+    return samples.select("sample_token", "scene_token").join(order, on="scene_token", how="left").select(
+        "sample_token", "_batch")
+
+
+def reference_channel(t: dict[str, pl.DataFrame]) -> str | None:
     """LIDAR_TOP when the dataset has it, else the first lidar channel by name (other layouts)."""
-    channels = frames.select("channel", "modality").unique()
-    if (channels["channel"] == REFERENCE_CHANNEL).any():
+    sensors = t["sensor"]
+    if (sensors["channel"] == REFERENCE_CHANNEL).any():
         return REFERENCE_CHANNEL
-    lidars = channels.filter(pl.col("modality") == "lidar")["channel"].sort()
+    lidars = sensors.filter(pl.col("modality") == "lidar")["channel"].sort()
     return lidars[0] if len(lidars) else None
 
 
-def _reference_poses(frames: pl.DataFrame) -> pl.DataFrame:
-    """Per sample: the ego translation of its reference-channel keyframe."""
-    channel = reference_channel(frames)
-    return (frames.filter((pl.col("channel") == channel) & pl.col("is_key_frame"))
-            .select("sample_token", "scene_name", "timestamp", "ego_translation")
-            .unique("sample_token", keep="first"))
+def reference_poses(t: dict[str, pl.DataFrame], samples: pl.DataFrame) -> pl.DataFrame:
+    """Per sample: timestamp and ego translation of its reference-channel (LIDAR_TOP) keyframe."""
+    sensor_tokens = t["sensor"].filter(pl.col("channel") == reference_channel(t))["token"]
+    calibrations = t["calibrated_sensor"].filter(pl.col("sensor_token").is_in(sensor_tokens.implode()))["token"]
+    return (
+        _as_int(t["sample_data"], "timestamp").lazy()
+        .filter(pl.col("is_key_frame") & pl.col("calibrated_sensor_token").is_in(calibrations.implode()))
+        .select("sample_token", "timestamp", "ego_pose_token")
+        .join(t["ego_pose"].lazy().select(pl.col("token").alias("ego_pose_token"), pl.col("translation").alias("ego_translation")),
+              on="ego_pose_token", how="left")
+        .join(samples.lazy().select("sample_token", "scene_name"), on="sample_token", how="left")
+        .unique("sample_token", keep="first")
+        .select("sample_token", "scene_name", "timestamp", "ego_translation")
+        .collect()
+    )
 
 
-def build_annotations(t: dict[str, pl.DataFrame], frames: pl.DataFrame) -> pl.DataFrame:
-    """One row per sample_annotation, joined and with velocity, yaw and distance to the ego vehicle."""
+def build_annotations(t: dict[str, pl.DataFrame], annotations: pl.DataFrame, samples: pl.DataFrame,
+                      references: pl.DataFrame) -> pl.DataFrame:
+    """One row per row of `annotations` (sample_annotation rows of a batch of scenes), joined and with
+    velocity, yaw and distance to the ego vehicle. `references` is `reference_poses(t, samples)`."""
     names = dict(zip(t["attribute"]["token"].to_list(), t["attribute"]["name"].to_list()))  # a handful
-    ann = t["sample_annotation"].with_columns(attribute_names=pl.col("attribute_tokens").list.eval(
+    ann = annotations.with_columns(attribute_names=pl.col("attribute_tokens").list.eval(
         pl.element().replace_strict(names, return_dtype=pl.String)))
-    ego = _reference_poses(frames).select("sample_token", pl.col("ego_translation").alias("_ego"))
+    ego = references.select("sample_token", pl.col("ego_translation").alias("_ego"))
     ann = (
         ann.lazy()
-        .join(_sample_scene_log(t).lazy(), on="sample_token", how="left")
+        .join(samples.lazy(), on="sample_token", how="left")
         .rename({"sample_timestamp": "timestamp"})
         .join(t["instance"].lazy().select(pl.col("token").alias("instance_token"), "category_token"),
               on="instance_token", how="left")
@@ -167,7 +191,7 @@ def _box_velocity(ann: pl.DataFrame) -> np.ndarray:
     return velocity
 
 
-def _path_length(df: pl.DataFrame, group: str, order: str, position: str) -> pl.DataFrame:
+def path_lengths(df: pl.DataFrame, group: str, order: str, position: str) -> pl.DataFrame:
     """Sum of 3D distances between consecutive positions of each group, in `order`."""
     ordered = df.select(group, order, position).sort(group, order)
     xyz = _vectors(ordered[position], 3)
@@ -189,12 +213,17 @@ def _split_of(names: pl.Series, source_version: str) -> pl.Series:
     return names.replace_strict(lookup, default=None, return_dtype=pl.String)
 
 
-def build_scenes(t: dict[str, pl.DataFrame], frames: pl.DataFrame, annotations: pl.DataFrame,
+def scene_counts(annotations: pl.DataFrame) -> pl.DataFrame:
+    """scene_token -> num_annotations, num_instances (for a batch of whole scenes)."""
+    return annotations.group_by("scene_token").agg(num_annotations=pl.len(),
+                                                  num_instances=pl.col("instance_token").n_unique())
+
+
+def build_scenes(t: dict[str, pl.DataFrame], references: pl.DataFrame, counts: pl.DataFrame,
                  source_version: str) -> pl.DataFrame:
+    """One row per scene. `counts` is `scene_counts` of all annotations."""
     sample_ts = _as_int(t["sample"], "timestamp").select("token", "timestamp")
-    counts = annotations.group_by("scene_token").agg(
-        num_annotations=pl.len(), num_instances=pl.col("instance_token").n_unique())
-    ego_path = _path_length(_reference_poses(frames), "scene_name", "timestamp", "ego_translation").rename(
+    ego_path = path_lengths(references, "scene_name", "timestamp", "ego_translation").rename(
         {"_step": "ego_distance_m"})
     scenes = (
         t["scene"]
@@ -217,10 +246,10 @@ def build_scenes(t: dict[str, pl.DataFrame], frames: pl.DataFrame, annotations: 
     return scenes.with_columns(split=_split_of(scenes["name"], source_version))
 
 
-def build_instances(t: dict[str, pl.DataFrame], annotations: pl.DataFrame) -> pl.DataFrame:
-    by_token = annotations.select("token", "scene_token", "scene_name", "timestamp")
-    lengths = _path_length(annotations, "instance_token", "timestamp", "translation").rename(
-        {"_step": "track_length_m"})
+def build_instances(t: dict[str, pl.DataFrame], annotation_times: pl.DataFrame, track_lengths: pl.DataFrame) -> pl.DataFrame:
+    """One row per instance. `annotation_times`: token, scene_token, scene_name, timestamp of every
+    annotation; `track_lengths`: path_lengths of the annotation centres per instance_token."""
+    by_token = annotation_times.select("token", "scene_token", "scene_name", "timestamp")
     return (
         t["instance"]
         .join(t["category"].select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
@@ -229,7 +258,7 @@ def build_instances(t: dict[str, pl.DataFrame], annotations: pl.DataFrame) -> pl
               on="first_annotation_token", how="left")
         .join(by_token.select(pl.col("token").alias("last_annotation_token"), pl.col("timestamp").alias("last_timestamp")),
               on="last_annotation_token", how="left")
-        .join(lengths, left_on="token", right_on="instance_token", how="left")
+        .join(track_lengths.rename({"_step": "track_length_m"}), left_on="token", right_on="instance_token", how="left")
         .with_columns(track_length_m=pl.col("track_length_m").fill_null(0.0))
         .sort("scene_name", "first_timestamp", "token")
     )

@@ -26,18 +26,42 @@ MAX_ROW_GROUP_ROWS = 65536
 MANIFEST = "manifest.json"
 
 
-def write_parquet(table: pa.Table, directory: Path, *, group_by: str | None = None) -> int:
-    """Write `table` as `directory/part-00000.parquet`; returns bytes written.
+class DatasetWriter:
+    """Appends tables to `directory/part-00000.parquet` with one schema; `group_by` (a column the rows are
+    sorted by) starts a new row group at each change of value, so statistics prune e.g. one scene."""
 
-    With `group_by` (a column the table is sorted by), each run of equal values starts a new row group,
-    so a filter on that column (e.g. one scene) reads only that value's row groups via the statistics.
-    """
-    directory.mkdir(parents=True, exist_ok=True)
-    path = directory / PART_NAME
-    with pq.ParquetWriter(path, table.schema, compression="zstd", write_statistics=True) as writer:
-        for start, stop in _row_groups(table, group_by):
-            writer.write_table(table.slice(start, stop - start), row_group_size=MAX_ROW_GROUP_ROWS)
-    return path.stat().st_size
+    def __init__(self, directory: Path, schema: pa.Schema, *, group_by: str | None = None):
+        directory.mkdir(parents=True, exist_ok=True)
+        self.path = directory / PART_NAME
+        self.group_by = group_by
+        self.rows = 0
+        self._writer = pq.ParquetWriter(self.path, schema, compression="zstd", write_statistics=True)
+        self._open = True
+
+    def write(self, table: pa.Table) -> None:
+        for start, stop in _row_groups(table, self.group_by):
+            self._writer.write_table(table.slice(start, stop - start), row_group_size=MAX_ROW_GROUP_ROWS)
+        self.rows += table.num_rows
+
+    def close(self) -> int:
+        """Finish the file; returns its size in bytes."""
+        if self._open:
+            self._writer.close()
+            self._open = False
+        return self.path.stat().st_size
+
+    def __enter__(self) -> "DatasetWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def write_parquet(table: pa.Table, directory: Path, *, group_by: str | None = None) -> int:
+    """Write `table` as `directory/part-00000.parquet` (see DatasetWriter); returns bytes written."""
+    with DatasetWriter(directory, table.schema, group_by=group_by) as writer:
+        writer.write(table)
+        return writer.close()
 
 
 def _row_groups(table: pa.Table, group_by: str | None) -> Iterator[tuple[int, int]]:
