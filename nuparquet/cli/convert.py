@@ -5,8 +5,6 @@ from __future__ import annotations
 import sys
 import time
 
-from nuparquet.convert import convert
-
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -26,6 +24,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from nuparquet.convert import convert
     start = time.perf_counter()
     manifest = convert(args.dataroot, args.version, args.out, overwrite=args.overwrite, progress=not args.quiet)
     rows = {name: d["rows"] for name, d in manifest["datasets"].items() if "/" not in name}

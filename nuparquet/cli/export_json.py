@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from nuparquet.export import export_json
-
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -19,6 +17,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from nuparquet.export import export_json
     paths = export_json(args.dataset, args.out, overwrite=args.overwrite)
     print(f"wrote {len(paths)} tables to {args.out}")
     return 0

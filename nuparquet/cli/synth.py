@@ -6,7 +6,6 @@ import sys
 import time
 
 from nuparquet.errors import UsageError
-from nuparquet.synth import synthesize
 
 
 def register(sub) -> None:
@@ -37,6 +36,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from nuparquet.synth import synthesize
+
     if args.scenes < 1:
         raise UsageError(f"--scenes must be at least 1, got {args.scenes}")
     if args.samples_per_scene < 1:

@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-from nuparquet.convert import validate
-from nuparquet.problems import count_problems, format_problems
-
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -22,6 +19,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from nuparquet.convert import validate
+    from nuparquet.problems import count_problems, format_problems
     result, problems = validate(args.dataroot, args.version)
     if problems:
         print(format_problems(problems, limit=args.max_problems))
