@@ -156,7 +156,7 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
         raw = con.sql(f"SELECT * FROM {src}, columns={spec})").to_arrow_table()
     except duckdb.Error as exc:  # a list field of the wrong shape: name the records
         problems = [p for f in fields if f.type.startswith(("list", "fixed_size_list"))
-                    for p in _diagnose_field(con, src + ")", file, f)]
+                    for p in _diagnose_field(con, src, file, f)]
         return None, problems or [Problem(file, _duckdb_message(exc))]
     table, problems = _to_schema_types(raw, schema, file, float_fields)
     if problems:
@@ -229,24 +229,21 @@ def _accepted_structures(f: Field) -> tuple[set[str], str]:
 
 
 def _diagnose_field(con: duckdb.DuckDBPyConnection, src: str, file: str, f: Field, limit: int = 50) -> list[Problem]:
-    """Name every record whose value of `f` has the wrong JSON type (the slow path, only on error)."""
-    kinds, word = _accepted_structures(f)
-    probe = "json_structure"
+    """Every record whose list field `f` has the wrong JSON structure (the slow path, only on error).
+    `src` is an unclosed `read_json(...` call."""
+    structures, word = _accepted_structures(f)
     col = _sql_ident(f.name)
+    allowed = ", ".join("'" + k.replace("'", "''") + "'" for k in structures)
     query = f"""
-        SELECT idx, token, kind FROM (
-            SELECT row_number() OVER () - 1 AS idx, token ->> '$' AS token, {probe}({col}) AS kind
+        SELECT idx, token, value FROM (
+            SELECT row_number() OVER () - 1 AS idx, token ->> '$' AS token, json_structure({col}) AS structure,
+                   {col}::VARCHAR AS value
             FROM {src}, columns={{token: 'JSON', {col}: 'JSON'}}))
-        WHERE kind IS NULL OR kind NOT IN ({", ".join("'" + k.replace("'", "''") + "'" for k in kinds)})
+        WHERE structure IS NULL OR structure NOT IN ({allowed})
         ORDER BY idx LIMIT {limit}"""
-    rows = con.sql(query).fetchall()
-    if not rows:  # mixed types DuckDB could not unify, but each value is fine: should not happen
-        return [Problem(file, f"field {f.name!r} has values of mixed JSON types")]
-    out = []
-    for idx, token, kind in rows:
-        got = "missing" if kind is None else f"JSON {kind.lower()}"
-        out.append(Problem(file, f"field {f.name!r} must be {word}, got {got}", idx, token))
-    return out
+    return [Problem(file, f"field {f.name!r} must be {word}, got {'a missing value' if value is None else value[:80]}",
+                    idx, token)
+            for idx, token, value in con.sql(query).fetchall()]
 
 
 def _to_schema_types(raw: pa.Table, schema: Schema, file: str, float_fields: list[str]) -> tuple[pa.Table, list[Problem]]:

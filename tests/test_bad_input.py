@@ -205,3 +205,20 @@ def test_failed_overwrite_keeps_the_previous_output(root, tmp_path, monkeypatch)
     monkeypatch.setattr(derived, "build_instances", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
     assert main(["convert", str(root), "--version", V, "--out", str(out), "--overwrite", "--quiet"]) == 130
     assert (out / "manifest.json").read_text() == before
+
+
+@pytest.mark.parametrize("table,field,value,expected", [
+    ("sample_annotation", "size", [1.0, "x", 2.0], "must be a list of numbers"),
+    ("sample_annotation", "translation", [1.0, 2.0], "must have 3 numbers"),
+    ("calibrated_sensor", "camera_intrinsic", [[1.0, 0.0], [0.0, 1.0]], "must have 3x3 numbers or be []"),
+    ("sample_data", "is_key_frame", "yes", "must be a boolean"),
+    ("sensor", "channel", 5, "must be a string"),
+])
+def test_wrong_json_type_or_shape_names_the_record(root, capsys, table, field, value, expected):
+    records = load(root, table)
+    index = 1
+    records[index][field] = value
+    save(root, table, records)
+    code, message = validate(root, capsys)
+    assert code == 1
+    assert f"{table}.json[{index}] token={records[index]['token']}: field '{field}' {expected}" in message
