@@ -30,10 +30,8 @@ from typing import Any
 import polars as pl
 
 from nuparquet.errors import FormatError, NuparquetError, UsageError
-from nuparquet.schemas import FORMAT_VERSION
+from nuparquet.format import FORMAT_NAME, FORMAT_VERSION, MANIFEST
 
-MANIFEST = "manifest.json"
-FORMAT_NAME = "nuparquet"
 
 
 class QueryError(NuparquetError):

@@ -14,8 +14,9 @@ from typing import Callable
 
 import pyarrow.parquet as pq
 
-from nuparquet.convert.write import MANIFEST, atomic_directory, check_target
+from nuparquet.convert.write import atomic_directory, check_target
 from nuparquet.errors import FormatError
+from nuparquet.format import MANIFEST
 from nuparquet.schemas import table_schemas
 
 BATCH_ROWS = 65536  # records converted to Python at a time: keeps memory flat on trainval

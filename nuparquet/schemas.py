@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pyarrow as pa
 
-FORMAT_VERSION = 1
+from nuparquet.format import FORMAT_VERSION  # the docs name it
 
 
 def _schema_dir() -> Path:

@@ -5,16 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from nuparquet.render.pipeline import (
-    ALL_CHANNELS,
-    CAMERA_CHANNELS,
-    FRAME_FORMATS,
-    LABEL_MODES,
-    ON_MISSING,
-    RenderOptions,
-    render,
-)
-from nuparquet.render.video import DEFAULT_CRF
+from nuparquet.render.options import ALL_CHANNELS, CAMERA_CHANNELS, DEFAULT_CRF, FRAME_FORMATS, LABEL_MODES, ON_MISSING, RenderOptions
 
 _EPILOG = """\
 examples:
@@ -86,6 +77,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from nuparquet.render.pipeline import render  # cv2 and PyAV load only when rendering
+
     options = RenderOptions(
         scene=args.scene,
         channel=args.channel,

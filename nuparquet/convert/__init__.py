@@ -20,7 +20,8 @@ from nuparquet.convert import derived
 from nuparquet.convert.write import DatasetWriter, atomic_directory, check_target, utc_now, write_manifest, write_parquet
 from nuparquet.problems import Problem, ProblemsFound
 from nuparquet.reader import ReadResult, read_tables
-from nuparquet.schemas import FORMAT_VERSION, Schema, dataset_schemas, fingerprint, table_schemas
+from nuparquet.format import FORMAT_NAME, FORMAT_VERSION
+from nuparquet.schemas import Schema, dataset_schemas, fingerprint, table_schemas
 from nuparquet.validate import check_integrity
 
 # Scenes per batch when building frames/annotations: ~30k frames each at nuScenes rates (~3k per scene),
@@ -69,7 +70,7 @@ def convert(dataroot: Path | str, version: str, out: Path | str, *, overwrite: b
                 raise ProblemsFound(problems)
             datasets |= _write_derived(tables, tmp, version, bar if progress else None)
             manifest = {
-                "format": "nuparquet",
+                "format": FORMAT_NAME,
                 "format_version": FORMAT_VERSION,
                 "nuparquet_version": __version__,
                 "created_utc": utc_now(),

@@ -13,8 +13,8 @@ import av
 import cv2
 import numpy as np
 
-DEFAULT_CRF = 23
-DEFAULT_PRESET = "veryfast"
+from nuparquet.render.options import DEFAULT_CRF, DEFAULT_PRESET
+
 
 
 def even_size(width: int, height: int) -> tuple[int, int]:

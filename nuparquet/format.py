@@ -1,0 +1,8 @@
+"""The on-disk format of a conversion: its name and version as written to manifest.json.
+
+Kept free of heavy imports: `nuparquet.open` checks these before anything else is loaded.
+"""
+
+FORMAT_NAME = "nuparquet"
+FORMAT_VERSION = 1  # bump when a column of schemas/ changes name or meaning
+MANIFEST = "manifest.json"
