@@ -9,6 +9,7 @@ polars; frames and annotations never exist whole, only a batch of scenes of them
 
 from __future__ import annotations
 
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Callable
 
@@ -103,6 +104,17 @@ def _write_derived(t: dict[str, pl.DataFrame], root: Path, version: str, bar) ->
                for name in ("frames", "annotations")}
     if bar is not None:
         bar.total += len(batches)
+    # Parquet encoding releases the GIL: write each batch on a second thread while the next one is built,
+    # one write in flight at a time so memory stays at about two batches.
+    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="nuparquet-write")
+    pending: Future | None = None
+
+    def write_behind(name: str, table: pa.Table) -> None:
+        nonlocal pending
+        if pending is not None:
+            pending.result()
+        pending = pool.submit(writers[name].write, table)
+
     try:
         for batch in batches:
             if bar is not None:
@@ -110,16 +122,19 @@ def _write_derived(t: dict[str, pl.DataFrame], root: Path, version: str, bar) ->
                 bar.update()
             part = frame_parts.pop((batch,), None)
             if part is not None:
-                writers["frames"].write(_to_schema(derived.build_frames(t, part, samples), schemas["frames"]))
+                write_behind("frames", _to_schema(derived.build_frames(t, part, samples), schemas["frames"]))
             part = annotation_parts.pop((batch,), None)
             if part is not None:
                 annotations = derived.build_annotations(t, part, samples, references)
-                writers["annotations"].write(_to_schema(annotations, schemas["annotations"]))
+                write_behind("annotations", _to_schema(annotations, schemas["annotations"]))
                 counts.append(derived.scene_counts(annotations))
                 times.append(annotations.select("token", "scene_token", "scene_name", "timestamp"))
                 lengths.append(derived.path_lengths(annotations, "instance_token", "timestamp", "translation"))
+        if pending is not None:
+            pending.result()
         out = {name: _info(name, w.rows, schemas[name], w.close()) for name, w in writers.items()}
     finally:
+        pool.shutdown(wait=True)
         for w in writers.values():
             w.close()
     empty_counts = pl.DataFrame(schema={"scene_token": pl.String, "num_annotations": pl.UInt32, "num_instances": pl.UInt32})
