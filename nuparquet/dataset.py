@@ -29,13 +29,9 @@ from typing import Any
 
 import polars as pl
 
-from nuparquet.errors import FormatError, NuparquetError, UsageError
+from nuparquet.errors import FormatError, QueryError, UsageError
 from nuparquet.format import FORMAT_NAME, FORMAT_VERSION, MANIFEST
 
-
-
-class QueryError(NuparquetError):
-    """A SQL query that polars cannot plan or run (syntax error, unknown table or column): exit code 1."""
 
 
 def _is_url(path: str) -> bool:

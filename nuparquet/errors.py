@@ -17,3 +17,7 @@ class InputError(NuparquetError):
 
 class FormatError(NuparquetError):
     """A directory is not a nuparquet output, or its format version is not supported."""
+
+
+class QueryError(NuparquetError):
+    """A SQL query that polars cannot plan or run (syntax error, unknown table or column): exit code 1."""

@@ -16,7 +16,7 @@ import nuparquet
 from conftest import EXTRACT_VERSION, SYNTH_VERSION
 from nuparquet import queries
 from nuparquet.cli import main as cli_main
-from nuparquet.cli.sql import records
+from nuparquet.cli.output import records
 
 OURS = ["info", "stats", "sql"]
 

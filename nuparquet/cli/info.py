@@ -7,7 +7,7 @@ import sys
 
 import polars as pl
 
-from nuparquet.cli.sql import print_frame, records
+from nuparquet.cli.output import print_frame, records
 from nuparquet.dataset import open_dataset
 
 

@@ -9,7 +9,7 @@ import sys
 import polars as pl
 
 from nuparquet import queries
-from nuparquet.cli.sql import FORMATS, print_frame, records
+from nuparquet.cli.output import FORMATS, print_frame, records
 from nuparquet.dataset import open_dataset
 from nuparquet.errors import UsageError
 
