@@ -132,7 +132,7 @@ def _write_derived(t: dict[str, pl.DataFrame], root: Path, version: str, bar) ->
                 lengths.append(derived.path_lengths(annotations, "instance_token", "timestamp", "translation"))
         if pending is not None:
             pending.result()
-        out = {name: _info(name, w.rows, schemas[name], w.close()) for name, w in writers.items()}
+        out = {name: _info(name, w.rows, w.schema, w.close()) for name, w in writers.items()}
     finally:
         pool.shutdown(wait=True)
         for w in writers.values():
@@ -148,13 +148,13 @@ def _write_derived(t: dict[str, pl.DataFrame], root: Path, version: str, bar) ->
     return out
 
 
-def _info(path: str, rows: int, schema: Schema, size: int) -> dict:
-    return {"path": path, "rows": rows, "schema_fingerprint": fingerprint(schema.arrow_schema()), "bytes": size}
+def _info(path: str, rows: int, schema: pa.Schema, size: int) -> dict:
+    """A dataset's manifest entry."""
+    return {"path": path, "rows": rows, "schema_fingerprint": fingerprint(schema), "bytes": size}
 
 
-def _write(root: Path, path: str, table: pa.Table, group_by: str | None = None) -> dict:
-    size = write_parquet(table, root / path, group_by=group_by)
-    return {"path": path, "rows": table.num_rows, "schema_fingerprint": fingerprint(table.schema), "bytes": size}
+def _write(root: Path, path: str, table: pa.Table) -> dict:
+    return _info(path, table.num_rows, table.schema, write_parquet(table, root / path))
 
 
 def _to_schema(df: pl.DataFrame, schema: Schema) -> pa.Table:

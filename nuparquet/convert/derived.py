@@ -153,12 +153,13 @@ def build_annotations(t: dict[str, pl.DataFrame], annotations: pl.DataFrame, sam
 
 
 def _xy_distance(translation: np.ndarray, ego: pl.Series) -> np.ndarray:
+    """xy distance of each box centre to its ego position; NaN (written as null) where there is none."""
     present = ego.is_not_null().to_numpy()
     distance = np.full(len(translation), np.nan)
     if present.any():
         ego_xy = _vectors(ego.filter(ego.is_not_null()), 3)[:, :2]
         distance[present] = np.linalg.norm(translation[present, :2] - ego_xy, axis=1)
-    return np.where(present, distance, np.nan)
+    return distance
 
 
 def _box_velocity(ann: pl.DataFrame) -> np.ndarray:
