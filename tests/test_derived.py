@@ -193,3 +193,21 @@ def test_one_scene_filter_prunes_row_groups(extract_out, dataset):
     assert kept == may_match
     rows_read = sum(metadata.row_group(g).num_rows for g in kept)
     assert rows_read == pl.scan_parquet(file).filter(pl.col("scene_name") == scene).select(pl.len()).collect().item()
+
+
+def test_distance_to_ego_is_null_without_a_reference_keyframe(synth_root, tmp_path):
+    """The schema promises null (not NaN) when a sample has no LIDAR_TOP keyframe."""
+    import shutil
+
+    from nuparquet.convert import convert
+
+    shutil.copytree(synth_root / SYNTH_VERSION, tmp_path / "data" / SYNTH_VERSION)
+    path = tmp_path / "data" / SYNTH_VERSION / "sensor.json"
+    sensors = json.loads(path.read_text())
+    for s in sensors:
+        if s["modality"] == "lidar":
+            s["channel"], s["modality"] = "LIDAR_ELSEWHERE", "other"  # no lidar channel left at all
+    path.write_text(json.dumps(sensors))
+    convert(tmp_path / "data", SYNTH_VERSION, tmp_path / "out", progress=False)
+    distance = read(tmp_path / "out", "annotations")["distance_to_ego_m"]
+    assert distance.null_count() == len(distance) and not distance.is_nan().any()

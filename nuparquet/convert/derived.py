@@ -108,7 +108,11 @@ def reference_channel(t: dict[str, pl.DataFrame]) -> str | None:
 
 def reference_poses(t: dict[str, pl.DataFrame], samples: pl.DataFrame) -> pl.DataFrame:
     """Per sample: timestamp and ego translation of its reference-channel (LIDAR_TOP) keyframe."""
-    sensor_tokens = t["sensor"].filter(pl.col("channel") == reference_channel(t))["token"]
+    channel = reference_channel(t)
+    if channel is None:  # a layout without lidar: no sample has a reference pose
+        return pl.DataFrame(schema={"sample_token": pl.String, "scene_name": pl.String, "timestamp": pl.Int64,
+                                    "ego_translation": pl.Array(pl.Float64, 3)})
+    sensor_tokens = t["sensor"].filter(pl.col("channel") == channel)["token"]
     calibrations = t["calibrated_sensor"].filter(pl.col("sensor_token").is_in(sensor_tokens.implode()))["token"]
     return (
         _as_int(t["sample_data"], "timestamp").lazy()
@@ -147,13 +151,13 @@ def build_annotations(t: dict[str, pl.DataFrame], annotations: pl.DataFrame, sam
     ann = ann.with_columns(
         velocity=pl.Series(_box_velocity(ann), dtype=pl.Array(pl.Float64, 3)),
         yaw=pl.Series(geometry.yaw_from_quaternions(_vectors(ann["rotation"], 4))),
-        distance_to_ego_m=pl.Series(_xy_distance(translation, ann["_ego"])),
+        distance_to_ego_m=pl.Series(_xy_distance(translation, ann["_ego"])).fill_nan(None),
     )
     return ann.drop("_ego", "category_token").sort("scene_name", "timestamp", "instance_token", "token")
 
 
 def _xy_distance(translation: np.ndarray, ego: pl.Series) -> np.ndarray:
-    """xy distance of each box centre to its ego position; NaN (written as null) where there is none."""
+    """xy distance of each box centre to its ego position; NaN where there is none."""
     present = ego.is_not_null().to_numpy()
     distance = np.full(len(translation), np.nan)
     if present.any():
