@@ -68,6 +68,7 @@ class Dataset:
         self.manifest = manifest
         self.storage_options = dict(storage_options) if storage_options else None
         self._entries: dict[str, dict] = dict(manifest["datasets"])
+        self._channels: dict | None = None
 
     def __repr__(self) -> str:
         return f"<nuparquet.Dataset {self.root!r} {self.version} datasets={len(self.datasets)}>"
@@ -87,6 +88,35 @@ class Dataset:
     @property
     def version(self) -> str | None:
         return self.manifest.get("source", {}).get("version")
+
+    @property
+    def channels(self) -> dict:
+        """The dataset's sensor channels (`nuparquet.channels.channel_facts`): {"reference_lidar": str | None,
+        "cameras": [...], "camera_layout": [[front row], [back row]], "lidars": [...], "radars": [...]}.
+
+        Recorded in manifest.json at conversion; for an output written before that, computed once from the
+        channels present in `frames` and the camera calibrations in `tables/calibrated_sensor`.
+        """
+        recorded = self.manifest.get("channels")
+        if isinstance(recorded, dict):
+            return recorded
+        if self._channels is None:
+            self._channels = self._channels_from_data()
+        return self._channels
+
+    def _channels_from_data(self) -> dict:
+        from nuparquet.channels import channel_facts
+
+        present = (self.scan("frames").select(pl.col("channel").cast(pl.String), pl.col("modality").cast(pl.String))
+                   .unique().sort("channel").collect())
+        rotations: dict[str, list[float]] = {}
+        if {"tables/sensor", "tables/calibrated_sensor"} <= set(self._entries):
+            sensors = self.scan("tables/sensor").select(pl.col("token").alias("sensor_token"), "channel")
+            calibrations = (self.scan("tables/calibrated_sensor").select("sensor_token", "token", "rotation")
+                            .join(sensors, on="sensor_token").sort("channel", "token")
+                            .unique("channel", keep="first").collect())
+            rotations = dict(zip(calibrations["channel"].to_list(), calibrations["rotation"].to_list()))
+        return channel_facts(present["channel"].to_list(), present["modality"].to_list(), rotations)
 
     def _entry(self, name: str) -> dict:
         if name not in self._entries:

@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING, TypeAlias
 
 import polars as pl
 
+from nuparquet.channels import DEFAULT_REFERENCE_LIDAR
+
 if TYPE_CHECKING:
     from nuparquet.dataset import Dataset
 
@@ -158,9 +160,9 @@ def distance_histogram(annotations: Source, *, bin_width_m: float = 10.0, scene:
     """How far from the ego vehicle are the boxes of each category?
 
     Histogram of ``distance_to_ego_m`` (xy distance from the box centre to the ego position of the sample's
-    LIDAR_TOP keyframe) in bins ``[bin_start_m, bin_end_m)`` of ``bin_width_m`` metres starting at 0: one row
-    per category and non-empty bin with its ``count``. Annotations without a distance (no LIDAR_TOP keyframe)
-    are left out.
+    reference-lidar keyframe) in bins ``[bin_start_m, bin_end_m)`` of ``bin_width_m`` metres starting at 0: one
+    row per category and non-empty bin with its ``count``. Annotations without a distance (no reference-lidar
+    keyframe) are left out.
     """
     if not bin_width_m > 0:
         raise ValueError("bin_width_m must be positive")
@@ -239,10 +241,31 @@ def scene_summary(scenes: Source, annotations: Source | None = None, *, scene: S
 
 # --- frames ----------------------------------------------------------------------------------------------------
 
-def ego_motion(frames: Source, *, channel: str = "LIDAR_TOP", scene: Scene = None) -> pl.LazyFrame:
+def _channel_or_reference(source, channel: str | None) -> str | None:
+    """`channel`, else the reference lidar a Dataset records (None: find it in the frames themselves)."""
+    if channel is not None or not hasattr(source, "channels"):
+        return channel
+    return source.channels.get("reference_lidar") or ""
+
+
+def _of_channel(lf: pl.LazyFrame, channel: str | None) -> pl.LazyFrame:
+    """Rows of `channel`; for None, of the reference lidar among the rows' own channels (`channels.reference_lidar`:
+    its default channel when present, else the first lidar by name), found lazily."""
+    name = pl.col("channel").cast(pl.String)
+    if channel is not None:
+        return lf.filter(name == channel)
+    lidars = lf.filter(pl.col("modality").cast(pl.String) == "lidar").select(name.unique())
+    reference = lidars.select(
+        pl.when((pl.col("channel") == DEFAULT_REFERENCE_LIDAR).any())
+        .then(pl.lit(DEFAULT_REFERENCE_LIDAR)).otherwise(pl.col("channel").min()).alias("channel"))
+    return lf.with_columns(name).join(reference, on="channel", how="semi")
+
+
+def ego_motion(frames: Source, *, channel: str | None = None, scene: Scene = None) -> pl.LazyFrame:
     """How fast does the ego vehicle drive and accelerate over each scene?
 
-    From the ego poses of the keyframes of `channel` (LIDAR_TOP: one per sample), in time order per scene:
+    From the ego poses of the keyframes of `channel` (default: the reference lidar, `Dataset.channels`, one
+    keyframe per sample), in time order per scene:
     ``timestamp``, ``time_s`` since the scene's first such keyframe, ego position ``x_m, y_m, z_m`` (global),
     ``step_m`` = 3D distance from the previous keyframe's position, ``speed_mps`` = ``step_m`` / time since
     that keyframe (both null on the first),
@@ -253,7 +276,7 @@ def ego_motion(frames: Source, *, channel: str = "LIDAR_TOP", scene: Scene = Non
     dt_s = pl.col("timestamp").diff().over("scene_name") / US_PER_S
     step_m = (pl.col("x_m").diff() ** 2 + pl.col("y_m").diff() ** 2 + pl.col("z_m").diff() ** 2).sqrt()
     return (
-        lf.filter((pl.col("channel").cast(pl.String) == channel) & pl.col("is_key_frame"))
+        _of_channel(lf.filter(pl.col("is_key_frame")), _channel_or_reference(frames, channel))
         .select("scene_name", "timestamp",
                 *(pl.col("ego_translation").arr.get(i).alias(axis) for i, axis in enumerate(("x_m", "y_m", "z_m"))))
         .sort("scene_name", "timestamp")
@@ -270,7 +293,7 @@ def ego_motion(frames: Source, *, channel: str = "LIDAR_TOP", scene: Scene = Non
     )
 
 
-def ego_speed_summary(frames: Source, *, channel: str = "LIDAR_TOP", scene: Scene = None) -> pl.LazyFrame:
+def ego_speed_summary(frames: Source, *, channel: str | None = None, scene: Scene = None) -> pl.LazyFrame:
     """How far and how fast did the ego vehicle drive in each scene? (A summary of `ego_motion`.)
 
     One row per scene: ``keyframes``, ``duration_s``, ``distance_m`` (sum of the steps between keyframes),
