@@ -90,7 +90,11 @@ def rotation_matrices(q_wxyz) -> np.ndarray:
         [2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x)],
         [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z],
     ]
-    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+    matrices = np.empty(w.shape + (3, 3))
+    for i, row in enumerate(rows):
+        for j, value in enumerate(row):
+            matrices[..., i, j] = value
+    return matrices
 
 
 def rigid_transforms(translation_m, rotation_wxyz) -> np.ndarray:
@@ -186,8 +190,13 @@ def box_corners(translation_m, size_wlh_m, rotation_wxyz) -> np.ndarray:
     rotation = np.asarray(rotation_wxyz, dtype=np.float64)
     F_from_box_rotation = rotation if rotation.shape[-2:] == (3, 3) else rotation_matrices(rotation)
     half_lwh = size_wlh_m[..., [1, 0, 2]] / 2.0  # box x is length, y is width, z is height
-    corners_box = _CORNER_SIGNS_XYZ * half_lwh[..., None, :]  # (N, 8, 3)
-    return corners_box @ np.swapaxes(F_from_box_rotation, -1, -2) + translation_m[..., None, :]
+    # Each corner is a signed sum of the box's three half-axes in F (rotation columns scaled by half the size):
+    # one (8, 3) @ (3, 3N) matrix product rather than N tiny (8, 3) @ (3, 3) ones (several times faster).
+    half_axes = np.swapaxes(F_from_box_rotation, -1, -2) * half_lwh[..., :, None]  # (N, 3, 3): row j = axis j
+    batch = half_axes.shape[:-2]
+    by_axis = np.moveaxis(half_axes.reshape(-1, 3, 3), 1, 0).reshape(3, -1)  # (3, N * 3)
+    corners = np.moveaxis((_CORNER_SIGNS_XYZ @ by_axis).reshape(8, -1, 3), 0, 1).reshape(batch + (8, 3))
+    return corners + translation_m[..., None, :]
 
 
 def view_points(points, intrinsic, normalize: bool = True) -> np.ndarray:
