@@ -33,7 +33,7 @@ from nuparquet.render.options import RenderOptions
 from nuparquet.render.overlay import DrawStyle, build_overlay
 from nuparquet.render.plan import TilePlan, camera_rows_per_output, tile_size
 from nuparquet.render.points import LidarPoints
-from nuparquet.render.scene import SceneRows, camera_layout, load_scene, reference_lidar
+from nuparquet.render.scene import SceneRows, cameras_to_render, load_scene, reference_lidar
 from nuparquet.render.sink import FrameSink
 from nuparquet.render.video import even_size
 
@@ -107,7 +107,7 @@ def render(dataset_or_path, options: RenderOptions, *, on_progress: OnProgress |
     options.check()
     dataset = _dataset(dataset_or_path)
     dataroot = _dataroot(dataset, options.dataroot)
-    channel, layout = camera_layout(dataset, options.channel)
+    channel, layout = cameras_to_render(dataset, options.channel)
     rows = load_scene(dataset, options.scene, [c for row in layout for c in row], all_frames=options.all_frames,
                       lidar_channel=reference_lidar(dataset) if options.lidar else None, channel_label=channel)
     plan = camera_plan(rows, layout, dataroot, scale=options.scale, mosaic=options.mosaic,

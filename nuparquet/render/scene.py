@@ -39,7 +39,7 @@ class SceneRows:
     lidar: pl.DataFrame
 
 
-def camera_layout(dataset, channel: str | None) -> tuple[str, Layout]:
+def cameras_to_render(dataset, channel: str | None) -> tuple[str, Layout]:
     """The channel to render as it will be reported, and the layout of its tiles (rows of camera names).
 
     `channel`: one camera, "all" (every camera of the dataset in `Dataset.channels["camera_layout"]`), or None
