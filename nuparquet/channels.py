@@ -17,8 +17,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from nuparquet import geometry
-
 DEFAULT_REFERENCE_LIDAR = "LIDAR_TOP"  # nuScenes' reference sensor, preferred when a dataset has it
 DEFAULT_CAMERA = "CAM_FRONT"  # the default single camera of `render`, when a dataset has it
 
@@ -44,6 +42,8 @@ def default_camera(cameras: Sequence[str], layout: Sequence[Sequence[str]] | Non
 def camera_yaw(rotation_wxyz) -> np.ndarray:
     """(N,) heading in radians of each camera's optical axis (sensor +z) in the ego frame (x forward, y left):
     0 looks forward, +pi/2 to the left, -pi/2 to the right."""
+    from nuparquet import geometry  # only here: `channels` is imported by the CLI's option definitions
+
     axis = geometry.rotation_matrices(np.asarray(rotation_wxyz, dtype=np.float64))[..., :, 2]
     return np.arctan2(axis[..., 1], axis[..., 0])
 

@@ -94,8 +94,8 @@ class Dataset:
         """The dataset's sensor channels (`nuparquet.channels.channel_facts`): {"reference_lidar": str | None,
         "cameras": [...], "camera_layout": [[front row], [back row]], "lidars": [...], "radars": [...]}.
 
-        Recorded in manifest.json at conversion; for an output written before that, computed once from the
-        channels present in `frames` and the camera calibrations in `tables/calibrated_sensor`.
+        Recorded in manifest.json at conversion; for an output written before that, computed once from
+        `tables/sensor` and the camera calibrations in `tables/calibrated_sensor` (else from `frames`).
         """
         recorded = self.manifest.get("channels")
         if isinstance(recorded, dict):
@@ -107,16 +107,18 @@ class Dataset:
     def _channels_from_data(self) -> dict:
         from nuparquet.channels import channel_facts
 
-        present = (self.scan("frames").select(pl.col("channel").cast(pl.String), pl.col("modality").cast(pl.String))
-                   .unique().sort("channel").collect())
-        rotations: dict[str, list[float]] = {}
-        if {"tables/sensor", "tables/calibrated_sensor"} <= set(self._entries):
-            sensors = self.scan("tables/sensor").select(pl.col("token").alias("sensor_token"), "channel")
-            calibrations = (self.scan("tables/calibrated_sensor").select("sensor_token", "token", "rotation")
-                            .join(sensors, on="sensor_token").sort("channel", "token")
-                            .unique("channel", keep="first").collect())
-            rotations = dict(zip(calibrations["channel"].to_list(), calibrations["rotation"].to_list()))
-        return channel_facts(present["channel"].to_list(), present["modality"].to_list(), rotations)
+        if not {"tables/sensor", "tables/calibrated_sensor"} <= set(self._entries):
+            present = (self.scan("frames").select(pl.col("channel").cast(pl.String), pl.col("modality").cast(pl.String))
+                       .unique().sort("channel").collect())
+            return channel_facts(present["channel"].to_list(), present["modality"].to_list())
+        # The sensor table names every channel with its modality; one calibration per channel gives its yaw.
+        sensors = self.scan("tables/sensor").select("token", "channel", "modality")
+        calibrations = (self.scan("tables/calibrated_sensor").select("sensor_token", "token", "rotation")
+                        .join(sensors.select(pl.col("token").alias("sensor_token"), "channel"), on="sensor_token")
+                        .sort("channel", "token").unique("channel", keep="first"))
+        sensors_df, calibrations_df = pl.collect_all([sensors, calibrations])
+        rotations = dict(zip(calibrations_df["channel"].to_list(), calibrations_df["rotation"].to_list()))
+        return channel_facts(sensors_df["channel"].to_list(), sensors_df["modality"].to_list(), rotations)
 
     def _entry(self, name: str) -> dict:
         if name not in self._entries:

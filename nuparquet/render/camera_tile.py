@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -12,7 +13,9 @@ from nuparquet.render import draw
 from nuparquet.render.decode import decode_image
 from nuparquet.render.overlay import LIDAR_MAX_DEPTH_M, DrawStyle, Overlay
 from nuparquet.render.plan import TileLoad
-from nuparquet.render.points import LidarPoints
+
+if TYPE_CHECKING:
+    from nuparquet.render.points import LidarPoints
 
 
 @dataclass(frozen=True)

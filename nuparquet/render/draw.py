@@ -13,6 +13,7 @@ Colours are given as RGB (the devkit palette's order) and converted to OpenCV's 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -133,7 +134,7 @@ def draw_labels(image_bgr, segments_px, keep, labels, colors_bgr, *, font_scale:
     for index, text in enumerate(labels):
         if not text or not np.all(np.isfinite(top_left[index])):
             continue
-        (text_w, text_h), baseline = cv2.getTextSize(text, TEXT_FONT, font_scale, thickness)
+        (text_w, text_h), baseline = _text_size(text, font_scale, thickness)
         x = int(np.clip(top_left[index, 0], 0, max(0, width - text_w - 2)))
         y = int(np.clip(top_left[index, 1], text_h + baseline + 2, height - 1))
         color = tuple(int(c) for c in colors_bgr[index])
@@ -141,6 +142,12 @@ def draw_labels(image_bgr, segments_px, keep, labels, colors_bgr, *, font_scale:
         ink = (0, 0, 0) if luminance[index] > 128 else (255, 255, 255)
         cv2.putText(image_bgr, text, (x + 1, y - baseline - 1), TEXT_FONT, font_scale, ink, thickness, cv2.LINE_AA)
     return image_bgr
+
+
+@lru_cache(maxsize=4096)
+def _text_size(text: str, font_scale: float, thickness: int) -> tuple[tuple[int, int], int]:
+    """cv2.getTextSize of a label: labels repeat on every frame (a few categories, a few hundred tracks)."""
+    return cv2.getTextSize(text, TEXT_FONT, font_scale, thickness)
 
 
 def short_category(name: str) -> str:

@@ -32,7 +32,6 @@ from nuparquet.render.loop import render_frames
 from nuparquet.render.options import RenderOptions
 from nuparquet.render.overlay import DrawStyle, build_overlay
 from nuparquet.render.plan import TilePlan, camera_rows_per_output, tile_size
-from nuparquet.render.points import LidarPoints
 from nuparquet.render.scene import SceneRows, cameras_to_render, load_scene, reference_lidar
 from nuparquet.render.sink import FrameSink
 from nuparquet.render.video import even_size
@@ -83,7 +82,11 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
     tile_cameras = cameras_from_frames(cameras).resized_to(size)
     boxes = frame_boxes(cameras, rows.annotations, rows.samples)
     overlay = build_overlay(tile_cameras, boxes, clip=clip, labels=labels)
-    lidar = LidarPoints.build(tile_cameras, cameras, rows.lidar, dataroot) if rows.lidar.height else None
+    lidar = None
+    if rows.lidar.height:
+        from nuparquet.render.points import LidarPoints  # the point cloud path loads only when points are drawn
+
+        lidar = LidarPoints.build(tile_cameras, cameras, rows.lidar, dataroot)
     channels = [channel for row in layout for channel in row]
     times_us, plan_rows = camera_rows_per_output(cameras, rows.samples, channels, mosaic=mosaic,
                                                  all_frames=all_frames, fps=fps)

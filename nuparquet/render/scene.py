@@ -45,16 +45,17 @@ def cameras_to_render(dataset, channel: str | None) -> tuple[str, Layout]:
     `channel`: one camera, "all" (every camera of the dataset in `Dataset.channels["camera_layout"]`), or None
     for the default camera (`channels.default_camera`).
     """
+    if channel is not None and channel != ALL_CHANNELS:
+        return channel, ((channel,),)  # checked by the query (`load_scene` lists the valid names)
     facts = dataset.channels
     if channel == ALL_CHANNELS:
         layout = tuple(tuple(row) for row in facts["camera_layout"] if row)
         if not layout:
             raise UsageError("the dataset has no camera to render")
         return channel, layout
+    channel = default_camera(facts["cameras"], facts["camera_layout"])
     if channel is None:
-        channel = default_camera(facts["cameras"], facts["camera_layout"])
-        if channel is None:
-            raise UsageError("the dataset has no camera to render")
+        raise UsageError("the dataset has no camera to render")
     return channel, ((channel,),)
 
 
