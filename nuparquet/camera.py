@@ -149,7 +149,13 @@ class Cameras:
             mirrored, one at depth 0 to inf/nan, as in the devkit. depth: camera z, metres.
         """
         points_camera_m = np.asarray(points_camera_m, dtype=np.float64)
-        uv = geometry.view_points(points_camera_m, self.image_from_camera, normalize=True)[..., :2]
+        # view_points' product without its 4x4 padding (a copy of F matrices): the same numbers.
+        if points_camera_m.ndim == 2:
+            projected = np.einsum("fij,fj->fi", self.image_from_camera, points_camera_m)
+        else:
+            projected = points_camera_m @ np.swapaxes(self.image_from_camera, -1, -2)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uv = projected[..., :2] / projected[..., 2:3]
         return uv, points_camera_m[..., 2]
 
     def in_image(self, uv, margin_px: float = 0.0) -> np.ndarray:
@@ -170,7 +176,8 @@ class Cameras:
         high = self.size_px - margin_px * self.scale + offset
         if uv.ndim == 3:
             low, high = low[:, None, :], high[:, None, :]
-        return np.all((uv > low) & (uv < high), axis=-1)
+        u, v = uv[..., 0], uv[..., 1]
+        return (u > low[..., 0]) & (u < high[..., 0]) & (v > low[..., 1]) & (v < high[..., 1])
 
     def clip_segments(self, segments_camera_m, near_m: float = NEAR_PLANE_M) -> tuple[np.ndarray, np.ndarray]:
         """Clip segments to the half-space z >= near_m in the camera frame, then project them.
