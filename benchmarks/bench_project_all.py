@@ -28,7 +28,7 @@ def child(out: str, scenes_per_batch: int) -> None:
     import polars as pl
 
     import nuparquet
-    from nuparquet.render.project import project_boxes
+    from nuparquet.projection.boxes import project_boxes
 
     import_s = time.perf_counter() - start
     start = time.perf_counter()

@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 import polars as pl
 
-from nuparquet.render.pipeline import decode_image
+from nuparquet.render.decode import decode_image
 from nuparquet.render.video import DEFAULT_CRF, DEFAULT_PRESET, VideoWriter
 
 

@@ -17,8 +17,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from nuparquet import geometry
-
 DEFAULT_REFERENCE_LIDAR = "LIDAR_TOP"  # nuScenes' reference sensor, preferred when a dataset has it
 DEFAULT_CAMERA = "CAM_FRONT"  # the default single camera of `render`, when a dataset has it
 
@@ -31,16 +29,21 @@ def reference_lidar(channels: Sequence[str], modalities: Sequence[str]) -> str |
     return lidars[0] if lidars else None
 
 
-def default_camera(cameras: Sequence[str]) -> str | None:
-    """CAM_FRONT when the dataset has it, else the first camera of the front row of `camera_layout`."""
+def default_camera(cameras: Sequence[str], layout: Sequence[Sequence[str]] | None = None) -> str | None:
+    """CAM_FRONT when the dataset has it, else the first camera of the front row of `layout` (see
+    `camera_layout`; without it, the first camera named)."""
     if DEFAULT_CAMERA in cameras:
         return DEFAULT_CAMERA
+    if layout and layout[0]:
+        return layout[0][0]
     return cameras[0] if cameras else None
 
 
 def camera_yaw(rotation_wxyz) -> np.ndarray:
     """(N,) heading in radians of each camera's optical axis (sensor +z) in the ego frame (x forward, y left):
     0 looks forward, +pi/2 to the left, -pi/2 to the right."""
+    from nuparquet import geometry  # only here: `channels` is imported by the CLI's option definitions
+
     axis = geometry.rotation_matrices(np.asarray(rotation_wxyz, dtype=np.float64))[..., :, 2]
     return np.arctan2(axis[..., 1], axis[..., 0])
 
@@ -75,3 +78,31 @@ def camera_layout(cameras: Sequence[str], yaws_rad: Sequence[float] | None = Non
 
     rows = [tuple(sorted(front, key=front_key)), tuple(sorted(back, key=back_key))]
     return tuple(row for row in rows if row)
+
+
+def channel_facts(channels: Sequence[str], modalities: Sequence[str],
+                  camera_rotations_wxyz: dict[str, Sequence[float]] | None = None) -> dict:
+    """The channel facts of a dataset, as `manifest.json` records them under "channels":
+    {"reference_lidar": str | None, "cameras": [...], "camera_layout": [[front row], [back row]],
+    "lidars": [...], "radars": [...]} (names sorted; the layout as `camera_layout`).
+
+    Args:
+        channels, modalities: one entry per sensor (the `sensor` table).
+        camera_rotations_wxyz: each camera's ego_from_sensor rotation (one calibration per camera), used for
+            the layout when the names do not say FRONT / BACK and to order cameras within a row.
+    """
+    by_modality: dict[str, list[str]] = {}
+    for channel, modality in sorted(set(zip(channels, modalities))):
+        by_modality.setdefault(modality, []).append(channel)
+    cameras = by_modality.get("camera", [])
+    rotations = camera_rotations_wxyz or {}
+    yaws = None
+    if cameras and all(c in rotations for c in cameras):
+        yaws = camera_yaw(np.array([rotations[c] for c in cameras], dtype=np.float64)).tolist()
+    return {
+        "reference_lidar": reference_lidar(channels, modalities),
+        "cameras": cameras,
+        "camera_layout": [list(row) for row in camera_layout(cameras, yaws)],
+        "lidars": by_modality.get("lidar", []),
+        "radars": by_modality.get("radar", []),
+    }

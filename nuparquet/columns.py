@@ -8,11 +8,19 @@ into a column. No other module reshapes list columns by hand.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import polars as pl
-import pyarrow as pa
 
-Column = pl.Series | pa.Array | pa.ChunkedArray
+if TYPE_CHECKING:  # pyarrow loads only where Arrow arrays are built (the converter): it costs ~30 MB and 0.1 s
+    import pyarrow as pa
+
+    Column = pl.Series | pa.Array | pa.ChunkedArray
+
+
+def _is_arrow(column) -> bool:
+    return type(column).__module__.split(".")[0] == "pyarrow"
 
 
 def to_numpy(column: Column, shape: tuple[int, ...], dtype=np.float64, *, writable: bool = False) -> np.ndarray:
@@ -28,8 +36,8 @@ def to_numpy(column: Column, shape: tuple[int, ...], dtype=np.float64, *, writab
         ValueError: a non-null row does not hold `prod(shape)` values.
     """
     width = int(np.prod(shape))
-    if isinstance(column, (pa.Array, pa.ChunkedArray)):
-        column = pl.Series(column) if not isinstance(column, pa.ChunkedArray) else pl.Series(column.combine_chunks())
+    if _is_arrow(column):
+        column = pl.Series(column.combine_chunks() if hasattr(column, "combine_chunks") else column)
     n = len(column)
     if n == 0:
         return np.zeros((0, *shape), dtype=dtype)
@@ -58,9 +66,12 @@ def to_numpy(column: Column, shape: tuple[int, ...], dtype=np.float64, *, writab
     return out.reshape((n, *shape))
 
 
-def list_type(shape: tuple[int, ...], value_type: pa.DataType = pa.float64(), *, nested: bool = False) -> pa.DataType:
-    """The Arrow fixed-size-list type for rows of `shape`: flat (`[16]` for (4, 4)) or, with `nested`, one
-    level per axis (`[3][3]` for the intrinsics)."""
+def list_type(shape: tuple[int, ...], value_type: pa.DataType | None = None, *, nested: bool = False) -> pa.DataType:
+    """The Arrow fixed-size-list type for rows of `shape` (float64 unless `value_type`): flat (`[16]` for (4, 4))
+    or, with `nested`, one level per axis (`[3][3]` for the intrinsics)."""
+    import pyarrow as pa
+
+    value_type = pa.float64() if value_type is None else value_type
     if not nested:
         return pa.list_(value_type, int(np.prod(shape)))
     out = value_type
@@ -69,10 +80,13 @@ def list_type(shape: tuple[int, ...], value_type: pa.DataType = pa.float64(), *,
     return out
 
 
-def to_arrow(values: np.ndarray, *, value_type: pa.DataType = pa.float64(), nested: bool = False,
+def to_arrow(values: np.ndarray, *, value_type: pa.DataType | None = None, nested: bool = False,
              valid: np.ndarray | None = None) -> pa.FixedSizeListArray:
-    """An `(N, *shape)` array as a fixed-size-list Arrow array (see `list_type`); `valid` (N,) marks the
-    rows that are not null."""
+    """An `(N, *shape)` array as a fixed-size-list Arrow array (see `list_type`; float64 unless `value_type`);
+    `valid` (N,) marks the rows that are not null."""
+    import pyarrow as pa
+
+    value_type = pa.float64() if value_type is None else value_type
     values = np.asarray(values)
     n, shape = len(values), values.shape[1:]
     flat = pa.array(np.ascontiguousarray(values).reshape(-1), type=value_type)

@@ -68,6 +68,7 @@ class Dataset:
         self.manifest = manifest
         self.storage_options = dict(storage_options) if storage_options else None
         self._entries: dict[str, dict] = dict(manifest["datasets"])
+        self._channels: dict | None = None
 
     def __repr__(self) -> str:
         return f"<nuparquet.Dataset {self.root!r} {self.version} datasets={len(self.datasets)}>"
@@ -87,6 +88,37 @@ class Dataset:
     @property
     def version(self) -> str | None:
         return self.manifest.get("source", {}).get("version")
+
+    @property
+    def channels(self) -> dict:
+        """The dataset's sensor channels (`nuparquet.channels.channel_facts`): {"reference_lidar": str | None,
+        "cameras": [...], "camera_layout": [[front row], [back row]], "lidars": [...], "radars": [...]}.
+
+        Recorded in manifest.json at conversion; for an output written before that, computed once from
+        `tables/sensor` and the camera calibrations in `tables/calibrated_sensor` (else from `frames`).
+        """
+        recorded = self.manifest.get("channels")
+        if isinstance(recorded, dict):
+            return recorded
+        if self._channels is None:
+            self._channels = self._channels_from_data()
+        return self._channels
+
+    def _channels_from_data(self) -> dict:
+        from nuparquet.channels import channel_facts
+
+        if not {"tables/sensor", "tables/calibrated_sensor"} <= set(self._entries):
+            present = (self.scan("frames").select(pl.col("channel").cast(pl.String), pl.col("modality").cast(pl.String))
+                       .unique().sort("channel").collect())
+            return channel_facts(present["channel"].to_list(), present["modality"].to_list())
+        # The sensor table names every channel with its modality; one calibration per channel gives its yaw.
+        sensors = self.scan("tables/sensor").select("token", "channel", "modality")
+        calibrations = (self.scan("tables/calibrated_sensor").select("sensor_token", "token", "rotation")
+                        .join(sensors.select(pl.col("token").alias("sensor_token"), "channel"), on="sensor_token")
+                        .sort("channel", "token").unique("channel", keep="first"))
+        sensors_df, calibrations_df = pl.collect_all([sensors, calibrations])
+        rotations = dict(zip(calibrations_df["channel"].to_list(), calibrations_df["rotation"].to_list()))
+        return channel_facts(sensors_df["channel"].to_list(), sensors_df["modality"].to_list(), rotations)
 
     def _entry(self, name: str) -> dict:
         if name not in self._entries:

@@ -90,7 +90,11 @@ def rotation_matrices(q_wxyz) -> np.ndarray:
         [2.0 * (x * y + w * z), w * w - x * x + y * y - z * z, 2.0 * (y * z - w * x)],
         [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), w * w - x * x - y * y + z * z],
     ]
-    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+    matrices = np.empty(w.shape + (3, 3))
+    for i, row in enumerate(rows):
+        for j, value in enumerate(row):
+            matrices[..., i, j] = value
+    return matrices
 
 
 def rigid_transforms(translation_m, rotation_wxyz) -> np.ndarray:
@@ -186,8 +190,13 @@ def box_corners(translation_m, size_wlh_m, rotation_wxyz) -> np.ndarray:
     rotation = np.asarray(rotation_wxyz, dtype=np.float64)
     F_from_box_rotation = rotation if rotation.shape[-2:] == (3, 3) else rotation_matrices(rotation)
     half_lwh = size_wlh_m[..., [1, 0, 2]] / 2.0  # box x is length, y is width, z is height
-    corners_box = _CORNER_SIGNS_XYZ * half_lwh[..., None, :]  # (N, 8, 3)
-    return corners_box @ np.swapaxes(F_from_box_rotation, -1, -2) + translation_m[..., None, :]
+    # Each corner is a signed sum of the box's three half-axes in F (rotation columns scaled by half the size):
+    # one (8, 3) @ (3, 3N) matrix product rather than N tiny (8, 3) @ (3, 3) ones (several times faster).
+    half_axes = np.swapaxes(F_from_box_rotation, -1, -2) * half_lwh[..., :, None]  # (N, 3, 3): row j = axis j
+    batch = half_axes.shape[:-2]
+    by_axis = np.moveaxis(half_axes.reshape(-1, 3, 3), 1, 0).reshape(3, -1)  # (3, N * 3)
+    corners = np.moveaxis((_CORNER_SIGNS_XYZ @ by_axis).reshape(8, -1, 3), 0, 1).reshape(batch + (8, 3))
+    return corners + translation_m[..., None, :]
 
 
 def view_points(points, intrinsic, normalize: bool = True) -> np.ndarray:
@@ -287,3 +296,33 @@ def heading_from_quaternions(q_wxyz) -> np.ndarray:
     """
     rotation = rotation_matrices(q_wxyz)
     return np.arctan2(rotation[..., 1, 0], rotation[..., 0, 0])
+
+
+def interp_two_points(t, t0, t1, c0, c1) -> np.ndarray:
+    """`np.interp(t, [t0, t1], [c0, c1])` per row, with numpy's own formula and end cases, so interpolated
+    centres match the devkit's (`NuScenes.get_boxes`) to the last bit: c1 at t == t1, c0 at t == t0, else
+    c0 + slope * (t - t0).
+
+    Args:
+        t, t0, t1: (N,) times (int64 microseconds) with t0 <= t <= t1.
+        c0, c1: (N, k) values at t0 and t1.
+
+    Returns:
+        (N, k) float64.
+    """
+    t, t0, t1 = (np.asarray(a, dtype=np.float64)[:, None] for a in (t, t0, t1))
+    c0, c1 = np.asarray(c0, dtype=np.float64), np.asarray(c1, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = (c1 - c0) / (t1 - t0)
+        inside = slope * (t - t0) + c0
+    return np.where(t == t1, c1, np.where(t == t0, c0, inside))
+
+
+def slerp_amount(t, t0, t1) -> np.ndarray:
+    """(N,) float64 (t - t0) / (t1 - t0), the devkit's slerp amount between two samples; 1 where t1 == t0.
+
+    The devkit divides Python ints; microsecond timestamps are exact in float64, so this rounds the same.
+    """
+    t, t0, t1 = (np.asarray(a, dtype=np.int64) for a in (t, t0, t1))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(t1 != t0, (t - t0).astype(np.float64) / (t1 - t0).astype(np.float64), 1.0)

@@ -123,12 +123,12 @@ def plot_points_per_box(points: pl.DataFrame, path: Path, *, sensor: str = "lida
 
 
 def plot_ego_speed(motion: pl.DataFrame, path: Path, *, max_scenes: int = MAX_SCENES,
-                   title: str = "Ego speed (LIDAR_TOP keyframes)") -> Path:
+                   title: str = "Ego speed (reference lidar keyframes)") -> Path:
     """Ego speed over time, one line per scene (the first `max_scenes` scenes by name), from `ego_motion`."""
     fig, ax = plt.subplots(figsize=(10, 5), layout="constrained")
     scenes = sorted(motion["scene_name"].unique().to_list())
     if not scenes:
-        _empty(ax, "LIDAR_TOP keyframes")
+        _empty(ax, "reference lidar keyframes")
         return _save(fig, path)
     shown = scenes[:max_scenes]
     if len(shown) > 10:

@@ -52,3 +52,28 @@ def synth_out(synth_root, tmp_path_factory) -> Path:
 def devkit():
     """The nuscenes-devkit module (test-only reference implementation)."""
     return pytest.importorskip("nuscenes.nuscenes")
+
+
+LYFT_RIG_VERSION = "v1.0-lyft-rig"
+
+
+@pytest.fixture(scope="session")
+def lyft_rig_root(tmp_path_factory) -> Path:
+    """A synthetic dataset with a Lyft Level 5-like sensor set: seven cameras (CAM_FRONT_ZOOMED among them;
+    1224x1024 images, the zoomed one 2048x864), three lidars (LIDAR_TOP, LIDAR_FRONT_LEFT, LIDAR_FRONT_RIGHT),
+    no radar. One scene x 4 samples, with images and lidar files."""
+    from nuparquet.synth import synthesize
+
+    root = tmp_path_factory.mktemp("lyft-rig") / "data"
+    synthesize(root, scenes=1, samples_per_scene=4, with_images=True, with_lidar=True, seed=11,
+               version=LYFT_RIG_VERSION, rig="lyft")
+    return root
+
+
+@pytest.fixture(scope="session")
+def lyft_rig_out(lyft_rig_root, tmp_path_factory) -> Path:
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp("lyft-rig-out") / "out"
+    convert(lyft_rig_root, LYFT_RIG_VERSION, out, progress=False)
+    return out

@@ -1,4 +1,4 @@
-"""nuparquet.render.project against nuscenes-devkit: boxes in images, interpolated sweep boxes, lidar points.
+"""nuparquet.projection and nuparquet.frame_boxes against nuscenes-devkit: boxes in images, interpolated sweep boxes, lidar points.
 
 The parity tests read the converted Parquet (`OUT/frames`, `OUT/annotations`, `OUT/tables/sample`) and compare
 every camera frame of a scene (keyframes and sweeps, all six cameras) with the devkit reading the source JSON.
@@ -15,7 +15,10 @@ import polars as pl
 import pytest
 
 from nuparquet.pointcloud import load_lidar_bin
-from nuparquet.render.project import boxes_for_frames, project_boxes, project_lidar_to_image
+from nuparquet.frame_boxes import boxes_for_frames
+from nuparquet.projection.boxes import project_boxes
+from nuparquet.projection.frames import cameras_from_frames, sensor_poses
+from nuparquet.projection.lidar import project_points
 
 os.environ.setdefault("MPLBACKEND", "Agg")  # the devkit's explorer imports pyplot; never open a window
 
@@ -143,13 +146,18 @@ def assert_lidar_matches_devkit(nusc, monkeypatch, out: Path, dataroot: Path, sc
     if scene_name is not None:
         frames = frames.filter(pl.col("scene_name") == scene_name)
     frames = frames.collect()
-    lidar_rows = frames.filter(pl.col("channel") == "LIDAR_TOP").iter_rows(named=True)
-    lidar_of_sample = {row["sample_token"]: row for row in lidar_rows}
+    lidar_frames = frames.filter(pl.col("channel") == "LIDAR_TOP")
+    lidar_of_sample = {token: row for row, token in enumerate(lidar_frames["sample_token"].to_list())}
+    global_from_ego, ego_from_lidar = sensor_poses(lidar_frames)
+    cameras_df = frames.filter(pl.col("modality") == "camera")
+    cameras = cameras_from_frames(cameras_df)  # once for every image
     counts = {"images": 0, "points": 0, "boundary_points": 0, "max_error_px": 0.0, "max_depth_error_m": 0.0}
-    for camera in frames.filter(pl.col("modality") == "camera").iter_rows(named=True):
-        lidar = lidar_of_sample[camera["sample_token"]]
+    for index_of_camera, camera in enumerate(cameras_df.iter_rows(named=True)):
+        row = lidar_of_sample[camera["sample_token"]]
+        lidar = lidar_frames.row(row, named=True)
         points_lidar = load_lidar_bin(dataroot / lidar["filename"])
-        uv, depth_m, index = project_lidar_to_image(points_lidar, lidar, camera)
+        uv, depth_m, index = project_points(points_lidar, global_from_ego[row], ego_from_lidar[row],
+                                            cameras.take([index_of_camera]))
         devkit_uv, devkit_depth_m, devkit_kept_uv, (width, height) = devkit_projection_of_all_points(
             nusc, monkeypatch, lidar["token"], camera["token"]
         )

@@ -8,13 +8,29 @@ import numpy as np
 import pytest
 
 import nuparquet
+from nuparquet.camera import Cameras, scale_pixels
+from nuparquet.frame_boxes import frame_boxes
 from nuparquet.palette import category_rgb
+from nuparquet.projection.boxes import project_boxes
+from nuparquet.projection.frames import cameras_from_frames
 from nuparquet.render import draw
 from nuparquet.render.mosaic import match_frames_by_time, time_steps_us
-from nuparquet.render.pipeline import RenderOptions, build_overlay, load_scene, render
-from nuparquet.render.project import project_boxes
+from nuparquet.render.overlay import build_overlay, segments_touch_image
+from nuparquet.render.pipeline import RenderOptions, render
+from nuparquet.render.scene import load_scene
 
 K = np.array([[1000.0, 0.0, 800.0], [0.0, 1000.0, 450.0], [0.0, 0.0, 1.0]])
+SIZE = np.array([[1600.0, 900.0]])
+
+
+def _camera(intrinsic=K) -> Cameras:
+    """One 1600x900 camera at the global origin (global = ego = camera frame) with intrinsics `intrinsic`."""
+    return Cameras(np.eye(4)[None], np.eye(4)[None], intrinsic[None], SIZE.copy(), np.ones((1, 2)))
+
+
+def _clip(corners, near_m=0.1):
+    """Near-plane clipping of a box's 14 drawn segments by a camera with intrinsics K."""
+    return _camera().clip_segments(corners[:, draw.BOX_SEGMENT_CORNERS], near_m)
 
 
 def _unit_box_corners(center_cam_m) -> np.ndarray:
@@ -31,13 +47,13 @@ def test_camera_corners_from_pixels_inverts_the_projection():
     corners = _unit_box_corners([1.0, -0.5, 12.0])[0]
     projected = corners @ K.T
     pixels = projected[:, :2] / projected[:, 2:]
-    back = draw.camera_corners_from_pixels(pixels, corners[:, 2], K)
+    back = _camera().unproject(pixels[None], corners[None, :, 2])[0]
     np.testing.assert_allclose(back, corners, atol=1e-9)
 
 
 def test_clip_leaves_a_box_in_front_of_the_camera_unchanged():
     corners = _unit_box_corners([0.5, 0.0, 10.0])
-    segments, keep = draw.clip_box_segments(corners, K)
+    segments, keep = _clip(corners)
     projected = corners[0] @ K.T
     expected = draw.box_segments_px((projected[:, :2] / projected[:, 2:])[None])
     assert keep.all()
@@ -47,7 +63,7 @@ def test_clip_leaves_a_box_in_front_of_the_camera_unchanged():
 def test_clip_cuts_edges_at_the_near_plane_and_drops_edges_behind_it():
     # Hand-made corners: 0, 3, 4, 7 in front of the camera, 1, 2, 5, 6 behind it.
     corners = np.array([[[0, 0, 2.0], [0, 0, -1.0], [1, 0, -1.0], [1, 0, 2.0], [0, 1, 2.0], [0, 1, -2.0], [1, 1, -2.0], [1, 1, 2.0]]])
-    segments, keep = draw.clip_box_segments(corners, K, near_m=0.1)
+    segments, keep = _clip(corners, near_m=0.1)
     # Segment 0 (corners 0 -> 1) crosses the plane: its far end is at z = 0.1 on the line, projected.
     t = (0.1 - 2.0) / (-1.0 - 2.0)
     crossing = np.array([0, 0, 2.0]) + t * (np.array([0, 0, -1.0]) - np.array([0, 0, 2.0]))
@@ -62,12 +78,12 @@ def test_clip_cuts_edges_at_the_near_plane_and_drops_edges_behind_it():
 def test_scale_pixels_keeps_pixel_centres_of_a_resized_image():
     # 2x downscale with area averaging: source pixels 0 and 1 become destination pixel 0, whose centre is at
     # source coordinate 0.5; the last destination pixel (799) covers 1598 and 1599, centre 1598.5.
-    np.testing.assert_allclose(draw.scale_pixels([[0.5, 0.5], [1598.5, 898.5]], 0.5), [[0.0, 0.0], [799.0, 449.0]])
+    np.testing.assert_allclose(scale_pixels([[0.5, 0.5], [1598.5, 898.5]], 0.5), [[0.0, 0.0], [799.0, 449.0]])
     image = np.zeros((900, 1600), np.uint8)
     image[600:602, 1000:1002] = 255  # a 2x2 block centred at (1000.5, 600.5)
     small = cv2.resize(image, (800, 450), interpolation=cv2.INTER_AREA)
     v, u = np.argwhere(small == 255)[0]
-    np.testing.assert_allclose(draw.scale_pixels([[1000.5, 600.5]], 0.5)[0], [u, v])
+    np.testing.assert_allclose(scale_pixels([[1000.5, 600.5]], 0.5)[0], [u, v])
 
 
 def test_boxes_drawn_later_cover_boxes_drawn_earlier():
@@ -127,10 +143,17 @@ def _scene_boxes(out, channel="CAM_FRONT"):
     """Keyframes of one synthetic scene's channel and their projected (ANY-visible) boxes."""
     ds = nuparquet.open(out)
     scene = ds.scan("scenes").select("name").collect()["name"].sort()[0]
-    options = RenderOptions(scene=scene, channel=channel, out="unused.mp4")
-    loaded = load_scene(ds, options)
+    loaded = load_scene(ds, scene, [channel])
     projected = project_boxes(loaded.cameras, loaded.annotations, loaded.samples, visibility="any")
     return ds, scene, loaded, projected
+
+
+def _tile_cameras(loaded, size):
+    return cameras_from_frames(loaded.cameras).resized_to(size)
+
+
+def _boxes(loaded):
+    return frame_boxes(loaded.cameras, loaded.annotations, loaded.samples)
 
 
 def _edge_samples(corners_px, toward_centre_px):
@@ -223,8 +246,7 @@ def test_rendered_frames_carry_the_category_colour_along_the_box_edges(synth_out
 
 def test_overlay_draws_boxes_far_to_near_within_each_frame(synth_out):
     ds, scene, loaded, projected = _scene_boxes(synth_out)
-    options = RenderOptions(scene=scene, channel="CAM_FRONT", out="unused.mp4", scale=1.0)
-    overlay = build_overlay(loaded.cameras, loaded.annotations, loaded.samples, (1600, 900), options)
+    overlay = build_overlay(_tile_cameras(loaded, (1600, 900)), _boxes(loaded))
     assert overlay.row_start[-1] == len(projected)
     for row in range(loaded.cameras.height):
         start, stop = overlay.row_start[row], overlay.row_start[row + 1]
@@ -238,9 +260,9 @@ def test_overlay_draws_boxes_far_to_near_within_each_frame(synth_out):
 def test_clip_mode_draws_a_box_partly_behind_the_camera_that_the_devkit_mode_drops():
     corners = _unit_box_corners([0.0, 0.0, 0.5])  # spans z = -0.5 .. 1.5: straddles the near plane
     assert not (corners[..., 2] > 0.1).all()  # devkit box_in_image: not in front, so never drawn
-    segments, keep = draw.clip_box_segments(corners, K)
+    segments, keep = _clip(corners)
     assert keep.any() and not keep.all()
-    assert draw.segments_touch_image(segments, keep, 1600, 900).all()
+    assert segments_touch_image(segments, keep, SIZE).all()
     image = np.zeros((900, 1600, 3), np.uint8)
     draw.draw_boxes(image, segments, [(255, 158, 0)], keep=keep)
     assert (image == (0, 158, 255)).all(axis=-1).sum() > 100
@@ -249,7 +271,7 @@ def test_clip_mode_draws_a_box_partly_behind_the_camera_that_the_devkit_mode_dro
 def test_clip_mode_keeps_every_box_the_devkit_mode_draws(synth_out):
     ds, scene, loaded, _ = _scene_boxes(synth_out)
     size = (1600, 900)
-    clipped = build_overlay(loaded.cameras, loaded.annotations, loaded.samples, size, RenderOptions(scene=scene, out="x", clip=True))
-    devkit = build_overlay(loaded.cameras, loaded.annotations, loaded.samples, size, RenderOptions(scene=scene, out="x"))
+    clipped = build_overlay(_tile_cameras(loaded, size), _boxes(loaded), clip=True)
+    devkit = build_overlay(_tile_cameras(loaded, size), _boxes(loaded))
     assert np.all(np.diff(clipped.row_start) >= np.diff(devkit.row_start))
     assert np.isfinite(clipped.segments_px[clipped.keep]).all()

@@ -15,7 +15,8 @@ def register(sub) -> None:
     p = sub.add_parser(
         "info",
         help="summarise a converted dataset: manifest, datasets, row counts, size on disk",
-        description="Print the manifest of OUT (format version, source version and dataroot, creation time) and "
+        description="Print the manifest of OUT (format version, source version and dataroot, creation time), its "
+        "sensor channels (cameras front row | back row, lidars with the reference one, radars) and "
         "one line per dataset with its row count (read from the Parquet footers and checked against the "
         "manifest), number of files and size on disk. Exit 1 if OUT is not a nuparquet output or the row "
         "counts disagree with the manifest.",
@@ -49,7 +50,7 @@ def run(args) -> int:
             "nuparquet_version": m.get("nuparquet_version"), "created_utc": m.get("created_utc"),
             "source": {"version": ds.version, "dataroot": ds.dataroot,
                        "files": len(m.get("source", {}).get("files", {}))},
-            "total_bytes": total, "datasets": records(inventory),
+            "channels": ds.channels, "total_bytes": total, "datasets": records(inventory),
         }, indent=1))
     elif args.format == "csv":
         print_frame(inventory, "csv")
@@ -59,6 +60,10 @@ def run(args) -> int:
               f"at {m.get('created_utc', '?')}")
         print(f"  source:    {ds.version} at {ds.dataroot}")
         print(f"  datasets:  {len(ds.datasets)}, {_size(total)} on disk")
+        channels = ds.channels
+        print(f"  cameras:   {' | '.join(' '.join(row) for row in channels['camera_layout']) or '(none)'}")
+        print(f"  lidars:    {' '.join(channels['lidars']) or '(none)'} (reference: {channels['reference_lidar']})")
+        print(f"  radars:    {' '.join(channels['radars']) or '(none)'}")
         print()
         shown = inventory.with_columns(pl.col("bytes").map_elements(_size, return_dtype=pl.String).alias("size"))
         print_frame(shown.drop("manifest_rows", "bytes"), "table")

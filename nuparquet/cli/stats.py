@@ -22,8 +22,8 @@ TITLES = {
     "points_per_box": "Points per box by category (percentiles; zero = share of boxes with no point)",
     "distance_histogram": "Distance to the ego vehicle by category (annotation counts per bin, metres)",
     "tracks": "Tracks (instances) by category",
-    "ego_speed": "Ego motion per scene (LIDAR_TOP keyframe poses)",
-    "ego_motion": "Ego motion over time (LIDAR_TOP keyframe poses)",
+    "ego_speed": "Ego motion per scene (reference lidar keyframe poses)",
+    "ego_motion": "Ego motion over time (reference lidar keyframe poses)",
     "channel_rates": "Frames per channel (rates measured from timestamps)",
     "channel_rates_by_scene": "Frames per channel and scene",
 }

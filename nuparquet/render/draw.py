@@ -1,11 +1,10 @@
 """Overlays on camera images (numpy BGR arrays, drawn with OpenCV, headless): 3D box wireframes, labels, lidar
-points and placeholders for missing images.
+points and placeholders for missing images. Drawing only: every input is already in the image's pixels (the
+camera model, `nuparquet.camera.Cameras`, projects and clips).
 
-The geometry here is array-shaped: a box is its 14 drawn segments — the 12 cuboid edges plus a cross on the
-front face — as `(M, 14, 2, 2)` pixel end points (box, segment, end, u/v). Segments come either straight
-from the projected corners (`box_segments_px`, the devkit's behaviour: only boxes entirely in front of the
-camera are drawn) or from camera-frame corners clipped at the near plane before projecting
-(`clip_box_segments`, `--clip`: boxes partly behind the camera keep their visible part).
+A box is drawn as 14 segments — the 12 cuboid edges plus a cross on the front face — given as
+`(M, 14, 2, 2)` pixel end points (box, segment, end, u/v); `BOX_SEGMENT_CORNERS` says which corners each
+segment joins (`box_segments_px` gathers them from projected corners).
 
 `draw_boxes` draws boxes in the order given; pass them far to near so that near boxes end up on top.
 Colours are given as RGB (the devkit palette's order) and converted to OpenCV's BGR here.
@@ -14,6 +13,7 @@ Colours are given as RGB (the devkit palette's order) and converted to OpenCV's 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -33,7 +33,6 @@ BOX_SEGMENT_CORNERS = np.array(
 FRONT_SEGMENTS = slice(0, 4)
 BODY_SEGMENTS = slice(4, 12)
 CROSS_SEGMENTS = slice(12, 14)
-NEAR_PLANE_M = 0.1  # the devkit's `in_front` depth: corners nearer than this count as behind the camera
 
 _SHIFT = 4  # sub-pixel bits for cv2 drawing: coordinates are passed as round(x * 16)
 _MAX_ABS_PX = 1e6  # clamp before the fixed-point conversion (int32 headroom); cv2 clips lines to the image
@@ -46,105 +45,21 @@ def rgb_to_bgr(colors_rgb) -> np.ndarray:
     return np.asarray(colors_rgb, dtype=np.uint8)[..., ::-1]
 
 
-def scale_pixels(points_px, scale) -> np.ndarray:
-    """Pixel coordinates of the full-size image -> those of the image resized by `scale` (cv2.resize).
-
-    Pixel centres sit at integer coordinates, so the map is u' = s * (u + 0.5) - 0.5, not u' = s * u.
-
-    Args:
-        points_px: (..., 2) [u, v] pixels.
-        scale: one factor, or (2,) [sx, sy] for the two axes (resized width / width, height / height).
-    """
-    scale = np.broadcast_to(np.asarray(scale, dtype=np.float64), (2,))
-    points_px = np.asarray(points_px, dtype=np.float64)
-    return points_px * scale + (scale - 1.0) / 2.0
-
-
-def scale_intrinsic(intrinsic, scale) -> np.ndarray:
-    """(..., 3, 3) camera matrices of the full-size image -> those of the resized image (see scale_pixels)."""
-    sx, sy = np.broadcast_to(np.asarray(scale, dtype=np.float64), (2,))
-    image_from_full = np.array([[sx, 0.0, (sx - 1.0) / 2.0], [0.0, sy, (sy - 1.0) / 2.0], [0.0, 0.0, 1.0]])
-    return image_from_full @ np.asarray(intrinsic, dtype=np.float64)
-
-
-def camera_corners_from_pixels(corners_px, depths_m, intrinsic) -> np.ndarray:
-    """Undo a perspective projection: pixels and depths back to camera-frame points.
-
-    Args:
-        corners_px: (..., 2) pixel coordinates from `view_points(p, K, normalize=True)`.
-        depths_m: (...) the depth (camera z) of each point.
-        intrinsic: (3, 3) camera matrix K.
-
-    Returns:
-        (..., 3) points p = z * K^-1 [u, v, 1] in the camera frame, metres (exact up to rounding for z != 0;
-        points behind the camera come back behind it).
-    """
-    corners_px = np.asarray(corners_px, dtype=np.float64)
-    depths_m = np.asarray(depths_m, dtype=np.float64)
-    homogeneous = np.concatenate([corners_px, np.ones(corners_px.shape[:-1] + (1,))], axis=-1)
-    rays = homogeneous @ np.linalg.inv(np.asarray(intrinsic, dtype=np.float64)).T
-    return rays * depths_m[..., None]
-
-
 def box_segments_px(corners_px) -> np.ndarray:
     """(M, 8, 2) projected corners -> (M, 14, 2, 2) segment end points in pixels (see BOX_SEGMENT_CORNERS)."""
     corners_px = np.asarray(corners_px, dtype=np.float64)
     return corners_px[:, BOX_SEGMENT_CORNERS, :]
 
 
-def clip_box_segments(corners_cam_m, intrinsic, near_m: float = NEAR_PLANE_M) -> tuple[np.ndarray, np.ndarray]:
-    """Clip each box segment to the half-space z >= near_m in the camera frame, then project it.
-
-    Args:
-        corners_cam_m: (M, 8, 3) box corners in the camera frame, metres.
-        intrinsic: (3, 3) camera matrix of the image drawn on, or (M, 3, 3) one per box.
-        near_m: the near plane.
-
-    Returns:
-        segments_px: (M, 14, 2, 2) projected end points of the clipped segments (NaN where dropped).
-        keep: (M, 14) bool, False for segments entirely behind the near plane.
-    """
-    corners_cam_m = np.asarray(corners_cam_m, dtype=np.float64)
-    ends = corners_cam_m[:, BOX_SEGMENT_CORNERS, :]  # (M, 14, 2, 3)
-    start, end = ends[..., 0, :], ends[..., 1, :]
-    z_start, z_end = start[..., 2], end[..., 2]
-    keep = (z_start >= near_m) | (z_end >= near_m)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (near_m - z_start) / (z_end - z_start)  # where the line crosses the near plane
-        crossing = start + t[..., None] * (end - start)
-    crossing[..., 2] = near_m  # exactly on the plane, whatever the rounding
-    start = np.where((z_start < near_m)[..., None], crossing, start)
-    end = np.where((z_end < near_m)[..., None], crossing, end)
-    clipped = np.stack([start, end], axis=-2)  # (M, 14, 2, 3)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        intrinsic = np.asarray(intrinsic, dtype=np.float64)
-        if intrinsic.ndim == 2:
-            projected = clipped @ intrinsic.T
-        else:
-            projected = np.einsum("mij,msej->msei", intrinsic, clipped)
-        segments_px = projected[..., :2] / projected[..., 2:3]
-    segments_px[~keep] = np.nan
-    return segments_px, keep
-
-
-def _kept_extent(segments_px, keep) -> tuple[np.ndarray, np.ndarray]:
+def segments_extent(segments_px, keep) -> tuple[np.ndarray, np.ndarray]:
     """(M, 2) low and high corner of the bounding box of each box's kept end points (+inf / -inf if none)."""
     usable = keep[..., None, None] & np.isfinite(segments_px)
-    points = segments_px.reshape(len(segments_px), 28, 2)  # 14 segments x 2 ends
-    usable = usable.reshape(len(segments_px), 28, 2)
+    ends = 2 * segments_px.shape[1]  # segments x 2 ends
+    points = segments_px.reshape(len(segments_px), ends, 2)
+    usable = usable.reshape(len(segments_px), ends, 2)
     low = np.where(usable, points, np.inf).min(axis=1)
     high = np.where(usable, points, -np.inf).max(axis=1)
     return low, high
-
-
-def segments_touch_image(segments_px, keep, width: int, height: int) -> np.ndarray:
-    """(M,) True where the bounding box of a box's kept segment end points overlaps the image.
-
-    Conservative (a box whose outline only surrounds a corner of the image counts too); OpenCV clips what
-    lies outside, so a false positive draws nothing extra.
-    """
-    low, high = _kept_extent(segments_px, keep)
-    return keep.any(axis=1) & (high[:, 0] >= 0) & (low[:, 0] <= width - 1) & (high[:, 1] >= 0) & (low[:, 1] <= height - 1)
 
 
 def _fixed_point(segments_px: np.ndarray) -> np.ndarray:
@@ -174,7 +89,7 @@ def draw_boxes(
 
     Args:
         image_bgr: (H, W, 3) uint8 image, modified in place and returned.
-        segments_px: (M, 14, 2, 2) segment end points in pixels (`box_segments_px` / `clip_box_segments`).
+        segments_px: (M, 14, 2, 2) segment end points in pixels (`box_segments_px` / `Cameras.clip_segments`).
         colors_rgb: (M, 3) RGB colour of each box.
         keep: optional (M, 14) bool: segments to draw (False for clipped-away segments).
         labels: optional M strings drawn at the top-left of each box; None or "" draws none.
@@ -213,13 +128,13 @@ def draw_labels(image_bgr, segments_px, keep, labels, colors_bgr, *, font_scale:
     background, black or white, whichever reads better. Boxes whose label is empty are skipped."""
     height, width = image_bgr.shape[:2]
     thickness = max(1, round(font_scale * 2))
-    top_left, _ = _kept_extent(segments_px, keep)  # (M, 2); inf for boxes with nothing kept
+    top_left, _ = segments_extent(segments_px, keep)  # (M, 2); inf for boxes with nothing kept
     luminance = colors_bgr.astype(np.float64) @ np.array([0.114, 0.587, 0.299])
     # One putText per label: text cannot be batched, and the label count per frame is small.
     for index, text in enumerate(labels):
         if not text or not np.all(np.isfinite(top_left[index])):
             continue
-        (text_w, text_h), baseline = cv2.getTextSize(text, TEXT_FONT, font_scale, thickness)
+        (text_w, text_h), baseline = _text_size(text, font_scale, thickness)
         x = int(np.clip(top_left[index, 0], 0, max(0, width - text_w - 2)))
         y = int(np.clip(top_left[index, 1], text_h + baseline + 2, height - 1))
         color = tuple(int(c) for c in colors_bgr[index])
@@ -227,6 +142,12 @@ def draw_labels(image_bgr, segments_px, keep, labels, colors_bgr, *, font_scale:
         ink = (0, 0, 0) if luminance[index] > 128 else (255, 255, 255)
         cv2.putText(image_bgr, text, (x + 1, y - baseline - 1), TEXT_FONT, font_scale, ink, thickness, cv2.LINE_AA)
     return image_bgr
+
+
+@lru_cache(maxsize=4096)
+def _text_size(text: str, font_scale: float, thickness: int) -> tuple[tuple[int, int], int]:
+    """cv2.getTextSize of a label: labels repeat on every frame (a few categories, a few hundred tracks)."""
+    return cv2.getTextSize(text, TEXT_FONT, font_scale, thickness)
 
 
 def short_category(name: str) -> str:

@@ -1,9 +1,13 @@
-"""The six cameras tiled into one picture, and which frame of each camera goes into each output picture.
+"""Tiles placed into one picture, and which frame of each camera the devkit shows at each output time.
 
-Layout (as devkit `NuScenesExplorer.render_scene`, without its horizontal flip of the back row):
+Layout: rows of tiles, front row first, each left to right (`nuparquet.channels.camera_layout`; for nuScenes
+the devkit `NuScenesExplorer.render_scene` layout without its horizontal flip of the back row):
 
     CAM_FRONT_LEFT  CAM_FRONT  CAM_FRONT_RIGHT
     CAM_BACK_LEFT   CAM_BACK   CAM_BACK_RIGHT
+
+Rows may differ in length (a Lyft rig has four front cameras and three back ones): the picture is as wide as
+the longest row, and a shorter row is centred (its offset rounded down to whole pixels).
 
 Matching by time follows `render_scene` too: output time steps start one step after the scene's first
 keyframe, every `1 / freq` seconds, while the previous step is before the last keyframe; at each step every
@@ -14,15 +18,9 @@ chain starts at its keyframe of the first sample, so frames before it are never 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Sequence
 
 import numpy as np
-
-MOSAIC_LAYOUT: tuple[tuple[str, ...], ...] = (
-    ("CAM_FRONT_LEFT", "CAM_FRONT", "CAM_FRONT_RIGHT"),
-    ("CAM_BACK_LEFT", "CAM_BACK", "CAM_BACK_RIGHT"),
-)
-MOSAIC_CHANNELS: tuple[str, ...] = tuple(channel for row in MOSAIC_LAYOUT for channel in row)
 
 
 def time_steps_us(first_keyframe_us: int, last_keyframe_us: int, freq_hz: float) -> np.ndarray:
@@ -62,27 +60,35 @@ def match_frames_by_time(timestamps_us: np.ndarray, start_index: int, times_us: 
     return np.clip(first_not_older, start_index, len(timestamps_us) - 1).astype(np.int64)
 
 
-def mosaic_size(tile_width: int, tile_height: int) -> tuple[int, int]:
-    """(width, height) of the tiled picture: 3 x 2 tiles."""
-    return 3 * tile_width, 2 * tile_height
+def mosaic_size(row_lengths: Sequence[int], tile_width: int, tile_height: int) -> tuple[int, int]:
+    """(width, height) of the picture holding rows of `row_lengths` tiles: the longest row by the row count."""
+    return max(row_lengths) * tile_width, len(row_lengths) * tile_height
 
 
-def tile_cameras(tiles_bgr: Mapping[str, np.ndarray], tile_width: int, tile_height: int) -> np.ndarray:
-    """Tile up to six (tile_height, tile_width, 3) images by channel name (see MOSAIC_LAYOUT).
+def tile_origins(row_lengths: Sequence[int], tile_width: int, tile_height: int) -> list[tuple[int, int]]:
+    """(x, y) of the top-left pixel of every tile, row by row, left to right; shorter rows centred."""
+    widest = max(row_lengths)
+    return [((widest - length) * tile_width // 2 + column * tile_width, row * tile_height)
+            for row, length in enumerate(row_lengths) for column in range(length)]
 
-    Channels that are absent stay black; every given tile must already have the tile size.
+
+def compose(tiles_bgr: Sequence[np.ndarray | None], row_lengths: Sequence[int], tile_width: int,
+            tile_height: int) -> np.ndarray:
+    """Place tiles (row by row, left to right, as `tile_origins`) into one black picture.
+
+    A single tile is returned as it is. None leaves its place black; every tile must have the tile size.
 
     Returns:
-        (2 * tile_height, 3 * tile_width, 3) uint8.
+        (height, width, 3) uint8 of `mosaic_size`.
     """
-    width, height = mosaic_size(tile_width, tile_height)
+    if len(tiles_bgr) == 1 and tiles_bgr[0] is not None:
+        return tiles_bgr[0]
+    width, height = mosaic_size(row_lengths, tile_width, tile_height)
     canvas = np.zeros((height, width, 3), dtype=np.uint8)
-    for row, channels in enumerate(MOSAIC_LAYOUT):
-        for column, channel in enumerate(channels):
-            tile = tiles_bgr.get(channel)
-            if tile is None:
-                continue
-            if tile.shape[:2] != (tile_height, tile_width):
-                raise ValueError(f"{channel} tile is {tile.shape[1]}x{tile.shape[0]}, expected {tile_width}x{tile_height}")
-            canvas[row * tile_height:(row + 1) * tile_height, column * tile_width:(column + 1) * tile_width] = tile
+    for tile, (x, y) in zip(tiles_bgr, tile_origins(row_lengths, tile_width, tile_height)):
+        if tile is None:
+            continue
+        if tile.shape[:2] != (tile_height, tile_width):
+            raise ValueError(f"tile is {tile.shape[1]}x{tile.shape[0]}, expected {tile_width}x{tile_height}")
+        canvas[y:y + tile_height, x:x + tile_width] = tile
     return canvas

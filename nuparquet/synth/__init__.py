@@ -30,7 +30,7 @@ from nuparquet.synth.sensors import SceneSensors
 from nuparquet.synth.tables import (
     TABLES, SceneTokens, TableWriter, frame_filenames, global_records, map_token, scene_records,
 )
-from nuparquet.synth.taxonomy import KEYFRAME_INTERVAL_US
+from nuparquet.synth.taxonomy import KEYFRAME_INTERVAL_US, RIGS
 from nuparquet.synth.timeline import make_timeline
 from nuparquet.synth.world import build_scene
 
@@ -41,7 +41,7 @@ MAP_SIZE_PX = 64
 
 def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images: bool = False,
                with_lidar: bool = False, seed: int = 0, version: str = "v1.0-synth",
-               progress: bool = False) -> Path:
+               progress: bool = False, rig: str = "nuscenes") -> Path:
     """Write a synthetic nuScenes-format dataroot and return its path (`out_dir`).
 
     scenes: number of scenes (named scene-0001, ...), spread over logs of several locations.
@@ -49,11 +49,15 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     with_images: write the 6 camera JPEGs of every keyframe and sweep (boxes painted in category colours).
     with_lidar: write the LIDAR_TOP `.pcd.bin` and the 5 radar `.pcd` files of every keyframe and sweep.
     Without either, only the tables and maps are written (trainval scale takes minutes, not hours).
+    rig: the sensor set, "nuscenes" (6 cameras, LIDAR_TOP, 5 radars) or "lyft" (7 cameras with a zoomed front
+    camera, 3 lidars, no radar; `taxonomy.RIGS`).
 
     The tables are written to a temporary sibling and renamed to `out_dir/<version>` when complete; an
     existing `out_dir/<version>` is replaced.
     """
     _check_arguments(scenes, samples_per_scene, seed, version)
+    if rig not in RIGS:
+        raise UsageError(f"rig must be one of {', '.join(RIGS)}, got {rig!r}")
     dataroot = Path(out_dir)
     dataroot.mkdir(parents=True, exist_ok=True)
     table_dir = dataroot / version
@@ -63,7 +67,7 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     partial_dir.mkdir()
 
     scene_duration_s = (samples_per_scene - 1) * KEYFRAME_INTERVAL_US / 1e6
-    logs = plan_logs(seed, scenes, scene_duration_s)
+    logs = plan_logs(seed, scenes, scene_duration_s, RIGS[rig])
     try:
         _write_tables_and_files(dataroot, partial_dir, logs, seed, scenes, samples_per_scene,
                                 images=with_images, point_clouds=with_lidar, progress=progress)
@@ -89,10 +93,10 @@ def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, sc
             for scene_index, start_us in zip(log.scene_indices, log.scene_start_us):
                 # One generator per scene: its random draws do not depend on the other scenes.
                 rng = np.random.default_rng([seed, 1, scene_index])
-                world = build_scene(rng, make_timeline(rng, start_us, samples_per_scene),
+                world = build_scene(rng, make_timeline(rng, start_us, samples_per_scene, log.rig.channels),
                                     log.location.drives_on_right)
-                tokens = SceneTokens.draw(rng, world)
-                filenames = frame_filenames(world, log.logfile)
+                tokens = SceneTokens.draw(rng, world, len(log.rig.channels))
+                filenames = frame_filenames(world, log.logfile, log.rig.channels)
                 for name, records in scene_records(world, tokens, log, _scene_name(scene_index, scenes),
                                                    filenames).items():
                     writers[name].write(records)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nuparquet.synth.rigid import quat_from_axis_angle, quat_from_matrix, quat_from_yaw, quat_multiply
-from nuparquet.synth.taxonomy import CAMERA_HEIGHT_PX, CAMERA_WIDTH_PX, CHANNELS, LOCATIONS, Location
+from nuparquet.synth.taxonomy import CHANNELS, LOCATIONS, Channel, Location
 from nuparquet.synth.tokens import random_tokens
 
 SCENES_PER_LOG = 12.5  # nuScenes trainval: 850 scenes in 68 logs
@@ -26,8 +26,9 @@ _BODY_FROM_OPTICAL = np.array([[0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.
 
 @dataclass(frozen=True)
 class Rig:
-    """Calibration of every channel in CHANNELS order."""
+    """The sensor channels of a car and the calibration of each, in `channels` order."""
 
+    channels: tuple[Channel, ...]
     ego_from_sensor_translation_m: np.ndarray  # (C, 3)
     ego_from_sensor_rotation: np.ndarray  # (C, 4) quaternions [w, x, y, z]
     intrinsic: np.ndarray  # (C, 3, 3); all zeros for non-cameras (written as [])
@@ -45,16 +46,16 @@ class LogPlan:
     scene_start_us: tuple[int, ...]  # UTC microseconds of each scene's first sample
 
 
-def make_rig(rng: np.random.Generator) -> Rig:
+def make_rig(rng: np.random.Generator, channels: tuple[Channel, ...] = CHANNELS) -> Rig:
     """One car's calibration: the nominal mounting of each channel, perturbed by millimetres and fractions of
     a degree as the real cars' calibrations differ."""
-    n = len(CHANNELS)
-    translation = np.array([c.translation_m for c in CHANNELS]) + rng.normal(0.0, 0.01, (n, 3))
+    n = len(channels)
+    translation = np.array([c.translation_m for c in channels]) + rng.normal(0.0, 0.01, (n, 3))
     translation = np.round(translation, 6)
     rotation = np.zeros((n, 4))
     intrinsic = np.zeros((n, 3, 3))
     base = quat_from_matrix(_BODY_FROM_OPTICAL)
-    for i, channel in enumerate(CHANNELS):
+    for i, channel in enumerate(channels):
         yaw = np.deg2rad(channel.yaw_deg + rng.normal(0.0, 0.5 if channel.modality != "lidar" else 0.1))
         if channel.modality == "radar":  # real radar calibrations are pure yaw
             rotation[i] = quat_from_yaw(yaw)
@@ -65,18 +66,20 @@ def make_rig(rng: np.random.Generator) -> Rig:
         if channel.modality == "camera":
             rotation[i] = quat_multiply(body, base)
             focal = channel.focal_px + rng.normal(0.0, 5.0)
-            cx = CAMERA_WIDTH_PX / 2 + rng.normal(15.0, 12.0)
-            cy = CAMERA_HEIGHT_PX / 2 + rng.uniform(0.0, 50.0)
+            width_px, height_px = channel.size_px
+            cx = width_px / 2 + rng.normal(15.0, 12.0)
+            cy = height_px / 2 + rng.uniform(0.0, 50.0)
             intrinsic[i] = [[focal, 0.0, cx], [0.0, focal, cy], [0.0, 0.0, 1.0]]
         else:
             rotation[i] = body
     rotation /= np.linalg.norm(rotation, axis=1, keepdims=True)
-    return Rig(translation, rotation, intrinsic)
+    return Rig(channels, translation, rotation, intrinsic)
 
 
-def plan_logs(seed: int, scenes: int, scene_duration_s: float) -> list[LogPlan]:
+def plan_logs(seed: int, scenes: int, scene_duration_s: float, channels: tuple[Channel, ...] = CHANNELS
+              ) -> list[LogPlan]:
     """Spread `scenes` over logs (at least two logs in two locations when there are two scenes or more),
-    consecutive scene indices per log."""
+    consecutive scene indices per log; every car carries the sensor `channels`."""
     rng = np.random.default_rng([seed, 0])
     n_logs = min(scenes, max(2, round(scenes / SCENES_PER_LOG)))
     log_of_scene = (np.arange(scenes) * n_logs) // scenes
@@ -97,7 +100,7 @@ def plan_logs(seed: int, scenes: int, scene_duration_s: float) -> list[LogPlan]:
         starts = start_us + np.cumsum(np.r_[0.0, gaps_us[:-1] + scene_duration_s * 1e6]).astype(np.int64)
         logs.append(LogPlan(
             token=random_tokens(rng, 1)[0], logfile=logfile, vehicle=vehicle, date_captured=date.isoformat(),
-            location=location, rig=make_rig(rng), scene_indices=scene_indices,
+            location=location, rig=make_rig(rng, channels), scene_indices=scene_indices,
             scene_start_us=tuple(int(s) for s in starts),
         ))
     return logs

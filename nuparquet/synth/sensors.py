@@ -6,10 +6,10 @@ track's annotation in the previous sample when there is one, linearly in the cen
 rotation), seen through the frame's own ego pose and calibration. A correct overlay therefore lines up with
 the painted cuboids on every frame, keyframe or sweep.
 
-- Cameras (1600x900 JPEG): a sky-to-ground gradient, then every box whose eight corners are all at least
+- Cameras (JPEG, 1600x900 on the nuScenes rig): a sky-to-ground gradient, then every box whose eight corners are all at least
   0.1 m in front of the camera, far to near, as the filled convex hull of its projected corners in its
   category's colour (nuparquet.palette), outlined in a darker shade.
-- Lidar (float32 rows x, y, z, intensity, ring in the LIDAR_TOP frame): `num_lidar_pts` points on the
+- Lidar (float32 rows x, y, z, intensity, ring in the lidar's own frame): `num_lidar_pts` points on the
   sensor-facing faces of each box (just inside them) and ring-pattern returns from the ground plane z = 0
   outside the boxes' footprints.
 - Radar (PCD v0.7, the 18 fields of nuScenes radar): a few returns near each box with `num_radar_pts` > 0
@@ -29,9 +29,7 @@ from nuparquet.synth.plan import Rig
 from nuparquet.synth.rigid import (
     box_corners, invert_rigid, quat_slerp, quat_to_matrix, rigid_matrix, transform_points,
 )
-from nuparquet.synth.taxonomy import (
-    CAMERA_HEIGHT_PX, CAMERA_WIDTH_PX, CATEGORIES, CHANNELS, LIDAR_RING_ELEVATIONS_DEG,
-)
+from nuparquet.synth.taxonomy import CATEGORIES, LIDAR_RING_ELEVATIONS_DEG
 from nuparquet.synth.world import SceneWorld
 
 MIN_DEPTH_M = 0.1  # the devkit's box_in_image / view_points depth cut-off
@@ -123,7 +121,7 @@ class SceneSensors:
         written = 0
         made_dirs: set[Path] = set()
         for frame, filename in enumerate(filenames):
-            modality = CHANNELS[int(self.world.timeline.frame_channel[frame])].modality
+            modality = self.rig.channels[int(self.world.timeline.frame_channel[frame])].modality
             if (modality == "camera" and not images) or (modality != "camera" and not point_clouds):
                 continue
             path = dataroot / filename
@@ -145,21 +143,23 @@ class SceneSensors:
     # -- cameras -------------------------------------------------------------------------------------------
 
     def background(self, channel: int) -> np.ndarray:
-        """(900, 1600, 3) uint8 BGR: a sky gradient above the principal point's row (about the horizon of a
+        """(height, width, 3) uint8 BGR: a sky gradient above the principal point's row (about the horizon of a
         level camera) and a ground gradient below it; light and unsaturated, unlike the category colours."""
         if channel not in self._backgrounds:
-            horizon = int(np.clip(round(self.rig.intrinsic[channel][1, 2]), 1, CAMERA_HEIGHT_PX - 1))
+            width_px, height_px = self.rig.channels[channel].size_px
+            horizon = int(np.clip(round(self.rig.intrinsic[channel][1, 2]), 1, height_px - 1))
             sky = np.linspace([230, 205, 180], [222, 214, 206], horizon)  # BGR, pale blue to haze
-            ground = np.linspace([178, 182, 184], [150, 156, 160], CAMERA_HEIGHT_PX - horizon)  # warm greys
+            ground = np.linspace([178, 182, 184], [150, 156, 160], height_px - horizon)  # warm greys
             column = np.round(np.concatenate([sky, ground])).astype(np.uint8)  # (H, 3)
             self._backgrounds[channel] = np.ascontiguousarray(
-                np.broadcast_to(column[:, None, :], (CAMERA_HEIGHT_PX, CAMERA_WIDTH_PX, 3)))
+                np.broadcast_to(column[:, None, :], (height_px, width_px, 3)))
         return self._backgrounds[channel]
 
     def camera_image(self, frame: int) -> np.ndarray:
-        """(900, 1600, 3) uint8 BGR image with the frame's boxes painted far to near."""
+        """(height, width, 3) uint8 BGR image with the frame's boxes painted far to near."""
         channel = int(self.world.timeline.frame_channel[frame])
         image = self.background(channel).copy()
+        width_px, height_px = self.rig.channels[channel].size_px
         boxes = self.frame_boxes(frame)
         if boxes.category.size == 0:
             return image
@@ -170,7 +170,7 @@ class SceneSensors:
         uv = corners_cam @ self.rig.intrinsic[channel].T  # (B, 8, 3), as view_points(normalize=True)
         uv = uv[..., :2] / np.where(in_front[:, None], depth, 1.0)[..., None]
         lo, hi = uv.min(axis=1), uv.max(axis=1)
-        overlaps = (hi[:, 0] >= 0) & (lo[:, 0] < CAMERA_WIDTH_PX) & (hi[:, 1] >= 0) & (lo[:, 1] < CAMERA_HEIGHT_PX)
+        overlaps = (hi[:, 0] >= 0) & (lo[:, 0] < width_px) & (hi[:, 1] >= 0) & (lo[:, 1] < height_px)
         drawn = np.flatnonzero(in_front & overlaps)
         centre_depth = depth.mean(axis=1)
         shift = 4  # sub-pixel vertices: coordinates in 1/16 px

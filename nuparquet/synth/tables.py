@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from nuparquet.synth.plan import LogPlan
-from nuparquet.synth.taxonomy import ATTRIBUTES, CAMERA_HEIGHT_PX, CAMERA_WIDTH_PX, CATEGORIES, CHANNELS, VISIBILITIES
+from nuparquet.synth.taxonomy import ATTRIBUTES, CATEGORIES, VISIBILITIES, Channel
 from nuparquet.synth.tokens import name_token, random_tokens
 from nuparquet.synth.world import SceneWorld
 
@@ -42,11 +42,14 @@ _INSTANCE = ('{\n"token": "%s",\n"category_token": "%s",\n"nbr_annotations": %d,
 
 CATEGORY_TOKENS = [name_token("category", c.name) for c in CATEGORIES]
 ATTRIBUTE_TOKENS = [name_token("attribute", name) for name, _ in ATTRIBUTES]
-SENSOR_TOKENS = [name_token("sensor", c.name) for c in CHANNELS]
 
 
 def map_token(location: str) -> str:
     return name_token("map", location)
+
+
+def sensor_tokens(channels: tuple[Channel, ...]) -> list[str]:
+    return [name_token("sensor", c.name) for c in channels]
 
 
 class TableWriter:
@@ -83,10 +86,10 @@ class SceneTokens:
     calibrated_sensor: np.ndarray  # (C,)
 
     @classmethod
-    def draw(cls, rng: np.random.Generator, world: SceneWorld) -> SceneTokens:
+    def draw(cls, rng: np.random.Generator, world: SceneWorld, n_channels: int) -> SceneTokens:
         tl = world.timeline
         counts = [1, tl.sample_timestamp_us.size, tl.frame_timestamp_us.size, world.instance_category.size,
-                  world.annotation_instance.size, len(CHANNELS)]
+                  world.annotation_instance.size, n_channels]
         tokens = np.array(random_tokens(rng, sum(counts)) + [""])
         bounds = np.cumsum([0] + counts)
         part = [tokens[bounds[i]:bounds[i + 1]] for i in range(len(counts))]
@@ -95,11 +98,11 @@ class SceneTokens:
                    instance=part[3], annotation=np.r_[part[4], empty], calibrated_sensor=part[5])
 
 
-def frame_filenames(world: SceneWorld, logfile: str) -> list[str]:
+def frame_filenames(world: SceneWorld, logfile: str, channels: tuple[Channel, ...]) -> list[str]:
     """Relative sensor file path of every frame: samples/<CH>/<logfile>__<CH>__<timestamp_us>.<ext>, sweeps/..."""
     tl = world.timeline
-    names = [c.name for c in CHANNELS]
-    extensions = [c.extension for c in CHANNELS]
+    names = [c.name for c in channels]
+    extensions = [c.extension for c in channels]
     return [f"{'samples' if key else 'sweeps'}/{names[c]}/{logfile}__{names[c]}__{t}{extensions[c]}"
             for c, t, key in zip(tl.frame_channel.tolist(), tl.frame_timestamp_us.tolist(),
                                  tl.frame_is_key_frame.tolist())]
@@ -122,10 +125,11 @@ def scene_records(world: SceneWorld, tokens: SceneTokens, log: LogPlan, scene_na
              "name": scene_name, "description": world.description}
 
     rig = log.rig
+    sensors = sensor_tokens(rig.channels)
     calibrated = []
-    for c, channel in enumerate(CHANNELS):
+    for c, channel in enumerate(rig.channels):
         calibrated.append({
-            "token": str(tokens.calibrated_sensor[c]), "sensor_token": SENSOR_TOKENS[c],
+            "token": str(tokens.calibrated_sensor[c]), "sensor_token": sensors[c],
             "translation": rig.ego_from_sensor_translation_m[c].tolist(),
             "rotation": rig.ego_from_sensor_rotation[c].tolist(),
             "camera_intrinsic": rig.intrinsic[c].tolist() if channel.modality == "camera" else [],
@@ -134,14 +138,14 @@ def scene_records(world: SceneWorld, tokens: SceneTokens, log: LogPlan, scene_na
     m = tl.frame_timestamp_us.size
     frame_tokens = tokens.frame[:m].tolist()
     channel = tl.frame_channel
-    is_camera = np.array([c.modality == "camera" for c in CHANNELS])[channel]
-    fileformats = [c.fileformat for c in CHANNELS]
+    width_px, height_px = np.array([c.size_px for c in rig.channels], dtype=np.int64)[channel].T  # 0 for non-cameras
+    fileformats = [c.fileformat for c in rig.channels]
     sample_data = [_SAMPLE_DATA % row for row in zip(
         frame_tokens, tokens.sample[tl.frame_sample_index].tolist(), frame_tokens,
         tokens.calibrated_sensor[channel].tolist(), tl.frame_timestamp_us.tolist(),
         [fileformats[c] for c in channel.tolist()],
         np.where(tl.frame_is_key_frame, "true", "false").tolist(),
-        np.where(is_camera, CAMERA_HEIGHT_PX, 0).tolist(), np.where(is_camera, CAMERA_WIDTH_PX, 0).tolist(),
+        height_px.tolist(), width_px.tolist(),
         filenames, tokens.frame[tl.frame_prev].tolist(), tokens.frame[tl.frame_next].tolist())]
     _check_finite(world.ego_rotation, world.ego_translation_m)
     ego_pose = [_EGO_POSE % row for row in zip(
@@ -187,7 +191,8 @@ def global_records(logs: list[LogPlan]) -> dict[str, list[dict]]:
                       for t, (name, description) in zip(ATTRIBUTE_TOKENS, ATTRIBUTES)],
         "visibility": [{"description": description, "token": token, "level": level}
                        for token, level, description in VISIBILITIES],
-        "sensor": [{"token": t, "channel": c.name, "modality": c.modality} for t, c in zip(SENSOR_TOKENS, CHANNELS)],
+        "sensor": [{"token": t, "channel": c.name, "modality": c.modality}
+                   for t, c in zip(sensor_tokens(logs[0].rig.channels), logs[0].rig.channels)],
         "log": [{"token": log.token, "logfile": log.logfile, "vehicle": log.vehicle,
                  "date_captured": log.date_captured, "location": log.location.name} for log in logs],
         "map": [{"category": "semantic_prior", "token": map_token(location),

@@ -115,21 +115,25 @@ class Channel:
     sweeps_per_interval: tuple[int, int]  # (min, max) sweeps between two keyframes: sets the sensor rate
     focal_px: float = 0.0  # cameras only: fx = fy
     fileformat: str = "pcd"
+    size_px: tuple[int, int] = (0, 0)  # cameras only: image (width, height)
 
     @property
     def extension(self) -> str:
         return {"camera": ".jpg", "lidar": ".pcd.bin", "radar": ".pcd"}[self.modality]
 
 
+CAMERA_WIDTH_PX, CAMERA_HEIGHT_PX = 1600, 900  # every nuScenes camera image
+_NUSCENES_PX = (CAMERA_WIDTH_PX, CAMERA_HEIGHT_PX)
+
 # Cameras fire in turn as the lidar sweeps past them, hence their staggered offsets before the lidar keyframe;
 # 5 sweeps per 0.5 s interval is 12 Hz, 9 lidar sweeps 20 Hz, 5-6 radar sweeps ~13 Hz.
 CHANNELS: tuple[Channel, ...] = (
-    Channel("CAM_FRONT", "camera", (1.70, 0.01, 1.50), 0.0, -37_000, (5, 5), 1260.0, "jpg"),
-    Channel("CAM_FRONT_RIGHT", "camera", (1.57, -0.50, 1.51), -56.5, -29_000, (5, 5), 1258.0, "jpg"),
-    Channel("CAM_BACK_RIGHT", "camera", (1.04, -0.47, 1.55), -111.5, -21_000, (5, 5), 1254.0, "jpg"),
-    Channel("CAM_BACK", "camera", (0.04, 0.01, 1.57), 180.0, -12_000, (5, 5), 803.0, "jpg"),
-    Channel("CAM_BACK_LEFT", "camera", (1.04, 0.48, 1.57), 108.6, -2_000, (5, 5), 1256.0, "jpg"),
-    Channel("CAM_FRONT_LEFT", "camera", (1.55, 0.50, 1.51), 55.3, -44_000, (5, 5), 1264.0, "jpg"),
+    Channel("CAM_FRONT", "camera", (1.70, 0.01, 1.50), 0.0, -37_000, (5, 5), 1260.0, "jpg", _NUSCENES_PX),
+    Channel("CAM_FRONT_RIGHT", "camera", (1.57, -0.50, 1.51), -56.5, -29_000, (5, 5), 1258.0, "jpg", _NUSCENES_PX),
+    Channel("CAM_BACK_RIGHT", "camera", (1.04, -0.47, 1.55), -111.5, -21_000, (5, 5), 1254.0, "jpg", _NUSCENES_PX),
+    Channel("CAM_BACK", "camera", (0.04, 0.01, 1.57), 180.0, -12_000, (5, 5), 803.0, "jpg", _NUSCENES_PX),
+    Channel("CAM_BACK_LEFT", "camera", (1.04, 0.48, 1.57), 108.6, -2_000, (5, 5), 1256.0, "jpg", _NUSCENES_PX),
+    Channel("CAM_FRONT_LEFT", "camera", (1.55, 0.50, 1.51), 55.3, -44_000, (5, 5), 1264.0, "jpg", _NUSCENES_PX),
     Channel("LIDAR_TOP", "lidar", (0.96, 0.0, 1.84), -90.0, 0, (9, 9)),
     Channel("RADAR_FRONT", "radar", (3.412, 0.0, 0.5), 0.0, 0, (5, 6)),
     Channel("RADAR_FRONT_LEFT", "radar", (2.422, 0.8, 0.78), 90.0, 0, (5, 6)),
@@ -137,7 +141,21 @@ CHANNELS: tuple[Channel, ...] = (
     Channel("RADAR_BACK_LEFT", "radar", (-0.562, 0.628, 0.53), 175.0, 0, (5, 6)),
     Channel("RADAR_BACK_RIGHT", "radar", (-0.562, -0.618, 0.53), -175.0, 0, (5, 6)),
 )
-CAMERA_WIDTH_PX, CAMERA_HEIGHT_PX = 1600, 900
+# A Lyft Level 5-like rig: seven cameras (a zoomed one beside CAM_FRONT; 1224x1024 images, the zoomed one
+# 2048x864), three lidars (the roof one and two at the front corners), no radar.
+LYFT_CHANNELS: tuple[Channel, ...] = (
+    Channel("CAM_FRONT", "camera", (1.70, 0.0, 1.60), 0.0, -37_000, (5, 5), 880.0, "jpg", (1224, 1024)),
+    Channel("CAM_FRONT_ZOOMED", "camera", (1.70, 0.15, 1.60), 0.0, -37_000, (5, 5), 2200.0, "jpg", (2048, 864)),
+    Channel("CAM_FRONT_RIGHT", "camera", (1.55, -0.55, 1.55), -60.0, -29_000, (5, 5), 880.0, "jpg", (1224, 1024)),
+    Channel("CAM_BACK_RIGHT", "camera", (0.90, -0.55, 1.55), -120.0, -21_000, (5, 5), 880.0, "jpg", (1224, 1024)),
+    Channel("CAM_BACK", "camera", (0.0, 0.0, 1.60), 180.0, -12_000, (5, 5), 880.0, "jpg", (1224, 1024)),
+    Channel("CAM_BACK_LEFT", "camera", (0.90, 0.55, 1.55), 120.0, -2_000, (5, 5), 880.0, "jpg", (1224, 1024)),
+    Channel("CAM_FRONT_LEFT", "camera", (1.55, 0.55, 1.55), 60.0, -44_000, (5, 5), 880.0, "jpg", (1224, 1024)),
+    Channel("LIDAR_TOP", "lidar", (1.0, 0.0, 1.90), -90.0, 0, (9, 9)),
+    Channel("LIDAR_FRONT_LEFT", "lidar", (2.3, 0.8, 0.80), 45.0, 0, (9, 9)),
+    Channel("LIDAR_FRONT_RIGHT", "lidar", (2.3, -0.8, 0.80), -45.0, 0, (9, 9)),
+)
+RIGS: dict[str, tuple[Channel, ...]] = {"nuscenes": CHANNELS, "lyft": LYFT_CHANNELS}  # `synthesize(rig=...)`
 LIDAR_RING_ELEVATIONS_DEG = tuple(-30.67 + i * 4.0 / 3.0 for i in range(32))  # 32-beam spinning lidar, ring 0 lowest
 KEYFRAME_INTERVAL_US = 500_000  # samples at 2 Hz
 

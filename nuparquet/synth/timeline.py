@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nuparquet.synth.taxonomy import CHANNELS, KEYFRAME_INTERVAL_US
+from nuparquet.synth.taxonomy import CHANNELS, KEYFRAME_INTERVAL_US, Channel
 
 SAMPLE_JITTER_US = 1_500
 RADAR_KEYFRAME_SPREAD_US = 35_000
@@ -25,7 +25,7 @@ class Timeline:
     """Timestamps of one scene. Frames (sample_data rows) are ordered by channel, then time."""
 
     sample_timestamp_us: np.ndarray  # (K,) int64, strictly increasing
-    frame_channel: np.ndarray  # (M,) int64 index into CHANNELS
+    frame_channel: np.ndarray  # (M,) int64 index into the rig's channels
     frame_timestamp_us: np.ndarray  # (M,) int64, increasing within a channel
     frame_is_key_frame: np.ndarray  # (M,) bool
     frame_sample_index: np.ndarray  # (M,) int64: keyframes their sample, sweeps the next keyframe's sample
@@ -33,12 +33,13 @@ class Timeline:
     frame_next: np.ndarray  # (M,) int64, -1 at the end
 
 
-def make_timeline(rng: np.random.Generator, start_us: int, n_samples: int) -> Timeline:
+def make_timeline(rng: np.random.Generator, start_us: int, n_samples: int,
+                  channels: tuple[Channel, ...] = CHANNELS) -> Timeline:
     sample_us = (start_us + np.arange(n_samples, dtype=np.int64) * KEYFRAME_INTERVAL_US
                  + rng.integers(-SAMPLE_JITTER_US, SAMPLE_JITTER_US + 1, n_samples))
     sample_us[0] = start_us
-    channels, stamps, key, sample_index = [], [], [], []
-    for c, channel in enumerate(CHANNELS):
+    channel_of_frame, stamps, key, sample_index = [], [], [], []
+    for c, channel in enumerate(channels):
         if channel.modality == "lidar":
             keyframe_us = sample_us.copy()  # the sample timestamp *is* the lidar keyframe time
         elif channel.modality == "radar":
@@ -58,8 +59,8 @@ def make_timeline(rng: np.random.Generator, start_us: int, n_samples: int) -> Ti
         stamps.append(t[order])
         key.append(np.r_[np.ones(n_samples, bool), np.zeros(interval.size, bool)][order])
         sample_index.append(np.r_[np.arange(n_samples), interval + 1][order])
-        channels.append(np.full(t.size, c, dtype=np.int64))
-    frame_channel = np.concatenate(channels)
+        channel_of_frame.append(np.full(t.size, c, dtype=np.int64))
+    frame_channel = np.concatenate(channel_of_frame)
     m = frame_channel.size
     same_as_prev = np.r_[False, frame_channel[1:] == frame_channel[:-1]]
     same_as_next = np.r_[frame_channel[:-1] == frame_channel[1:], False]

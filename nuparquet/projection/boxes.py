@@ -1,0 +1,213 @@
+"""Boxes in camera images, for many camera frames at once, exactly as devkit `get_sample_data` does it.
+
+The input is rows of the converted datasets (`schemas/frames.json`, `schemas/annotations.json`, and the
+`tables/sample` table), as polars DataFrames or LazyFrames:
+
+    frames = ds.scan("frames").filter(pl.col("scene_name") == "scene-0061", pl.col("modality") == "camera")
+    samples = ds.scan("tables/sample")
+    annotations = ds.scan("annotations").filter(pl.col("scene_name") == "scene-0061")
+    projected = project_boxes(frames, annotations, samples, visibility="any")
+
+`nuparquet.frame_boxes` pairs every frame with its boxes (interpolated for sweeps), the cameras are built once
+from the stored transforms (`projection.frames`), and the geometry runs once over all (frame, box) pairs. The
+devkit functions reproduced: `NuScenes.get_sample_data`, `geometry_utils.view_points` and `box_in_image`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Literal
+
+import numpy as np
+import polars as pl
+
+from nuparquet import geometry
+from nuparquet.camera import Cameras
+from nuparquet.frame_boxes import FRAME_COLUMNS, FrameBoxes, frame_boxes, lazy_with
+from nuparquet.projection.frames import CAMERA_COLUMNS, cameras_from_frames, pose_columns
+
+Visibility = Literal["any", "all", "none"]
+VISIBILITIES: tuple[str, ...] = ("any", "all", "none")
+
+# devkit box_in_image: a corner counts as visible only if it is more than 1 m in front of the camera, and a
+# box is dropped (for ANY and ALL) unless every corner is more than 0.1 m in front.
+CORNER_MIN_DEPTH_M = 1.0
+BOX_MIN_DEPTH_M = 0.1
+
+
+@dataclass(frozen=True)
+class BoxesInCameras:
+    """M boxes seen by M cameras (one camera per box): centres and corners in the camera frame.
+
+    center_ego_m: (M, 3) centre in the frame's ego frame; center_camera_m: (M, 3) in the camera frame;
+    corners_camera_m: (M, 8, 3) corners in the camera frame in `Box.corners()` order (0-3 front face).
+    """
+
+    center_ego_m: np.ndarray
+    center_camera_m: np.ndarray
+    corners_camera_m: np.ndarray
+
+
+def boxes_in_cameras(cameras: Cameras, boxes: FrameBoxes) -> BoxesInCameras:
+    """Move each box into its camera (`cameras[i]` sees `boxes[i]`), as the devkit moves a `Box`: centre and
+    orientation first, then the corners in the camera frame (corners built in the global frame would carry
+    ~1e3 m coordinates through the subtraction)."""
+    center_ego_m = cameras.to_ego(boxes.translation_m)
+    center_camera_m = geometry.transform_points(cameras.camera_from_ego, center_ego_m)
+    rotation = cameras.rotation_to_camera(geometry.rotation_matrices(boxes.rotation_wxyz))
+    return BoxesInCameras(center_ego_m, center_camera_m,
+                          geometry.box_corners(center_camera_m, boxes.size_wlh_m, rotation))
+
+
+def corner_visibility(cameras: Cameras, corners_px: np.ndarray, depths_m: np.ndarray) -> tuple[np.ndarray, ...]:
+    """devkit `box_in_image`, per box: (corner_visible (M, 8), in_front (M,), visible (M,) = BoxVisibility.ANY).
+
+    A corner is visible when it lies inside the image and deeper than 1 m; a box is in front when every
+    corner is deeper than 0.1 m."""
+    corner_visible = cameras.in_image(corners_px) & (depths_m > CORNER_MIN_DEPTH_M)
+    in_front = np.all(depths_m > BOX_MIN_DEPTH_M, axis=1)
+    return corner_visible, in_front, np.any(corner_visible, axis=1) & in_front
+
+
+@dataclass(frozen=True)
+class ProjectedBoxes:
+    """Boxes projected into camera frames: M (frame, box) rows as aligned arrays.
+
+    Attributes:
+        frame_index: (M,) int64 row of the `frames` passed to `project_boxes`.
+        frame_token: (M,) str camera sample_data token.
+        annotation_token: (M,) str sample_annotation token (for an interpolated sweep box, the current
+            sample's annotation, as the devkit's `Box.token`).
+        instance_token: (M,) str.
+        category_name: (M,) str.
+        interpolated: (M,) bool, the box was interpolated between two samples.
+        corners_camera_m: (M, 8, 3) corners in the camera frame (x right, y down, z forward), metres, in
+            `Box.corners()` order (0-3 front face).
+        corners_px: (M, 8, 2) corners in the image, pixels [u, v] (`view_points(..., normalize=True)`); a
+            corner behind the camera projects mirrored, as in the devkit.
+        depths: (M, 8) corner depth (camera z), metres.
+        corner_visible: (M, 8) bool, 0 < u < width, 0 < v < height and depth > 1 m (devkit box_in_image).
+        in_front: (M,) bool, every corner deeper than 0.1 m.
+        visible: (M,) bool, some corner visible and the box in front: devkit BoxVisibility.ANY.
+        center_ego_m: (M, 3) box centre in the frame's ego frame, metres.
+        center_camera_m: (M, 3) box centre in the camera frame, metres.
+        distance_m: (M,) distance from the camera to the box centre, metres (draw far to near).
+    """
+
+    frame_index: np.ndarray
+    frame_token: np.ndarray
+    annotation_token: np.ndarray
+    instance_token: np.ndarray
+    category_name: np.ndarray
+    interpolated: np.ndarray
+    corners_camera_m: np.ndarray
+    corners_px: np.ndarray
+    depths: np.ndarray
+    corner_visible: np.ndarray
+    in_front: np.ndarray
+    visible: np.ndarray
+    center_ego_m: np.ndarray
+    center_camera_m: np.ndarray
+    distance_m: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.frame_token)
+
+    def take(self, rows) -> ProjectedBoxes:
+        """The subset at `rows` (an index array or boolean mask over M)."""
+        return ProjectedBoxes(**{f.name: getattr(self, f.name)[rows] for f in fields(self)})
+
+    def to_polars(self) -> pl.DataFrame:
+        """One row per box; (M, k) arrays become Array columns (corners_px: Array(Array(f64, 2), 8))."""
+        return pl.DataFrame(
+            [
+                pl.Series("frame_index", self.frame_index, dtype=pl.Int64),
+                pl.Series("frame_token", self.frame_token, dtype=pl.String),
+                pl.Series("annotation_token", self.annotation_token, dtype=pl.String),
+                pl.Series("instance_token", self.instance_token, dtype=pl.String),
+                pl.Series("category_name", self.category_name, dtype=pl.String),
+                pl.Series("interpolated", self.interpolated, dtype=pl.Boolean),
+                pl.Series("corners_camera_m", self.corners_camera_m, dtype=pl.Array(pl.Float64, (8, 3))),
+                pl.Series("corners_px", self.corners_px, dtype=pl.Array(pl.Float64, (8, 2))),
+                pl.Series("depths", self.depths, dtype=pl.Array(pl.Float64, 8)),
+                pl.Series("corner_visible", self.corner_visible, dtype=pl.Array(pl.Boolean, 8)),
+                pl.Series("in_front", self.in_front, dtype=pl.Boolean),
+                pl.Series("visible", self.visible, dtype=pl.Boolean),
+                pl.Series("center_ego_m", self.center_ego_m, dtype=pl.Array(pl.Float64, 3)),
+                pl.Series("center_camera_m", self.center_camera_m, dtype=pl.Array(pl.Float64, 3)),
+                pl.Series("distance_m", self.distance_m, dtype=pl.Float64),
+            ]
+        )
+
+
+def camera_rows(frames: pl.DataFrame | pl.LazyFrame) -> pl.DataFrame:
+    """The camera rows of `frames` (those with an intrinsic) with their row number in `frames` as
+    `frame_index`, and the columns projection needs."""
+    lazy = frames.lazy()
+    names = lazy.collect_schema().names()
+    needed = FRAME_COLUMNS + CAMERA_COLUMNS + pose_columns(names)
+    return (
+        lazy_with(lazy, needed, "frames")
+        .with_row_index("frame_index")
+        .filter(pl.col("camera_intrinsic").is_not_null())
+        .select("frame_index", *needed)
+        .collect()
+    )
+
+
+def project_boxes(
+    frames: pl.DataFrame | pl.LazyFrame,
+    annotations: pl.DataFrame | pl.LazyFrame,
+    samples: pl.DataFrame | pl.LazyFrame,
+    visibility: Visibility = "any",
+) -> ProjectedBoxes:
+    """The boxes of camera frames in their images, as devkit `get_sample_data(frame, box_vis_level)` + `view_points`.
+
+    For every camera frame, the boxes of `frame_boxes` (interpolated for sweeps) move global -> ego with
+    the ego pose of *that* frame -> camera (inverse of ego_from_sensor) -> image (`view_points`, normalised),
+    and are filtered like devkit `box_in_image`: a corner is visible when 0 < u < width, 0 < v < height and
+    depth > 1 m; "any" keeps boxes with some visible corner and every corner deeper than 0.1 m, "all" boxes
+    with every corner visible (and deeper than 0.1 m), "none" keeps every box.
+
+    Args:
+        frames: rows of `frames`: token, sample_token, timestamp, is_key_frame, width, height,
+            camera_intrinsic, and global_from_ego + ego_from_sensor (or the poses ego_translation,
+            ego_rotation, sensor_translation, sensor_rotation). Rows without an intrinsic (lidar, radar) get
+            no boxes.
+        annotations, samples: as for `nuparquet.frame_boxes.frame_boxes`.
+        visibility: "any", "all" or "none" (devkit BoxVisibility.ANY / ALL / NONE).
+
+    Returns:
+        The kept boxes, ordered by frame then annotation.
+    """
+    if visibility not in VISIBILITIES:
+        raise ValueError(f"visibility must be one of {', '.join(VISIBILITIES)}, got {visibility!r}")
+    cameras_df = camera_rows(frames)
+    boxes = frame_boxes(cameras_df.drop("frame_index"), annotations, samples)
+    cameras = cameras_from_frames(cameras_df).take(boxes.frame_index)  # boxes.frame_index counts camera rows
+    seen = boxes_in_cameras(cameras, boxes)
+    corners_px, depths = cameras.project(seen.corners_camera_m)
+    corner_visible, in_front, visible = corner_visibility(cameras, corners_px, depths)
+
+    projected = ProjectedBoxes(
+        frame_index=cameras_df["frame_index"].to_numpy().astype(np.int64)[boxes.frame_index],
+        frame_token=boxes.frame_token,
+        annotation_token=boxes.annotation_token,
+        instance_token=boxes.instance_token,
+        category_name=boxes.category_name,
+        interpolated=boxes.interpolated,
+        corners_camera_m=seen.corners_camera_m,
+        corners_px=corners_px,
+        depths=depths,
+        corner_visible=corner_visible,
+        in_front=in_front,
+        visible=visible,
+        center_ego_m=seen.center_ego_m,
+        center_camera_m=seen.center_camera_m,
+        distance_m=np.linalg.norm(seen.center_camera_m, axis=1),
+    )
+    if visibility == "any":
+        return projected.take(visible)
+    if visibility == "all":
+        return projected.take(np.all(corner_visible, axis=1) & in_front)
+    return projected

@@ -1,0 +1,118 @@
+"""The render's scene query: which cameras to show, and the rows of one scene they need, read in one go.
+
+Three lazy scans collected together (`pl.collect_all`): the scene's camera frames of the wanted channels (plus
+the reference lidar's keyframes when points are drawn), its annotations and its samples. Channel names come
+from the data (`Dataset.channels`), never from nuScenes' list.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import polars as pl
+
+from nuparquet.channels import default_camera
+from nuparquet.errors import UsageError
+from nuparquet.frame_boxes import ANNOTATION_COLUMNS
+from nuparquet.projection.frames import CAMERA_COLUMNS, MATRIX_COLUMNS
+from nuparquet.render.options import ALL_CHANNELS
+
+FRAME_COLUMNS = ("token", "sample_token", "scene_token", "channel", "timestamp", "is_key_frame", "filename",
+                 *MATRIX_COLUMNS, *CAMERA_COLUMNS)
+SAMPLE_COLUMNS = ("token", "timestamp", "prev", "scene_token")
+
+Layout = tuple[tuple[str, ...], ...]
+
+
+@dataclass(frozen=True)
+class SceneRows:
+    """The rows one render needs, collected by one query.
+
+    cameras: camera frames of the wanted channels, sorted by channel then timestamp (channel as a string);
+    annotations, samples: the scene's; lidar: keyframes of the lidar channel asked for (else empty).
+    """
+
+    cameras: pl.DataFrame
+    annotations: pl.DataFrame
+    samples: pl.DataFrame
+    lidar: pl.DataFrame
+
+
+def cameras_to_render(dataset, channel: str | None) -> tuple[str, Layout]:
+    """The channel to render as it will be reported, and the layout of its tiles (rows of camera names).
+
+    `channel`: one camera, "all" (every camera of the dataset in `Dataset.channels["camera_layout"]`), or None
+    for the default camera (`channels.default_camera`).
+    """
+    if channel is not None and channel != ALL_CHANNELS:
+        return channel, ((channel,),)  # checked by the query (`load_scene` lists the valid names)
+    facts = dataset.channels
+    if channel == ALL_CHANNELS:
+        layout = tuple(tuple(row) for row in facts["camera_layout"] if row)
+        if not layout:
+            raise UsageError("the dataset has no camera to render")
+        return channel, layout
+    channel = default_camera(facts["cameras"], facts["camera_layout"])
+    if channel is None:
+        raise UsageError("the dataset has no camera to render")
+    return channel, ((channel,),)
+
+
+def reference_lidar(dataset) -> str:
+    """The lidar whose points are drawn (`Dataset.channels["reference_lidar"]`); UsageError without one."""
+    lidar = dataset.channels.get("reference_lidar")
+    if lidar is None:
+        raise UsageError("--lidar: the dataset has no lidar channel")
+    return lidar
+
+
+def load_scene(dataset, scene: str, cameras: Sequence[str], *, all_frames: bool = False,
+               lidar_channel: str | None = None, channel_label: str | None = None) -> SceneRows:
+    """Run the render's one query for `scene`: frames of the `cameras` channels (keyframes unless
+    `all_frames`), annotations, samples, and the keyframes of `lidar_channel` if given.
+
+    Raises:
+        UsageError: no camera frame matched: the scene or the channel (`channel_label`) is unknown; the message
+            lists the valid names.
+    """
+    channel = pl.col("channel").cast(pl.String)
+    wanted = channel.is_in(list(cameras)) & (pl.col("modality").cast(pl.String) == "camera")
+    if not all_frames:
+        wanted = wanted & pl.col("is_key_frame")
+    if lidar_channel is not None:
+        wanted = wanted | ((channel == lidar_channel) & pl.col("is_key_frame"))
+    in_scene = pl.col("scene_name") == scene
+    frames = (dataset.scan("frames").filter(in_scene).filter(wanted).select(FRAME_COLUMNS)
+              .with_columns(channel))
+    annotations = dataset.scan("annotations").filter(in_scene).select(ANNOTATION_COLUMNS)
+    samples = (
+        dataset.scan("tables/sample")
+        .join(frames.select("scene_token").unique(), on="scene_token", how="semi")
+        .select(SAMPLE_COLUMNS)
+    )
+    frames_df, annotations_df, samples_df = pl.collect_all([frames, annotations, samples])
+    is_camera = frames_df["channel"].is_in(list(cameras))
+    camera_rows = frames_df.filter(is_camera).sort("channel", "timestamp", maintain_order=True)
+    if camera_rows.height == 0:
+        _raise_unknown(dataset, scene, channel_label if channel_label is not None else ",".join(cameras))
+    return SceneRows(cameras=camera_rows, annotations=annotations_df, samples=samples_df,
+                     lidar=frames_df.filter(~is_camera))
+
+
+def _raise_unknown(dataset, scene: str, channel: str) -> None:
+    """The query found no camera frame: say whether the scene or the channel is unknown, listing valid names."""
+    listing = (
+        dataset.scan("frames")
+        .filter(pl.col("modality").cast(pl.String) == "camera")
+        .select("scene_name", pl.col("channel").cast(pl.String))
+        .unique()
+        .collect()
+    )
+    scenes = sorted(listing["scene_name"].unique().to_list())
+    if scene not in scenes:
+        raise UsageError(f"unknown scene {scene!r}; valid scenes: {', '.join(scenes) or '(none)'}")
+    channels = sorted(listing.filter(pl.col("scene_name") == scene)["channel"].unique().to_list())
+    raise UsageError(
+        f"unknown channel {channel!r} for {scene}; valid channels: {', '.join(channels + [ALL_CHANNELS])}"
+    )

@@ -1,0 +1,21 @@
+"""`nuparquet info` names the dataset's sensor channels (the names `render --channel` and `--lidar` use)."""
+
+from __future__ import annotations
+
+import json
+
+from conftest import LYFT_RIG_VERSION
+from nuparquet.cli.main import main
+
+
+def test_info_lists_the_cameras_in_layout_rows_and_the_lidars_with_the_reference(lyft_rig_root, lyft_rig_out, capsys):
+    assert main(["info", str(lyft_rig_out), "--format", "json"]) == 0
+    channels = json.loads(capsys.readouterr().out)["channels"]
+    sensors = json.loads((lyft_rig_root / LYFT_RIG_VERSION / "sensor.json").read_text())
+    assert sorted(c for row in channels["camera_layout"] for c in row) == sorted(
+        s["channel"] for s in sensors if s["modality"] == "camera")
+    assert channels["lidars"] == sorted(s["channel"] for s in sensors if s["modality"] == "lidar")
+    assert channels["reference_lidar"] == "LIDAR_TOP" and channels["radars"] == []
+    assert main(["info", str(lyft_rig_out)]) == 0
+    text = capsys.readouterr().out
+    assert "CAM_FRONT_ZOOMED" in text and "(reference: LIDAR_TOP)" in text and "radars:    (none)" in text

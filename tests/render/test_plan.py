@@ -1,0 +1,52 @@
+"""The output plan: tile placement for rows of different lengths, and which camera row fills which tile."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+
+from nuparquet.render.mosaic import compose, mosaic_size, tile_origins
+from nuparquet.render.plan import camera_rows_per_output
+
+
+def test_rows_of_different_lengths_size_the_picture_by_the_longest_and_centre_the_shorter():
+    assert mosaic_size((4, 3), 100, 50) == (400, 100)
+    # Front row of four at x = 0, 100, 200, 300; back row of three shifted by half a tile.
+    assert tile_origins((4, 3), 100, 50) == [(0, 0), (100, 0), (200, 0), (300, 0), (50, 50), (150, 50), (250, 50)]
+    assert tile_origins((3, 3), 10, 5) == [(0, 0), (10, 0), (20, 0), (0, 5), (10, 5), (20, 5)]
+
+
+def test_compose_places_each_tile_and_leaves_gaps_black():
+    tiles = [np.full((2, 3, 3), value, np.uint8) for value in (10, 20, 30)]
+    picture = compose([tiles[0], tiles[1], None, tiles[2]], (2, 2), 3, 2)
+    assert picture.shape == (4, 6, 3)
+    assert (picture[:2, :3] == 10).all() and (picture[:2, 3:] == 20).all()
+    assert (picture[2:, :3] == 0).all() and (picture[2:, 3:] == 30).all()
+    odd = compose(tiles, (2, 1), 3, 2)  # the back row's one tile centred: x = 3 // 2 = 1
+    assert (odd[2:, 1:4] == 30).all() and (odd[2:, 0] == 0).all() and (odd[2:, 4:] == 0).all()
+    assert compose([tiles[0]], (1,), 3, 2) is tiles[0]  # one tile: the picture is the tile
+
+
+def _cameras() -> pl.DataFrame:
+    """Two cameras over two samples (s1 then s2), sorted by channel then time, with one sweep of A."""
+    rows = [  # channel, sample, timestamp, keyframe
+        ("A", "s1", 100, True), ("A", "s2", 140, False), ("A", "s2", 200, True),
+        ("B", "s1", 90, True), ("B", "s2", 190, True),
+    ]
+    return pl.DataFrame(rows, schema=["channel", "sample_token", "timestamp", "is_key_frame"], orient="row")
+
+
+def test_one_channel_shows_every_row_in_order():
+    times, rows = camera_rows_per_output(_cameras().filter(pl.col("channel") == "A"), pl.DataFrame(), ["A"],
+                                         mosaic=False, all_frames=True, fps=12.0)
+    assert rows.tolist() == [[0], [1], [2]]
+    assert times.tolist() == [100.0, 140.0, 200.0]
+
+
+def test_keyframe_mosaic_has_one_output_per_sample_in_time_order_with_each_cameras_keyframe():
+    samples = pl.DataFrame({"token": ["s2", "s1"], "timestamp": [200, 100]})
+    times, rows = camera_rows_per_output(_cameras(), samples, ["B", "A", "C"], mosaic=True, all_frames=False,
+                                         fps=2.0)
+    # Columns follow the layout order (B, A, C); C has no frames; the sweep of A (row 1) is never used.
+    assert rows.tolist() == [[3, 0, -1], [4, 2, -1]]
+    assert times.tolist() == [90.0, 190.0]  # each sample's earliest keyframe

@@ -1,0 +1,94 @@
+"""Channel facts from the data (`nuparquet.channels`, `Dataset.channels`): reference lidar, camera set, layout."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+
+import nuparquet
+from conftest import SYNTH_VERSION
+from nuparquet import channels
+
+NUSCENES_CAMERAS = ["CAM_BACK", "CAM_BACK_LEFT", "CAM_BACK_RIGHT", "CAM_FRONT", "CAM_FRONT_LEFT", "CAM_FRONT_RIGHT"]
+
+
+def yaw_quaternion(yaw_deg: float) -> list[float]:
+    """ego_from_camera rotation of a level camera (optical axis z) looking `yaw_deg` left of ego x."""
+    half = np.deg2rad(yaw_deg) / 2
+    about_z = np.array([np.cos(half), 0.0, 0.0, np.sin(half)])
+    optical = np.array([0.5, -0.5, 0.5, -0.5])  # camera z -> ego x, camera x -> ego -y
+    w0, x0, y0, z0 = about_z
+    w1, x1, y1, z1 = optical
+    return [w0 * w1 - x0 * x1 - y0 * y1 - z0 * z1, w0 * x1 + x0 * w1 + y0 * z1 - z0 * y1,
+            w0 * y1 - x0 * z1 + y0 * w1 + z0 * x1, w0 * z1 + x0 * y1 - y0 * x1 + z0 * w1]
+
+
+def test_camera_yaw_reads_the_optical_axis_heading():
+    yaws = channels.camera_yaw(np.array([yaw_quaternion(a) for a in (0.0, 55.0, -110.0, 180.0)]))
+    np.testing.assert_allclose(np.rad2deg(yaws), [0.0, 55.0, -110.0, 180.0], atol=1e-9)
+
+
+def test_reference_lidar_prefers_lidar_top_else_the_first_lidar_by_name():
+    assert channels.reference_lidar(["LIDAR_FRONT_LEFT", "LIDAR_TOP", "CAM_FRONT"],
+                                    ["lidar", "lidar", "camera"]) == "LIDAR_TOP"
+    assert channels.reference_lidar(["LIDAR_Z", "LIDAR_B", "RADAR_A"], ["lidar", "lidar", "radar"]) == "LIDAR_B"
+    assert channels.reference_lidar(["CAM_FRONT"], ["camera"]) is None
+
+
+def test_lyft_cameras_are_laid_out_front_row_of_four_over_back_row_of_three():
+    cameras = ["CAM_BACK", "CAM_FRONT_ZOOMED", "CAM_FRONT_LEFT", "CAM_BACK_RIGHT", "CAM_FRONT", "CAM_BACK_LEFT",
+               "CAM_FRONT_RIGHT"]
+    yaw = {"CAM_FRONT": 0.0, "CAM_FRONT_ZOOMED": 0.3, "CAM_FRONT_LEFT": 60.0, "CAM_FRONT_RIGHT": -60.0,
+           "CAM_BACK": 180.0, "CAM_BACK_LEFT": 120.0, "CAM_BACK_RIGHT": -120.0}
+    layout = channels.camera_layout(cameras, [np.deg2rad(yaw[c]) for c in cameras])
+    assert layout == (("CAM_FRONT_LEFT", "CAM_FRONT_ZOOMED", "CAM_FRONT", "CAM_FRONT_RIGHT"),
+                      ("CAM_BACK_LEFT", "CAM_BACK", "CAM_BACK_RIGHT"))
+
+
+def test_cameras_without_front_or_back_in_their_names_are_laid_out_by_yaw():
+    cameras = ["cam_a", "cam_b", "cam_c", "cam_d"]
+    yaws = np.deg2rad([170.0, 10.0, -30.0, -150.0])  # a: back left, b: front left, c: front right, d: back right
+    assert channels.camera_layout(cameras, yaws) == (("cam_b", "cam_c"), ("cam_a", "cam_d"))
+
+
+def test_default_camera_is_cam_front_else_the_first_front_camera():
+    assert channels.default_camera(NUSCENES_CAMERAS) == "CAM_FRONT"
+    assert channels.default_camera(["cam_a", "cam_b"], (("cam_b",), ("cam_a",))) == "cam_b"
+
+
+def test_channel_facts_group_sensors_and_lay_out_cameras():
+    sensors = NUSCENES_CAMERAS + ["LIDAR_TOP", "RADAR_FRONT", "RADAR_BACK_LEFT"]
+    modalities = ["camera"] * 6 + ["lidar", "radar", "radar"]
+    facts = channels.channel_facts(sensors, modalities)
+    assert facts == {
+        "reference_lidar": "LIDAR_TOP",
+        "cameras": NUSCENES_CAMERAS,
+        "camera_layout": [["CAM_FRONT_LEFT", "CAM_FRONT", "CAM_FRONT_RIGHT"],
+                          ["CAM_BACK_LEFT", "CAM_BACK", "CAM_BACK_RIGHT"]],
+        "lidars": ["LIDAR_TOP"],
+        "radars": ["RADAR_BACK_LEFT", "RADAR_FRONT"],
+    }
+    json.dumps(facts)  # goes into manifest.json as it is
+
+
+def test_dataset_channels_come_from_the_manifest_or_else_from_the_data(synth_root, synth_out, tmp_path):
+    copy = tmp_path / "out"
+    shutil.copytree(synth_out, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    manifest.pop("channels", None)  # an output written before channels were recorded
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    computed = nuparquet.open(copy).channels
+    # The synthetic sensor table, read as JSON: the expectation does not go through the converter.
+    sensor = json.loads((synth_root / SYNTH_VERSION / "sensor.json").read_text())
+    assert computed["cameras"] == sorted(s["channel"] for s in sensor if s["modality"] == "camera")
+    assert computed["radars"] == sorted(s["channel"] for s in sensor if s["modality"] == "radar")
+    assert computed["reference_lidar"] == "LIDAR_TOP" and computed["lidars"] == ["LIDAR_TOP"]
+    assert computed["camera_layout"] == [["CAM_FRONT_LEFT", "CAM_FRONT", "CAM_FRONT_RIGHT"],
+                                         ["CAM_BACK_LEFT", "CAM_BACK", "CAM_BACK_RIGHT"]]
+
+    manifest["channels"] = {"reference_lidar": None, "cameras": ["X"], "camera_layout": [["X"]], "lidars": [],
+                            "radars": []}
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    assert nuparquet.open(copy).channels == manifest["channels"]
