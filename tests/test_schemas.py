@@ -9,7 +9,7 @@ import pytest
 
 from nuparquet.schemas import dataset_schemas, docs_markdown, fingerprint, parse_type, table_schemas
 
-REPO = Path(__file__).resolve().parent.parent
+from conftest import REPO
 
 
 @pytest.mark.parametrize("spec,expected", [
