@@ -9,24 +9,11 @@ import sys
 import polars as pl
 
 from nuparquet import queries
+from nuparquet.queries.sections import BY_NAME, default_sections
 from nuparquet.cli.output import FORMATS, print_frame, records
 from nuparquet.dataset import open_dataset
 from nuparquet.errors import UsageError
 
-TITLES = {
-    "scenes": "Scenes (like NuScenes.list_scenes; anns_list_scenes leaves out the last sample as it does)",
-    "class_distribution": "Categories (like NuScenes.list_categories: mean±std, ddof=0)",
-    "class_distribution_by_scene": "Categories per scene",
-    "attributes": "Attributes (like NuScenes.list_attributes)",
-    "visibility": "Visibility level by category (annotation counts)",
-    "points_per_box": "Points per box by category (percentiles; zero = share of boxes with no point)",
-    "distance_histogram": "Distance to the ego vehicle by category (annotation counts per bin, metres)",
-    "tracks": "Tracks (instances) by category",
-    "ego_speed": "Ego motion per scene (reference lidar keyframe poses)",
-    "ego_motion": "Ego motion over time (reference lidar keyframe poses)",
-    "channel_rates": "Frames per channel (rates measured from timestamps)",
-    "channel_rates_by_scene": "Frames per channel and scene",
-}
 
 
 def register(sub) -> None:
@@ -47,9 +34,9 @@ def register(sub) -> None:
     p.add_argument("--scene", action="append", metavar="NAME",
                    help="only this scene (repeat for several); reads only the row groups holding it")
     p.add_argument("--format", choices=FORMATS, default="table", help="table (default), csv or json")
-    p.add_argument("--only", action="append", metavar="SECTION", choices=queries.SECTIONS + queries.EXTRA_SECTIONS,
+    p.add_argument("--only", action="append", metavar="SECTION", choices=list(BY_NAME),
                    help="print only this section (repeatable); one of: "
-                   f"{', '.join(queries.SECTIONS + queries.EXTRA_SECTIONS)}")
+                   f"{', '.join(BY_NAME)}")
     p.add_argument("--plots", metavar="DIR", help="also write PNG charts into DIR")
     p.add_argument("--bin-width", type=float, default=10.0, metavar="M",
                    help="distance histogram bin width in metres (default 10)")
@@ -117,7 +104,7 @@ def run(args) -> int:
     if args.scene:
         _check_scenes(ds, args.scene)
         scene = args.scene[0] if len(args.scene) == 1 else args.scene
-    sections = list(dict.fromkeys(args.only or queries.SECTIONS))
+    sections = list(dict.fromkeys(args.only or default_sections(ds)))
     wanted = sections + [s for s in ("class_distribution", "distance_histogram", "points_per_box", "ego_motion")
                          if args.plots and s not in sections]
     lazy = queries.summary(ds, scene=scene, sections=wanted, bin_width_m=args.bin_width)
@@ -137,7 +124,7 @@ def run(args) -> int:
                 if len(sections) > 1:
                     print()
             else:
-                print_frame(display(name, results[name]), "table", title=f"== {TITLES[name]}",
+                print_frame(display(name, results[name]), "table", title=f"== {BY_NAME[name].title}",
                             max_rows=args.max_rows)
     if args.plots:
         from nuparquet.plots import write_plots  # matplotlib only when asked for
