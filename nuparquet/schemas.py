@@ -56,6 +56,9 @@ class Schema:
     source: str | None = None  # JSON file name, for tables
     optional: bool = False  # tables that only exist with an extension (lidarseg, panoptic)
     sort_by: tuple[str, ...] = field(default_factory=tuple)
+    # Dataset-level key/value metadata written into the Parquet file footer (e.g. GeoParquet's "geo"); values
+    # that are not strings are stored as their JSON text.
+    metadata: dict = field(default_factory=dict)
 
     @property
     def names(self) -> list[str]:
@@ -68,30 +71,99 @@ class Schema:
         raise KeyError(f"{self.name} has no field {name!r}")
 
     def arrow_schema(self) -> pa.Schema:
-        return pa.schema([pa.field(f.name, f.arrow_type, nullable=f.nullable) for f in self.fields])
+        metadata = {k: v if isinstance(v, str) else json.dumps(v, sort_keys=True) for k, v in self.metadata.items()}
+        return pa.schema([pa.field(f.name, f.arrow_type, nullable=f.nullable) for f in self.fields],
+                         metadata=metadata or None)
 
 
 _TYPES = {
-    "string": pa.string(), "bool": pa.bool_(), "int8": pa.int8(), "int16": pa.int16(),
-    "int32": pa.int32(), "int64": pa.int64(), "float32": pa.float32(), "float64": pa.float64(),
-    "date32": pa.date32(),
+    "string": pa.string(), "large_string": pa.large_string(), "binary": pa.binary(),
+    "large_binary": pa.large_binary(), "bool": pa.bool_(),
+    "int8": pa.int8(), "int16": pa.int16(), "int32": pa.int32(), "int64": pa.int64(),
+    "uint8": pa.uint8(), "uint16": pa.uint16(), "uint32": pa.uint32(), "uint64": pa.uint64(),
+    "float32": pa.float32(), "float64": pa.float64(), "date32": pa.date32(),
 }
+_TOKEN = re.compile(r"\s*(?:([A-Za-z_][A-Za-z0-9_]*)|(\d+)|(.))")
+
+
+class _TypeParser:
+    """Recursive descent over the type spelling of the schema files:
+
+        type   := scalar | fixed_size_list<type>[n] | list<type> | large_list<type> | dictionary<type>
+                | timestamp[unit] | timestamp[unit, tz] | struct<name: type, ...>
+    """
+
+    def __init__(self, spec: str):
+        self.spec = spec
+        self.tokens = [m.group(m.lastindex) for m in _TOKEN.finditer(spec) if m.lastindex and m.group(m.lastindex).strip()]
+        self.i = 0
+
+    def fail(self, why: str) -> ValueError:
+        return ValueError(f"unknown type in schema file: {self.spec!r} ({why})")
+
+    def peek(self) -> str | None:
+        return self.tokens[self.i] if self.i < len(self.tokens) else None
+
+    def take(self, expected: str | None = None) -> str:
+        token = self.peek()
+        if token is None or (expected is not None and token != expected):
+            raise self.fail(f"expected {expected or 'more'} at token {self.i}")
+        self.i += 1
+        return token
+
+    def parse(self) -> pa.DataType:
+        result = self.type()
+        if self.peek() is not None:
+            raise self.fail(f"unexpected {self.peek()!r}")
+        return result
+
+    def type(self) -> pa.DataType:
+        name = self.take()
+        if name in _TYPES:
+            return _TYPES[name]
+        if name in ("list", "large_list", "fixed_size_list", "dictionary"):
+            self.take("<")
+            inner = self.type()
+            self.take(">")
+            if name == "fixed_size_list":
+                self.take("[")
+                size = self.take()
+                if not size.isdigit():
+                    raise self.fail("fixed_size_list needs a size")
+                self.take("]")
+                return pa.list_(inner, int(size))
+            return {"list": pa.list_, "large_list": pa.large_list,
+                    "dictionary": lambda t: pa.dictionary(pa.int32(), t)}[name](inner)
+        if name == "struct":
+            self.take("<")
+            fields = []
+            while True:
+                field_name = self.take()
+                self.take(":")
+                fields.append(pa.field(field_name, self.type()))
+                if self.peek() == ",":
+                    self.take(",")
+                    continue
+                self.take(">")
+                return pa.struct(fields)
+        if name == "timestamp":
+            self.take("[")
+            unit = self.take()
+            tz = None
+            if self.peek() == ",":
+                self.take(",")
+                tz = ""
+                while self.peek() not in ("]", None):
+                    tz += self.take()
+            self.take("]")
+            return pa.timestamp(unit, tz=tz)
+        raise self.fail(f"no type {name!r}")
 
 
 def parse_type(spec: str) -> pa.DataType:
-    """Arrow type from its spelling in the schema files, e.g. ``fixed_size_list<float64>[3]``."""
-    spec = spec.strip()
-    if spec in _TYPES:
-        return _TYPES[spec]
-    if m := re.fullmatch(r"fixed_size_list<(.+)>\[(\d+)\]", spec):
-        return pa.list_(parse_type(m[1]), int(m[2]))
-    if m := re.fullmatch(r"list<(.+)>", spec):
-        return pa.list_(parse_type(m[1]))
-    if m := re.fullmatch(r"dictionary<(.+)>", spec):
-        return pa.dictionary(pa.int32(), parse_type(m[1]))
-    if m := re.fullmatch(r"timestamp\[(\w+)(?:,\s*(.+))?\]", spec):
-        return pa.timestamp(m[1], tz=m[2])
-    raise ValueError(f"unknown type in schema file: {spec!r}")
+    """Arrow type from its spelling in the schema files, e.g. ``fixed_size_list<float64>[3]``,
+    ``list<struct<name: string, value: uint16>>``, ``timestamp[us, UTC]``."""
+    return _TypeParser(spec.strip()).parse()
 
 
 def _load(path: Path) -> Schema:
@@ -100,6 +172,7 @@ def _load(path: Path) -> Schema:
     return Schema(
         name=raw["name"], kind=raw["kind"], version=raw["version"], doc=raw.get("doc", ""), fields=fields,
         source=raw.get("source"), optional=raw.get("optional", False), sort_by=tuple(raw.get("sort_by", ())),
+        metadata=raw.get("metadata", {}),
     )
 
 
@@ -121,8 +194,12 @@ def core_tables() -> list[str]:
 
 
 def fingerprint(schema: pa.Schema) -> str:
-    """A short stable hash of an Arrow schema (names, types, nullability), for the manifest."""
+    """A short stable hash of an Arrow schema (names, types, nullability, and its key/value metadata other
+    than pandas'/Arrow's own), for the manifest."""
     text = "\n".join(f"{f.name}:{f.type}:{f.nullable}" for f in schema)
+    metadata = {k: v for k, v in (schema.metadata or {}).items() if k not in (b"pandas", b"ARROW:schema")}
+    if metadata:
+        text += "\n" + "\n".join(f"{k.decode()}={v.decode()}" for k, v in sorted(metadata.items()))
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -136,6 +213,8 @@ def docs_markdown() -> str:
             out += [f"### `{s.name}`", "", s.doc, ""]
             if s.sort_by:
                 out += [f"Rows sorted by: {', '.join(f'`{c}`' for c in s.sort_by)}.", ""]
+            if s.metadata:
+                out += ["File metadata: " + ", ".join(f"`{k}`" for k in s.metadata) + ".", ""]
             out += ["| column | type | description |", "|---|---|---|"]
             for f in s.fields:
                 notes = []

@@ -1,0 +1,65 @@
+"""The schema language's types and dataset metadata: every spelling parses to the Arrow type it names,
+malformed spellings are refused, and file-level metadata reaches the written Parquet footer and the
+fingerprint."""
+
+from __future__ import annotations
+
+import json
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from nuparquet.convert.write import write_parquet
+from nuparquet.schemas import Field, Schema, fingerprint, parse_type
+
+
+@pytest.mark.parametrize("spec, expected", [
+    ("uint8", pa.uint8()), ("uint16", pa.uint16()), ("uint32", pa.uint32()), ("uint64", pa.uint64()),
+    ("int32", pa.int32()), ("float32", pa.float32()), ("binary", pa.binary()), ("large_binary", pa.large_binary()),
+    ("fixed_size_list<float32>[4]", pa.list_(pa.float32(), 4)),
+    ("fixed_size_list<fixed_size_list<float64>[3]>[3]", pa.list_(pa.list_(pa.float64(), 3), 3)),
+    ("list<uint16>", pa.list_(pa.uint16())),
+    ("struct<x: float64, n: uint8>", pa.struct([("x", pa.float64()), ("n", pa.uint8())])),
+    ("list<struct<start_pose: fixed_size_list<float64>[3], shape: string>>",
+     pa.list_(pa.struct([("start_pose", pa.list_(pa.float64(), 3)), ("shape", pa.string())]))),
+    ("struct<incoming: list<string>, outgoing: list<string>>",
+     pa.struct([("incoming", pa.list_(pa.string())), ("outgoing", pa.list_(pa.string()))])),
+    ("timestamp[us, UTC]", pa.timestamp("us", tz="UTC")),
+    ("dictionary<string>", pa.dictionary(pa.int32(), pa.string())),
+])
+def test_every_type_spelling_parses_to_its_arrow_type(spec, expected):
+    assert parse_type(spec) == expected
+
+
+@pytest.mark.parametrize("spec", ["uint7", "list<int64", "struct<a int64>", "struct<a: int64", "fixed_size_list<int8>",
+                                  "fixed_size_list<int8>[x]", "int64 extra", "struct<>", ""])
+def test_malformed_spellings_are_refused(spec):
+    with pytest.raises(ValueError, match="unknown type"):
+        parse_type(spec)
+
+
+def _schema(metadata: dict) -> Schema:
+    return Schema(name="layer", kind="dataset", version=1, doc="", metadata=metadata,
+                  fields=(Field("token", "string"), Field("geometry", "binary"), Field("label", "uint8")))
+
+
+def test_dataset_metadata_reaches_the_parquet_footer(tmp_path):
+    geo = {"version": "1.1.0", "primary_column": "geometry", "columns": {"geometry": {"encoding": "WKB"}}}
+    schema = _schema({"geo": geo, "note": "plain text"}).arrow_schema()
+    table = pa.table({"token": ["a"], "geometry": [b"\x01"], "label": [3]}).cast(schema)
+    write_parquet(table, tmp_path / "layer")
+    footer = pq.read_metadata(tmp_path / "layer" / "part-00000.parquet").metadata
+    assert json.loads(footer[b"geo"]) == geo
+    assert footer[b"note"] == b"plain text"
+    assert pq.read_schema(tmp_path / "layer" / "part-00000.parquet").field("label").type == pa.uint8()
+
+
+def test_fingerprint_covers_types_and_metadata():
+    base = _schema({}).arrow_schema()
+    assert fingerprint(base) == fingerprint(_schema({}).arrow_schema())
+    assert fingerprint(base) != fingerprint(_schema({"geo": {"version": "1.1.0"}}).arrow_schema())
+    assert fingerprint(_schema({"geo": {"version": "1.1.0"}}).arrow_schema()) != \
+        fingerprint(_schema({"geo": {"version": "1.0.0"}}).arrow_schema())
+    widened = pa.schema([f if f.name != "label" else pa.field("label", pa.uint16(), nullable=False) for f in base])
+    assert fingerprint(base) != fingerprint(widened)
