@@ -86,7 +86,7 @@ def main() -> None:
         root, out = work / "synth", work / "out"
         if not (out / "manifest.json").exists():
             synthesize(root, scenes=args.scenes, samples_per_scene=args.samples, with_images=True, with_lidar=True, seed=0)
-            convert(root, "v1.0-synth", out, progress=False, overwrite=True)
+            convert(root, "v1.0-synth", out, overwrite=True)
         ds = nuparquet.open(out)
         scene = ds.scan("scenes").select("name").collect()["name"].sort()[0]
         frames = ds.scan("frames").filter(

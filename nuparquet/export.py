@@ -1,4 +1,4 @@
-"""`nuparquet export-json`: write the source tables of a conversion back as nuScenes JSON.
+"""`nuparquet export-json`: write every JSON file a conversion read back, at its path under the dataroot.
 
 The manifest keeps each table's JSON key order and which integer fields the source stored as JSON
 floats, so parsing the output gives records equal field for field to the input: same key order, floats
@@ -17,30 +17,56 @@ import pyarrow.parquet as pq
 from nuparquet.convert.write import atomic_directory, check_target
 from nuparquet.errors import FormatError
 from nuparquet.format import MANIFEST
+from nuparquet.progress import OnProgress, Reporter
 from nuparquet.schemas import table_schemas
 
 BATCH_ROWS = 65536  # records converted to Python at a time: keeps memory flat on trainval
 
 
 def export_json(dataset_dir: Path | str, out: Path | str, *, overwrite: bool = False,
-                on_table: Callable[[str], None] | None = None) -> list[Path]:
-    """Write every table of the conversion at `dataset_dir` to `out/<table>.json`; returns the paths."""
+                on_progress: OnProgress | None = None) -> list[Path]:
+    """Write every JSON file the conversion at `dataset_dir` read back under `out`, at its path relative to the
+    dataroot (the tables at `out/<version>/<table>.json`); returns the paths written."""
     dataset_dir = Path(dataset_dir)
     check_target(out, overwrite=overwrite)
     manifest_path = dataset_dir / MANIFEST
     if not manifest_path.is_file():
         raise FormatError(f"{dataset_dir} is not a nuparquet output (no {MANIFEST})")
     manifest = json.loads(manifest_path.read_text())
+    files = manifest.get("files") or _files_of_older_manifest(manifest)
+    unknown = sorted({f["kind"] for f in files} - set(WRITERS))
+    if unknown:
+        raise FormatError(f"{dataset_dir}: {MANIFEST} lists files of kind {', '.join(unknown)}, which this "
+                          f"nuparquet cannot write back (known: {', '.join(WRITERS)}); upgrade nuparquet")
     written = []
-    with atomic_directory(Path(out), overwrite=overwrite) as tmp:
-        for name, info in manifest["tables"].items():
-            if on_table:
-                on_table(name)
-            source = table_schemas()[name].source if name in table_schemas() else f"{name}.json"
-            _write_table(dataset_dir / manifest["datasets"][f"tables/{name}"]["path"], tmp / source,
-                         info["key_order"], name, set(info.get("json_fields", ())))
-            written.append(Path(out) / source)
+    with Reporter(on_progress, "export-json", total=len(files), unit="file") as reporter, \
+            atomic_directory(Path(out), overwrite=overwrite) as tmp:
+        for entry in files:
+            reporter.advance(step=entry["path"])
+            target = tmp / entry["path"]
+            target.parent.mkdir(parents=True, exist_ok=True)
+            WRITERS[entry["kind"]](dataset_dir, manifest, entry, target)
+            written.append(Path(out) / entry["path"])
     return written
+
+
+def _files_of_older_manifest(manifest: dict) -> list[dict]:
+    """Outputs written before the manifest listed its files: the tables, under the version folder."""
+    version = manifest.get("source", {}).get("version", "")
+    return [{"path": f"{version}/{table_schemas()[name].source if name in table_schemas() else name + '.json'}",
+             "kind": "table", "dataset": f"tables/{name}"} for name in manifest["tables"]]
+
+
+def _write_table_file(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
+    name = entry["dataset"].removeprefix("tables/")
+    info = manifest["tables"][name]
+    _write_table(dataset_dir / manifest["datasets"][entry["dataset"]]["path"], target, info["key_order"], name,
+                 set(info.get("json_fields", ())))
+
+
+# How each kind of converted JSON file is written back (the manifest's "files" name the kind of each).
+# CAN bus message files, map expansion files, ... add their writer here.
+WRITERS: dict[str, Callable[[Path, dict, dict, Path], None]] = {"table": _write_table_file}
 
 
 def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str, json_fields: set[str]) -> None:

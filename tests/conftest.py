@@ -25,7 +25,7 @@ def extract_out(extract_root, tmp_path_factory) -> Path:
     from nuparquet.convert import convert
 
     out = tmp_path_factory.mktemp("extract") / "out"
-    convert(extract_root, EXTRACT_VERSION, out, progress=False)
+    convert(extract_root, EXTRACT_VERSION, out)
     return out
 
 
@@ -44,7 +44,7 @@ def synth_out(synth_root, tmp_path_factory) -> Path:
     from nuparquet.convert import convert
 
     out = tmp_path_factory.mktemp("synth-out") / "out"
-    convert(synth_root, SYNTH_VERSION, out, progress=False)
+    convert(synth_root, SYNTH_VERSION, out)
     return out
 
 
@@ -75,5 +75,5 @@ def lyft_rig_out(lyft_rig_root, tmp_path_factory) -> Path:
     from nuparquet.convert import convert
 
     out = tmp_path_factory.mktemp("lyft-rig-out") / "out"
-    convert(lyft_rig_root, LYFT_RIG_VERSION, out, progress=False)
+    convert(lyft_rig_root, LYFT_RIG_VERSION, out)
     return out

@@ -7,17 +7,21 @@ def register(sub) -> None:
     p = sub.add_parser(
         "export-json",
         help="write the tables of a conversion back as nuScenes JSON (lossless round trip)",
-        description="Write OUT/tables/* as DIR/<table>.json. Parsing them gives records equal field for field "
+        description="Write every JSON file the conversion read back under DIR, at its path relative to the "
+        "dataroot (the tables as DIR/<version>/<table>.json). Parsing them gives records equal field for field "
         "to the converted input: same key order, bit-identical floats, [] for empty intrinsics.",
     )
     p.add_argument("dataset", help="a directory written by `nuparquet convert`")
     p.add_argument("--out", required=True, help="directory for the JSON files (must not exist unless --overwrite)")
     p.add_argument("--overwrite", action="store_true", help="replace DIR if it exists")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
+    from nuparquet.cli.progress import bars
     from nuparquet.export import export_json
-    paths = export_json(args.dataset, args.out, overwrite=args.overwrite)
-    print(f"wrote {len(paths)} tables to {args.out}")
+
+    paths = export_json(args.dataset, args.out, overwrite=args.overwrite, on_progress=bars(not args.quiet))
+    print(f"wrote {len(paths)} files to {args.out}")
     return 0

@@ -36,6 +36,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from nuparquet.cli.progress import bars
     from nuparquet.synth import synthesize
 
     if args.scenes < 1:
@@ -45,7 +46,7 @@ def run(args) -> int:
     start = time.perf_counter()
     dataroot = synthesize(args.out, scenes=args.scenes, samples_per_scene=args.samples_per_scene,
                           with_images=args.with_images, with_lidar=args.with_lidar, seed=args.seed,
-                          version=args.version, progress=not args.quiet)
+                          version=args.version, on_progress=bars(not args.quiet))
     files = [kind for kind, on in (("images", args.with_images), ("lidar/radar", args.with_lidar)) if on]
     print(f"wrote {dataroot / args.version}: {args.scenes} scenes x {args.samples_per_scene} samples"
           f"{' with ' + ' and '.join(files) if files else ' (tables only)'} in {time.perf_counter() - start:.1f} s",

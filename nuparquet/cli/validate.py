@@ -15,13 +15,15 @@ def register(sub) -> None:
     p.add_argument("dataroot", help="dataset root holding the version folder")
     p.add_argument("--version", required=True, help="version folder name, e.g. v1.0-mini")
     p.add_argument("--max-problems", type=int, default=50, help="problems to print (the rest are counted)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
+    from nuparquet.cli.progress import bars
     from nuparquet.convert import validate
     from nuparquet.problems import count_problems, format_problems
-    result, problems = validate(args.dataroot, args.version)
+    result, problems = validate(args.dataroot, args.version, on_progress=bars(not args.quiet))
     if problems:
         print(format_problems(problems, limit=args.max_problems))
         n = count_problems(problems)

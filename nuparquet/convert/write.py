@@ -24,16 +24,20 @@ from nuparquet.errors import UsageError
 from nuparquet.format import MANIFEST
 
 PART_NAME = "part-00000.parquet"
+
+
+def part_name(index: int) -> str:
+    return f"part-{index:05d}.parquet"
 MAX_ROW_GROUP_ROWS = 65536
 
 
 class DatasetWriter:
-    """Appends tables to `directory/part-00000.parquet` with one schema; `group_by` (a column the rows are
+    """Appends tables to `directory/part-{part:05d}.parquet` with one schema (and its file metadata); `group_by` (a column the rows are
     sorted by) starts a new row group at each change of value, so statistics prune e.g. one scene."""
 
-    def __init__(self, directory: Path, schema: pa.Schema, *, group_by: str | None = None):
+    def __init__(self, directory: Path, schema: pa.Schema, *, group_by: str | None = None, part: int = 0):
         directory.mkdir(parents=True, exist_ok=True)
-        self.path = directory / PART_NAME
+        self.path = directory / part_name(part)
         self.schema = schema
         self.group_by = group_by
         self.rows = 0

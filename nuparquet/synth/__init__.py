@@ -27,6 +27,7 @@ import numpy as np
 from nuparquet.errors import UsageError
 from nuparquet.synth.plan import plan_logs
 from nuparquet.synth.sensors import SceneSensors
+from nuparquet.progress import OnProgress, Reporter
 from nuparquet.synth.tables import (
     TABLES, SceneTokens, TableWriter, frame_filenames, global_records, map_token, scene_records,
 )
@@ -41,7 +42,7 @@ MAP_SIZE_PX = 64
 
 def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images: bool = False,
                with_lidar: bool = False, seed: int = 0, version: str = "v1.0-synth",
-               progress: bool = False, rig: str = "nuscenes") -> Path:
+               on_progress: OnProgress | None = None, rig: str = "nuscenes") -> Path:
     """Write a synthetic nuScenes-format dataroot and return its path (`out_dir`).
 
     scenes: number of scenes (named scene-0001, ...), spread over logs of several locations.
@@ -51,6 +52,7 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     Without either, only the tables and maps are written (trainval scale takes minutes, not hours).
     rig: the sensor set, "nuscenes" (6 cameras, LIDAR_TOP, 5 radars) or "lyft" (7 cameras with a zoomed front
     camera, 3 lidars, no radar; `taxonomy.RIGS`).
+    on_progress: receives a `nuparquet.progress.Progress` event per scene written (None: silent).
 
     The tables are written to a temporary sibling and renamed to `out_dir/<version>` when complete; an
     existing `out_dir/<version>` is replaced.
@@ -70,7 +72,7 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     logs = plan_logs(seed, scenes, scene_duration_s, RIGS[rig])
     try:
         _write_tables_and_files(dataroot, partial_dir, logs, seed, scenes, samples_per_scene,
-                                images=with_images, point_clouds=with_lidar, progress=progress)
+                                images=with_images, point_clouds=with_lidar, on_progress=on_progress)
     except BaseException:  # interrupted or failed: leave nothing that could pass for a complete version folder
         shutil.rmtree(partial_dir, ignore_errors=True)
         raise
@@ -82,10 +84,11 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
 
 
 def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, scenes: int, samples_per_scene: int,
-                            *, images: bool, point_clouds: bool, progress: bool) -> None:
+                            *, images: bool, point_clouds: bool, on_progress: OnProgress | None) -> None:
     """Generate the scenes one by one (one scene in memory at a time) and stream them into the tables."""
     writers = {name: TableWriter(table_dir / f"{name}.json") for name in TABLES}
-    bar = _progress_bar(scenes, images or point_clouds) if progress else None
+    task = "synth" + (" (with sensor files)" if images or point_clouds else "")
+    reporter = Reporter(on_progress, task, total=scenes, unit="scene")
     try:
         for name, records in global_records(logs).items():
             writers[name].write_dicts(records)
@@ -103,11 +106,9 @@ def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, sc
                 if images or point_clouds:
                     SceneSensors(world, log.rig, seed, scene_index).write(
                         dataroot, filenames, images=images, point_clouds=point_clouds)
-                if bar is not None:
-                    bar.update(1)
+                reporter.advance()
     finally:
-        if bar is not None:
-            bar.close()
+        reporter.close()
         for writer in writers.values():
             writer.close()
 
@@ -136,10 +137,3 @@ def _write_maps(dataroot: Path, locations: list[str]) -> None:
         raise RuntimeError("OpenCV could not encode a PNG")
     for location in locations:
         (maps_dir / f"{map_token(location)}.png").write_bytes(png.tobytes())
-
-
-def _progress_bar(scenes: int, with_files: bool):
-    from tqdm import tqdm  # only when asked: the library is quiet by default
-
-    return tqdm(total=scenes, unit="scene", desc="synth" + (" (with sensor files)" if with_files else ""),
-                dynamic_ncols=True)

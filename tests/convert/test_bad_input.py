@@ -183,13 +183,22 @@ def test_existing_out_is_refused_and_kept(root, tmp_path, capsys):
     assert (out / "keep.txt").read_text() == "mine"
 
 
-def test_interrupted_conversion_leaves_nothing_complete_looking(root, tmp_path, monkeypatch):
-    from nuparquet.convert import derived
+def _replace_builder(monkeypatch, name: str, build) -> None:
+    """Swap one registered builder's build function (the conversion reads the registry at call time)."""
+    import dataclasses
 
+    import nuparquet.convert as convert_module
+    from nuparquet.convert import registry
+
+    builders = tuple(dataclasses.replace(b, build=build) if b.name == name else b for b in registry.BUILDERS)
+    monkeypatch.setattr(convert_module, "BUILDERS", builders)
+
+
+def test_interrupted_conversion_leaves_nothing_complete_looking(root, tmp_path, monkeypatch):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(derived, "build_scenes", interrupted)
+    _replace_builder(monkeypatch, "scenes", interrupted)
     out = tmp_path / "out"
     assert main(["convert", str(root), "--version", V, "--out", str(out), "--quiet"]) == 130
     assert not out.exists()
@@ -200,9 +209,7 @@ def test_failed_overwrite_keeps_the_previous_output(root, tmp_path, monkeypatch)
     out = tmp_path / "out"
     assert main(["convert", str(root), "--version", V, "--out", str(out), "--quiet"]) == 0
     before = (out / "manifest.json").read_text()
-    from nuparquet.convert import derived
-
-    monkeypatch.setattr(derived, "build_instances", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
+    _replace_builder(monkeypatch, "instances", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
     assert main(["convert", str(root), "--version", V, "--out", str(out), "--overwrite", "--quiet"]) == 130
     assert (out / "manifest.json").read_text() == before
 

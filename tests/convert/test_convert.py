@@ -23,7 +23,7 @@ def _assert_round_trip(source_root: Path, version: str, out: Path, tmp_path: Pat
     exported = tmp_path / "exported"
     export_json(out, exported)
     for name, records in _json_tables(source_root, version).items():
-        again = json.loads((exported / f"{name}.json").read_text())
+        again = json.loads((exported / version / f"{name}.json").read_text())  # DIR is a dataroot
         assert len(again) == len(records), name
         for original, copy in zip(records, again):
             assert list(copy) == list(original), f"{name}: key order"  # same keys, same order

@@ -54,7 +54,7 @@ def lyft_like(synth_root, tmp_path_factory) -> tuple[Path, Path]:
     root = tmp_path_factory.mktemp("lyft") / "data"
     lyftify(synth_root, root)
     out = root.parent / "out"
-    convert(root, V, out, progress=False)
+    convert(root, V, out)
     return root, out
 
 
@@ -63,7 +63,7 @@ def test_lyft_like_dataset_round_trips_exactly(lyft_like, tmp_path):
     export_json(out, tmp_path / "json")
     for path in (root / V).glob("*.json"):
         original = json.loads(path.read_text())
-        again = json.loads((tmp_path / "json" / path.name).read_text())
+        again = json.loads((tmp_path / "json" / V / path.name).read_text())
         assert again == original, path.name
         for a, b in zip(original, again):
             assert list(a) == list(b)

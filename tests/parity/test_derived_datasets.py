@@ -208,6 +208,6 @@ def test_distance_to_ego_is_null_without_a_reference_keyframe(synth_root, tmp_pa
         if s["modality"] == "lidar":
             s["channel"], s["modality"] = "LIDAR_ELSEWHERE", "other"  # no lidar channel left at all
     path.write_text(json.dumps(sensors))
-    convert(tmp_path / "data", SYNTH_VERSION, tmp_path / "out", progress=False)
+    convert(tmp_path / "data", SYNTH_VERSION, tmp_path / "out")
     distance = read(tmp_path / "out", "annotations")["distance_to_ego_m"]
     assert distance.null_count() == len(distance) and not distance.is_nan().any()

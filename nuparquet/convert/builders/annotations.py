@@ -1,0 +1,86 @@
+"""`annotations/`: one row per sample_annotation, joined, with velocity (as the devkit's box_velocity), yaw and
+distance to the ego vehicle."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+
+from nuparquet import geometry
+from nuparquet.columns import to_numpy
+from nuparquet.convert.builders.common import reference_poses, samples
+from nuparquet.convert.registry import BuildContext, Builder, SceneBatch
+
+# devkit NuScenes.box_velocity's default: neighbours further apart than this (doubled for a centred
+# difference) give NaN.
+MAX_VELOCITY_TIME_DIFF_S = 1.5
+
+
+def build_annotations(t: dict[str, pl.DataFrame], annotations: pl.DataFrame, samples: pl.DataFrame,
+                      references: pl.DataFrame) -> pl.DataFrame:
+    """One row per row of `annotations` (sample_annotation rows of a batch of scenes). `references` is
+    `lookups.reference_poses(t, samples)`."""
+    names = dict(zip(t["attribute"]["token"].to_list(), t["attribute"]["name"].to_list()))  # a handful
+    ann = annotations.with_columns(attribute_names=pl.col("attribute_tokens").list.eval(
+        pl.element().replace_strict(names, return_dtype=pl.String)))
+    ego = references.select("sample_token", pl.col("ego_translation").alias("_ego"))
+    ann = (
+        ann.lazy()
+        .join(samples.lazy(), on="sample_token", how="left")
+        .rename({"sample_timestamp": "timestamp"})
+        .join(t["instance"].lazy().select(pl.col("token").alias("instance_token"), "category_token"),
+              on="instance_token", how="left")
+        .join(t["category"].lazy().select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
+              on="category_token", how="left")
+        .join(ego.lazy(), on="sample_token", how="left")
+        .with_columns(visibility_level=pl.col("visibility_token").cast(pl.Int8, strict=False))
+        .collect()
+    )
+    translation = to_numpy(ann["translation"], (3,))
+    ann = ann.with_columns(
+        velocity=pl.Series(box_velocity(ann), dtype=pl.Array(pl.Float64, 3)),
+        yaw=pl.Series(geometry.yaw_from_quaternions(to_numpy(ann["rotation"], (4,)))),
+        distance_to_ego_m=pl.Series(_xy_distance(translation, ann["_ego"])).fill_nan(None),
+    )
+    return ann.drop("_ego", "category_token").sort("scene_name", "timestamp", "instance_token", "token")
+
+
+def _xy_distance(translation: np.ndarray, ego: pl.Series) -> np.ndarray:
+    """xy distance of each box centre to its ego position; NaN where there is none (null rows are NaN rows)."""
+    return np.linalg.norm(translation[:, :2] - to_numpy(ego, (3,))[:, :2], axis=1)
+
+
+def box_velocity(ann: pl.DataFrame) -> np.ndarray:
+    """(N, 3) velocities exactly as devkit `NuScenes.box_velocity(token, max_time_diff=1.5)`.
+
+    first = prev (or the annotation itself at a track start), last = next (or itself at a track end);
+    v = (pos_last - pos_first) / (1e-6 * t_last - 1e-6 * t_first) with *sample* timestamps; NaN for a
+    track of one, or when the gap exceeds 1.5 s (3 s for a centred difference).
+    """
+    index = pl.DataFrame({"token": ann["token"], "_i": np.arange(ann.height)})
+
+    def position_of(column: str) -> np.ndarray:
+        joined = ann.select(pl.col(column).alias("token")).join(index, on="token", how="left", maintain_order="left")
+        return joined["_i"].fill_null(-1).to_numpy()
+
+    own = np.arange(ann.height)
+    prev_i, next_i = position_of("prev"), position_of("next")
+    has_prev, has_next = prev_i >= 0, next_i >= 0
+    first = np.where(has_prev, prev_i, own)
+    last = np.where(has_next, next_i, own)
+    translation = to_numpy(ann["translation"], (3,))
+    seconds = 1e-6 * ann["timestamp"].to_numpy().astype(np.float64)  # the devkit's 1e-6 * timestamp
+    time_diff = seconds[last] - seconds[first]
+    limit = np.where(has_prev & has_next, 2 * MAX_VELOCITY_TIME_DIFF_S, MAX_VELOCITY_TIME_DIFF_S)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        velocity = (translation[last] - translation[first]) / time_diff[:, None]
+    invalid = ~(has_prev | has_next) | (time_diff > limit)
+    velocity[invalid] = np.nan
+    return velocity
+
+
+def build(ctx: BuildContext, batch: SceneBatch) -> pl.DataFrame:
+    return build_annotations(ctx.tables, batch.rows["sample_annotation"], samples(ctx), reference_poses(ctx))
+
+
+BUILDER = Builder("annotations", build, schema="annotations")
