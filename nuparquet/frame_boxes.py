@@ -9,7 +9,7 @@ boxes = boxes_for_frames(frames, ds.scan("annotations"), ds.scan("tables/sample"
 
 One polars join pairs every frame with the annotations of its sample and, for sweeps, each annotation with
 the same instance's annotation one sample earlier; the interpolation then runs once over all pairs in numpy
-(`geometry.interp_two_points`, `geometry.quaternion_slerp`).
+(`geometry.interp_two_points`, `quaternions.quaternion_slerp`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 import polars as pl
 
-from nuparquet import columns, geometry
+from nuparquet import columns, geometry, quaternions
 
 FRAME_COLUMNS = ("token", "sample_token", "timestamp", "is_key_frame")
 ANNOTATION_COLUMNS = ("token", "sample_token", "instance_token", "category_name", "translation", "size", "rotation")
@@ -139,7 +139,7 @@ def frame_boxes(
         translation_m[rows] = geometry.interp_two_points(
             t, t0, t1, columns.to_numpy(part["prev_translation"], (3,)), translation_m[rows]
         )
-        rotation_wxyz[rows] = geometry.quaternion_slerp(
+        rotation_wxyz[rows] = quaternions.quaternion_slerp(
             columns.to_numpy(part["prev_rotation"], (4,)), rotation_wxyz[rows], geometry.slerp_amount(t, t0, t1)
         )
 

@@ -21,7 +21,7 @@ from typing import Literal
 import numpy as np
 import polars as pl
 
-from nuparquet import geometry
+from nuparquet import geometry, quaternions
 from nuparquet.camera import Cameras
 from nuparquet.frame_boxes import FRAME_COLUMNS, FrameBoxes, frame_boxes, lazy_with
 from nuparquet.projection.frames import CAMERA_COLUMNS, cameras_from_frames, pose_columns
@@ -54,7 +54,7 @@ def boxes_in_cameras(cameras: Cameras, boxes: FrameBoxes) -> BoxesInCameras:
     ~1e3 m coordinates through the subtraction)."""
     center_ego_m = cameras.to_ego(boxes.translation_m)
     center_camera_m = geometry.transform_points(cameras.camera_from_ego, center_ego_m)
-    rotation = cameras.rotation_to_camera(geometry.rotation_matrices(boxes.rotation_wxyz))
+    rotation = cameras.rotation_to_camera(quaternions.rotation_matrices(boxes.rotation_wxyz))
     return BoxesInCameras(center_ego_m, center_camera_m,
                           geometry.box_corners(center_camera_m, boxes.size_wlh_m, rotation))
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nuparquet import geometry
+from nuparquet import geometry, quaternions
 
 pyquaternion = pytest.importorskip("pyquaternion")
 Quaternion = pyquaternion.Quaternion
@@ -33,11 +33,11 @@ def random_poses(rng: np.random.Generator, n: int = N) -> tuple[np.ndarray, np.n
 def test_rotation_matrices_equal_pyquaternion(rng):
     q = random_quaternions(rng)
     expected = np.stack([Quaternion(row).rotation_matrix for row in q])
-    np.testing.assert_allclose(geometry.rotation_matrices(q), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(quaternions.rotation_matrices(q), expected, rtol=0, atol=1e-12)
 
 
 def test_rotation_matrices_are_orthonormal_with_determinant_one(rng):
-    rotation = geometry.rotation_matrices(random_quaternions(rng))
+    rotation = quaternions.rotation_matrices(random_quaternions(rng))
     identity = np.broadcast_to(np.eye(3), rotation.shape)
     np.testing.assert_allclose(rotation @ np.swapaxes(rotation, 1, 2), identity, atol=1e-12)
     np.testing.assert_allclose(np.linalg.det(rotation), 1.0, atol=1e-12)
@@ -135,7 +135,7 @@ def test_box_corners_accept_rotation_matrices(rng):
     center_m, rotation = random_poses(rng, 20)
     size_wlh_m = rng.uniform(0.3, 15.0, size=(20, 3))
     np.testing.assert_array_equal(
-        geometry.box_corners(center_m, size_wlh_m, geometry.rotation_matrices(rotation)),
+        geometry.box_corners(center_m, size_wlh_m, quaternions.rotation_matrices(rotation)),
         geometry.box_corners(center_m, size_wlh_m, rotation),
     )
 
@@ -170,7 +170,7 @@ def test_quaternion_slerp_equals_pyquaternion_slerp(rng):
     amount = rng.uniform(-0.25, 1.25, size=N)  # pyquaternion clips to [0, 1]
     amount[:10] = [0, 1, 0, 1, 0.5, 0, 1, 0.25, 0.75, 1]
     expected = np.stack([Quaternion.slerp(Quaternion(a), Quaternion(b), t).q for a, b, t in zip(q0, q1, amount)])
-    np.testing.assert_allclose(geometry.quaternion_slerp(q0, q1, amount), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(quaternions.quaternion_slerp(q0, q1, amount), expected, rtol=0, atol=1e-12)
 
 
 def test_quaternion_slerp_takes_the_short_arc_by_negating_q0_like_pyquaternion(rng):
@@ -178,7 +178,7 @@ def test_quaternion_slerp_takes_the_short_arc_by_negating_q0_like_pyquaternion(r
     q1 = -q0 + rng.normal(scale=0.1, size=q0.shape)  # dot < 0: pyquaternion flips q0, not q1
     amount = rng.uniform(0, 1, size=50)
     expected = np.stack([Quaternion.slerp(Quaternion(a), Quaternion(b), t).q for a, b, t in zip(q0, q1, amount)])
-    np.testing.assert_allclose(geometry.quaternion_slerp(q0, q1, amount), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(quaternions.quaternion_slerp(q0, q1, amount), expected, rtol=0, atol=1e-12)
 
 
 def test_quaternion_slerp_of_nearly_identical_quaternions_is_normalised_lerp_like_pyquaternion(rng):
@@ -188,13 +188,13 @@ def test_quaternion_slerp_of_nearly_identical_quaternions_is_normalised_lerp_lik
     q1[20:30] = -q0[20:30]  # same rotation, opposite sign
     amount = rng.uniform(0, 1, size=100)
     expected = np.stack([Quaternion.slerp(Quaternion(a), Quaternion(b), t).q for a, b, t in zip(q0, q1, amount)])
-    np.testing.assert_allclose(geometry.quaternion_slerp(q0, q1, amount), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(quaternions.quaternion_slerp(q0, q1, amount), expected, rtol=0, atol=1e-12)
 
 
 def test_yaw_from_quaternions_equals_pyquaternion_yaw_pitch_roll(rng):
     q = random_quaternions(rng)
     expected = np.array([Quaternion(row).yaw_pitch_roll[0] for row in q])
-    np.testing.assert_allclose(geometry.yaw_from_quaternions(q), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(quaternions.yaw_from_quaternions(q), expected, rtol=0, atol=1e-12)
 
 
 def test_heading_equals_devkit_quaternion_yaw_and_yaw_for_rotations_about_z(rng):
@@ -202,9 +202,9 @@ def test_heading_equals_devkit_quaternion_yaw_and_yaw_for_rotations_about_z(rng)
 
     q = random_quaternions(rng)
     np.testing.assert_allclose(
-        geometry.heading_from_quaternions(q), [quaternion_yaw(Quaternion(row)) for row in q], rtol=0, atol=1e-12
+        quaternions.heading_from_quaternions(q), [quaternion_yaw(Quaternion(row)) for row in q], rtol=0, atol=1e-12
     )
     yaw = rng.uniform(-np.pi, np.pi, size=N)
     about_z = np.stack([np.cos(yaw / 2), np.zeros(N), np.zeros(N), np.sin(yaw / 2)], axis=1)
-    np.testing.assert_allclose(geometry.yaw_from_quaternions(about_z), yaw, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(geometry.heading_from_quaternions(about_z), yaw, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(quaternions.yaw_from_quaternions(about_z), yaw, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(quaternions.heading_from_quaternions(about_z), yaw, rtol=0, atol=1e-12)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
-from nuparquet import geometry
+from nuparquet import quaternions
 from nuparquet.columns import to_numpy
 from nuparquet.convert.builders.common import reference_poses, samples
 from nuparquet.convert.registry import BuildContext, Builder, SceneBatch
@@ -39,7 +39,7 @@ def build_annotations(t: dict[str, pl.DataFrame], annotations: pl.DataFrame, sam
     translation = to_numpy(ann["translation"], (3,))
     ann = ann.with_columns(
         velocity=pl.Series(box_velocity(ann), dtype=pl.Array(pl.Float64, 3)),
-        yaw=pl.Series(geometry.yaw_from_quaternions(to_numpy(ann["rotation"], (4,)))),
+        yaw=pl.Series(quaternions.yaw_from_quaternions(to_numpy(ann["rotation"], (4,)))),
         distance_to_ego_m=pl.Series(_xy_distance(translation, ann["_ego"])).fill_nan(None),
     )
     return ann.drop("_ego", "category_token").sort("scene_name", "timestamp", "instance_token", "token")
