@@ -1,4 +1,4 @@
-"""`nuparquet export-json OUT --out DIR`: the source tables back as nuScenes JSON."""
+"""`nuparquet export-json OUT --out DIR`: every JSON file a conversion read, written back under DIR as a dataroot."""
 
 from __future__ import annotations
 
