@@ -18,6 +18,7 @@ from nuparquet.convert.write import atomic_directory, check_target
 from nuparquet.errors import FormatError
 from nuparquet.format import MANIFEST
 from nuparquet.progress import OnProgress, Reporter
+from nuparquet.sources.json_records import to_records
 from nuparquet.schemas import table_schemas
 
 BATCH_ROWS = 65536  # records converted to Python at a time: keeps memory flat on trainval
@@ -64,9 +65,43 @@ def _write_table_file(dataset_dir: Path, manifest: dict, entry: dict, target: Pa
                  set(info.get("json_fields", ())))
 
 
+def _scene_rows(dataset_dir: Path, manifest: dict, entry: dict) -> list[dict]:
+    import polars as pl
+
+    path = dataset_dir / manifest["datasets"][entry["dataset"]]["path"]
+    return (pl.scan_parquet(str(path / "*.parquet")).filter(pl.col("scene_name") == entry["scene"])
+            .drop("scene_name").collect().to_dicts())
+
+
+def _write_can_bus_messages(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
+    rows = _scene_rows(dataset_dir, manifest, entry)
+    records = to_records(rows, entry["keys"], entry.get("json_fields", []), entry.get("int_values", {}),
+                         entry.get("key_orders", {}))
+    target.write_text(json.dumps(records))
+
+
+def _write_can_bus_meta(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
+    rows = _scene_rows(dataset_dir, manifest, entry)
+    names = [row.pop("message") for row in rows]
+    records = to_records(rows, entry["keys"], entry.get("json_fields", []), entry.get("int_values", {}),
+                         entry.get("key_orders", {}))
+    target.write_text(json.dumps(dict(zip(names, records)), indent=0))
+
+
+def _write_can_bus_route(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
+    rows = sorted(_scene_rows(dataset_dir, manifest, entry), key=lambda r: r["point_index"])
+    records = to_records([{"x": r["x"], "y": r["y"]} for r in rows], ["x", "y"], [], entry.get("int_values", {}), {})
+    target.write_text(json.dumps([[r["x"], r["y"]] for r in records], indent=0))
+
+
 # How each kind of converted JSON file is written back (the manifest's "files" name the kind of each).
-# CAN bus message files, map expansion files, ... add their writer here.
-WRITERS: dict[str, Callable[[Path, dict, dict, Path], None]] = {"table": _write_table_file}
+# Map expansion files, ... add their writer here.
+WRITERS: dict[str, Callable[[Path, dict, dict, Path], None]] = {
+    "table": _write_table_file,
+    "can_bus_messages": _write_can_bus_messages,
+    "can_bus_meta": _write_can_bus_meta,
+    "can_bus_route": _write_can_bus_route,
+}
 
 
 def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str, json_fields: set[str]) -> None:

@@ -29,6 +29,8 @@ def register(sub) -> None:
                    help="write the camera JPEGs of all keyframes and sweeps (slow: ~36 JPEGs per sample)")
     p.add_argument("--with-lidar", action="store_true",
                    help="write the lidar .pcd.bin and radar .pcd files of all keyframes and sweeps")
+    p.add_argument("--no-can-bus", dest="can_bus", action="store_false",
+                   help="leave out the CAN bus expansion (by default can_bus/ holds every scene's files but the last's)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0); same seed, same dataset")
     p.add_argument("--version", default="v1.0-synth", help="version folder name (default v1.0-synth)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -46,7 +48,8 @@ def run(args) -> int:
     start = time.perf_counter()
     dataroot = synthesize(args.out, scenes=args.scenes, samples_per_scene=args.samples_per_scene,
                           with_images=args.with_images, with_lidar=args.with_lidar, seed=args.seed,
-                          version=args.version, on_progress=bars(not args.quiet))
+                          version=args.version, with_can_bus=args.can_bus,
+                          on_progress=bars(not args.quiet))
     files = [kind for kind, on in (("images", args.with_images), ("lidar/radar", args.with_lidar)) if on]
     print(f"wrote {dataroot / args.version}: {args.scenes} scenes x {args.samples_per_scene} samples"
           f"{' with ' + ' and '.join(files) if files else ' (tables only)'} in {time.perf_counter() - start:.1f} s",

@@ -84,7 +84,7 @@ def convert(dataroot: Path | str, version: str, out: Path | str, *, on_progress:
             "datasets": datasets | built,
             "skipped": skipped,
             "channels": channels,
-            "files": files,
+            "files": files + ctx.files,
             "tables": {name: {"key_order": s.key_order, "float_fields": s.float_fields, "json_fields": s.json_fields}
                        for name, s in result.tables.items()},
         }

@@ -62,6 +62,7 @@ class BuildContext:
     tables: dict[str, pl.DataFrame]
     out: Path  # the temporary output root being written
     reporter: Reporter | None = None
+    files: list[dict] = field(default_factory=list)  # JSON files read beyond the tables (manifest "files")
     _shared: dict[str, Any] = field(default_factory=dict)
     _written: dict[str, str] = field(default_factory=dict)  # dataset name -> its directory under `out`
 
@@ -70,6 +71,10 @@ class BuildContext:
         if key not in self._shared:
             self._shared[key] = compute()
         return self._shared[key]
+
+    def written(self) -> list[str]:
+        """The datasets written so far, in order."""
+        return list(self._written)
 
     def dataset(self, name: str) -> pl.LazyFrame:
         """A lazy scan of a dataset this conversion has already written (a "scenes" builder's, for "whole" ones)."""
@@ -102,9 +107,10 @@ def needs_folder(relative: str) -> Callable[[BuildContext], str | None]:
 
 
 def _builders() -> tuple[Builder, ...]:
-    from nuparquet.convert.builders import annotations, frames, instances, scenes
+    from nuparquet.convert.builders import annotations, can_bus, frames, instances, sample_can_bus, scenes
 
-    return (frames.BUILDER, annotations.BUILDER, scenes.BUILDER, instances.BUILDER)
+    return (frames.BUILDER, annotations.BUILDER, scenes.BUILDER, instances.BUILDER, can_bus.BUILDER,
+            sample_can_bus.BUILDER)
 
 
 BUILDERS: tuple[Builder, ...] = _builders()

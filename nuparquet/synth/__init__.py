@@ -28,6 +28,7 @@ from nuparquet.errors import UsageError
 from nuparquet.synth.plan import plan_logs
 from nuparquet.synth.sensors import SceneSensors
 from nuparquet.progress import OnProgress, Reporter
+from nuparquet.synth.can_bus import write_scene_can_bus, yaw_of
 from nuparquet.synth.tables import (
     TABLES, SceneTokens, TableWriter, frame_filenames, global_records, map_token, scene_records,
 )
@@ -42,7 +43,7 @@ MAP_SIZE_PX = 64
 
 def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images: bool = False,
                with_lidar: bool = False, seed: int = 0, version: str = "v1.0-synth",
-               on_progress: OnProgress | None = None, rig: str = "nuscenes") -> Path:
+               on_progress: OnProgress | None = None, rig: str = "nuscenes", with_can_bus: bool = True) -> Path:
     """Write a synthetic nuScenes-format dataroot and return its path (`out_dir`).
 
     scenes: number of scenes (named scene-0001, ...), spread over logs of several locations.
@@ -52,6 +53,8 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     Without either, only the tables and maps are written (trainval scale takes minutes, not hours).
     rig: the sensor set, "nuscenes" (6 cameras, LIDAR_TOP, 5 radars) or "lyft" (7 cameras with a zoomed front
     camera, 3 lidars, no radar; `taxonomy.RIGS`).
+    with_can_bus: write the CAN bus expansion (`can_bus/scene-XXXX_<message>.json`) of every scene but the last
+    (a scene without CAN bus data, as some real scenes are); see `synth.can_bus`.
     on_progress: receives a `nuparquet.progress.Progress` event per scene written (None: silent).
 
     The tables are written to a temporary sibling and renamed to `out_dir/<version>` when complete; an
@@ -72,7 +75,8 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     logs = plan_logs(seed, scenes, scene_duration_s, RIGS[rig])
     try:
         _write_tables_and_files(dataroot, partial_dir, logs, seed, scenes, samples_per_scene,
-                                images=with_images, point_clouds=with_lidar, on_progress=on_progress)
+                                images=with_images, point_clouds=with_lidar, can_bus=with_can_bus,
+                                on_progress=on_progress)
     except BaseException:  # interrupted or failed: leave nothing that could pass for a complete version folder
         shutil.rmtree(partial_dir, ignore_errors=True)
         raise
@@ -84,7 +88,7 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
 
 
 def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, scenes: int, samples_per_scene: int,
-                            *, images: bool, point_clouds: bool, on_progress: OnProgress | None) -> None:
+                            *, images: bool, point_clouds: bool, can_bus: bool, on_progress: OnProgress | None) -> None:
     """Generate the scenes one by one (one scene in memory at a time) and stream them into the tables."""
     writers = {name: TableWriter(table_dir / f"{name}.json") for name in TABLES}
     task = "synth" + (" (with sensor files)" if images or point_clouds else "")
@@ -103,6 +107,10 @@ def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, sc
                 for name, records in scene_records(world, tokens, log, _scene_name(scene_index, scenes),
                                                    filenames).items():
                     writers[name].write(records)
+                if can_bus and (scenes == 1 or scene_index != scenes - 1):
+                    write_scene_can_bus(dataroot, _scene_name(scene_index, scenes), np.random.default_rng([seed, 2, scene_index]),
+                                        world.timeline.sample_timestamp_us, world.timeline.frame_timestamp_us,
+                                        world.ego_translation_m, yaw_of(world.ego_rotation))
                 if images or point_clouds:
                     SceneSensors(world, log.rig, seed, scene_index).write(
                         dataroot, filenames, images=images, point_clouds=point_clouds)

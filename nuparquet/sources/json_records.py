@@ -1,0 +1,183 @@
+"""JSON records (a list of objects parsed with Python's json) as typed Arrow columns, exactly reversible.
+
+Used for inputs whose fields are not declared in `schemas/` (CAN bus messages, their meta and route files):
+each field is typed from its values across every record given — bool, int64, float64, string, fixed-size or
+variable lists of numbers or strings — and whatever would not come back identical from Arrow is recorded so
+that `export-json` writes each record back equal field for field and in its own key order:
+- `int_values`: positions of JSON integers inside a float field (`0` among `0.5`s stays `0`);
+- `key_orders`: records whose key order differs from the first record's;
+- `json_fields`: fields holding objects (or mixed lists), kept as their JSON text.
+A value whose type contradicts the field's (a string among numbers, a missing field) is a `Problem`.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+
+import pyarrow as pa
+
+from nuparquet.problems import Problem
+
+INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
+
+
+@dataclass
+class Located:
+    """Where each record came from (for problems): record i is `files[file_of[i]]`, index `i - starts[...]`."""
+
+    files: list[str]
+    starts: list[int]  # first record index of each file
+
+    def where(self, i: int) -> tuple[str, int]:
+        k = max(j for j, s in enumerate(self.starts) if s <= i)
+        return self.files[k], i - self.starts[k]
+
+
+@dataclass
+class Columns:
+    table: pa.Table
+    keys: list[str]  # the first record's key order
+    json_fields: list[str] = field(default_factory=list)
+    int_values: dict[str, list] = field(default_factory=dict)  # field -> [i] or [[i, j]] (global record indices)
+    key_orders: dict[int, list[str]] = field(default_factory=dict)  # global record index -> its key order
+
+
+def _kind(values: list) -> str:
+    types = set(map(type, values)) - {type(None)}
+    if not types:
+        return "null"
+    if types == {bool}:
+        return "bool"
+    if types == {int}:
+        return "int"
+    if types <= {int, float}:
+        return "float"
+    if types == {str}:
+        return "string"
+    if types == {list}:
+        elements = set(map(type, itertools.chain.from_iterable(v for v in values if v is not None))) - {type(None)}
+        if not elements or elements == {int}:
+            return "list_int"
+        if elements <= {int, float}:
+            return "list_float"
+        if elements == {str}:
+            return "list_string"
+        return "json"
+    if types == {dict}:
+        return "json"
+    return "mixed"
+
+
+def _majority(values: list) -> type:
+    counts = Counter(type(v) for v in values if v is not None)
+    if counts[int] and counts[float]:  # numbers are one kind
+        counts[float] += counts.pop(int)
+    return counts.most_common(1)[0][0]
+
+
+def to_columns(records: list[dict], located: Located, what: str) -> tuple[Columns | None, list[Problem]]:
+    """Typed columns of `records` (all objects with the same keys); `what` names a record in messages."""
+    problems: list[Problem] = []
+    if not records:
+        return Columns(pa.table({}), []), problems
+    keys = list(records[0])
+    key_set = set(keys)
+    key_orders = {}
+    for i, record in enumerate(records):
+        if list(record) != keys:
+            if set(record) != key_set:
+                file, index = located.where(i)
+                missing, extra = sorted(key_set - set(record)), sorted(set(record) - key_set)
+                detail = "; ".join(filter(None, [missing and f"lacks {', '.join(missing)}",
+                                                 extra and f"has extra {', '.join(extra)}"]))
+                problems.append(Problem(file, f"{what} {detail} (the first {what} has {', '.join(keys)})", index))
+                if len(problems) > 20:
+                    return None, problems
+            else:
+                key_orders[i] = list(record)
+    if problems:
+        return None, problems
+    arrays, json_fields, int_values = {}, [], {}
+    for key in keys:
+        values = [r[key] for r in records]
+        kind = _kind(values)
+        if kind == "mixed":
+            expected = _majority(values)
+            for i, v in enumerate(values):
+                if v is not None and not (type(v) is expected or (expected is float and type(v) is int)):
+                    file, index = located.where(i)
+                    problems.append(Problem(file, f"{what} field {key!r} is a {type(v).__name__} where the others "
+                                                  f"hold {expected.__name__} values", index))
+                    if len(problems) > 20:
+                        break
+            continue
+        if kind == "int" and any(v is not None and not INT64_MIN <= v <= INT64_MAX for v in values):
+            i = next(i for i, v in enumerate(values) if v is not None and not INT64_MIN <= v <= INT64_MAX)
+            file, index = located.where(i)
+            problems.append(Problem(file, f"{what} field {key!r}: integer {values[i]} is outside int64", index))
+            continue
+        if kind in ("float", "list_float"):
+            flat = values if kind == "float" else itertools.chain.from_iterable(v for v in values if v is not None)
+            big = next((v for v in flat if type(v) is int and abs(v) > 2**53), None)
+            if big is not None:  # float64 cannot hold it exactly: refuse rather than change it
+                problems.append(Problem(located.files[0], f"{what} field {key!r}: integer {big} among floats is "
+                                                          "beyond 2**53 and would not convert exactly"))
+                continue
+        if kind == "float":
+            ints = [i for i, v in enumerate(values) if type(v) is int]
+            if ints:
+                int_values[key] = ints
+        if kind == "list_float":
+            ints = [[i, j] for i, v in enumerate(values) if v is not None for j, x in enumerate(v) if type(x) is int]
+            if ints:
+                int_values[key] = ints
+        arrays[key] = _array(values, kind)
+        if kind == "json":
+            json_fields.append(key)
+    if problems:
+        return None, problems
+    return Columns(pa.table(arrays), keys, json_fields, int_values, key_orders), problems
+
+
+def _array(values: list, kind: str) -> pa.Array:
+    if kind == "json":
+        return pa.array([None if v is None else json.dumps(v) for v in values], pa.string())
+    scalar = {"bool": pa.bool_(), "int": pa.int64(), "float": pa.float64(), "string": pa.string(), "null": pa.null()}
+    if kind in scalar:
+        return pa.array(values, scalar[kind])
+    element = {"list_int": pa.int64(), "list_float": pa.float64(), "list_string": pa.string()}[kind]
+    lengths = {len(v) for v in values if v is not None}
+    fixed = len(lengths) == 1 and 0 not in lengths and not any(v is None for v in values)
+    return pa.array(values, pa.list_(element, lengths.pop()) if fixed else pa.list_(element))
+
+
+def to_records(rows: list[dict], keys: list[str], json_fields: list[str], int_values: dict[str, list],
+               key_orders: dict[int, list[str]], offset: int = 0) -> list[dict]:
+    """Records back from Arrow rows (`to_pylist`), undoing what `to_columns` recorded. `offset`: the global index
+    of `rows[0]` (a file's records within the columns of several files)."""
+    n = len(rows)
+    for name in json_fields:
+        for row in rows:
+            if row[name] is not None:
+                row[name] = json.loads(row[name])
+    for name, positions in int_values.items():
+        for p in positions:
+            if isinstance(p, list):
+                i, j = p[0] - offset, p[1]
+                if 0 <= i < n:
+                    rows[i][name][j] = _as_int(rows[i][name][j])
+            elif 0 <= p - offset < n:
+                rows[p - offset][name] = _as_int(rows[p - offset][name])
+    out = []
+    for i, row in enumerate(rows):
+        order = key_orders.get(i + offset) or key_orders.get(str(i + offset)) or keys
+        out.append({k: row[k] for k in order})
+    return out
+
+
+def _as_int(value: float) -> int:
+    return int(value) if math.isfinite(value) else value

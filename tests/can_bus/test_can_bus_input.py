@@ -1,0 +1,122 @@
+"""Bad CAN bus files stop the conversion with exit 1 and a problem naming the file and the message; unusual but
+valid files convert exactly; a dataroot without can_bus/ converts as before and says why nothing was built."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import polars as pl
+import pytest
+
+from conftest import SYNTH_VERSION
+from nuparquet.cli.main import main
+from nuparquet.convert import convert
+from nuparquet.export import export_json
+
+V = SYNTH_VERSION
+SCENE = "scene-0001"
+
+
+@pytest.fixture(scope="module")
+def pristine(tmp_path_factory) -> Path:
+    from nuparquet.synth import synthesize
+
+    root = tmp_path_factory.mktemp("can-pristine") / "data"
+    synthesize(root, scenes=1, samples_per_scene=4, seed=5, version=V)
+    return root
+
+
+@pytest.fixture
+def root(pristine, tmp_path) -> Path:
+    copy = tmp_path / "data"
+    shutil.copytree(pristine, copy)
+    return copy
+
+
+def _path(root: Path, message: str) -> Path:
+    return root / "can_bus" / f"{SCENE}_{message}.json"
+
+
+def _edit(root: Path, message: str, change) -> None:
+    path = _path(root, message)
+    records = json.loads(path.read_text())
+    path.write_text(json.dumps(change(records)))
+
+
+def _set(records, index, key, value):
+    records[index][key] = value
+    return records
+
+
+def _drop(records, index, key):
+    del records[index][key]
+    return records
+
+
+@pytest.mark.parametrize("message, change, expected", [
+    ("pose", lambda r: {"messages": r}, "must be a JSON array of messages, not a dict"),
+    ("pose", lambda r: _drop(r, 3, "utime"), "[3]: message has no utime"),
+    ("pose", lambda r: _set(r, 5, "utime", r[4]["utime"]), "[5]: utime"),
+    ("steeranglefeedback", lambda r: _set(r, 7, "utime", float(r[7]["utime"])), "[7]: utime must be an integer"),
+    ("steeranglefeedback", lambda r: _set(r, 2, "value", "straight"), "[2]: message field 'value' is a str"),
+    ("vehicle_monitor", lambda r: _drop(r, 1, "brake"), "[1]: message lacks brake"),
+    ("ms_imu", lambda r: r[:3] + [7] + r[4:], "[3]: message is a int, not an object"),
+    ("meta", lambda r: [r], "must be a JSON object of one object per message type"),
+    ("route", lambda r: _set_point(r, 4, [1.0]), "[4]: point is not [x, y]"),
+])
+def test_bad_files_are_problems_naming_file_and_message(root, tmp_path, capsys, message, change, expected):
+    _edit(root, message, change)
+    out = tmp_path / "out"
+    assert main(["convert", str(root), "--version", V, "--out", str(out), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert f"can_bus/{SCENE}_{message}.json" in err and expected in err, err
+    assert not out.exists() and not list(tmp_path.glob(".out*"))
+
+
+def _set_point(records, index, value):
+    records[index] = value
+    return records
+
+
+def test_invalid_json_is_a_problem(root, tmp_path, capsys):
+    _path(root, "pose").write_text('[{"utime": 1,}]')
+    assert main(["convert", str(root), "--version", V, "--out", str(tmp_path / "out"), "--quiet"]) == 1
+    assert f"can_bus/{SCENE}_pose.json: not valid JSON" in capsys.readouterr().err
+
+
+def test_integers_in_float_fields_and_other_key_orders_come_back_exactly(root, tmp_path):
+    def unusual(records):
+        records[0]["value"] = 0  # an int among floats
+        records[1] = {"value": records[1]["value"], "utime": records[1]["utime"]}  # another key order
+        return records
+
+    _edit(root, "steeranglefeedback", unusual)
+    _edit(root, "pose", lambda r: _set(r, 2, "pos", [1, r[2]["pos"][1], 0]))
+    convert(root, V, tmp_path / "out")
+    export_json(tmp_path / "out", tmp_path / "back")
+    for message in ("steeranglefeedback", "pose"):
+        original = json.loads(_path(root, message).read_text())
+        again = json.loads(_path(tmp_path / "back", message).read_text())
+        assert again == original
+        assert [list(r) for r in again] == [list(r) for r in original]
+        assert [[type(v) for v in r.values()] for r in again] == [[type(v) for v in r.values()] for r in original]
+    again = json.loads(_path(tmp_path / "back", "pose").read_text())
+    assert type(again[2]["pos"][0]) is int and type(again[2]["pos"][2]) is int and type(again[3]["pos"][0]) is float
+
+
+def test_files_of_scenes_outside_the_version_are_ignored(root, tmp_path):
+    shutil.copy(_path(root, "pose"), root / "can_bus" / "scene-9999_pose.json")
+    manifest = convert(root, V, tmp_path / "out")
+    assert "scene-9999" not in set(pl.read_parquet(tmp_path / "out" / "can_bus" / "pose")["scene_name"])
+    assert not any("scene-9999" in f["path"] for f in manifest["files"])
+
+
+def test_a_dataroot_without_can_bus_converts_as_before(root, tmp_path):
+    shutil.rmtree(root / "can_bus")
+    manifest = convert(root, V, tmp_path / "out")
+    assert manifest["skipped"] == {"can_bus": "no can_bus/ folder in the dataroot",
+                                   "sample_can_bus": "needs can_bus, not built"}
+    assert not any(name.startswith(("can_bus", "sample_can_bus")) for name in manifest["datasets"])
+    assert not (tmp_path / "out" / "sample_can_bus").exists()
