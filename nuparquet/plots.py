@@ -146,9 +146,54 @@ def plot_ego_speed(motion: pl.DataFrame, path: Path, *, max_scenes: int = MAX_SC
     return _save(fig, path)
 
 
+def plot_can_speed(speeds: pl.DataFrame, path: Path, *, scene: str) -> Path:
+    """Speed over time of one scene from the CAN bus (vehicle_monitor wheel speed, pose |vel|) and from the ego
+    poses (`queries.can_bus.speed_over_time`)."""
+    fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
+    rows = speeds.filter(pl.col("scene_name") == scene)
+    styles = {"pose": ("CAN pose |vel| (50 Hz)", "-", None), "vehicle_monitor": ("CAN wheel speed (2 Hz)", "-", "o"),
+              "ego_pose": ("ego pose, reference lidar keyframes (2 Hz)", "--", "x")}
+    for source, (label, line, marker) in styles.items():
+        part = rows.filter(pl.col("source") == source).drop_nulls("speed_mps")
+        if part.height:
+            ax.plot(part["time_s"], part["speed_mps"], line, marker=marker, markersize=4, linewidth=1.2, label=label)
+    if rows.is_empty():
+        _empty(ax, "CAN bus messages")
+    else:
+        ax.set_xlabel("time since the scene's first sample (s)")
+        ax.set_ylabel("speed (m/s)")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    ax.set_title(f"Speed: CAN bus vs ego pose — {scene}")
+    return _save(fig, path)
+
+
+def plot_steering(steering: pl.DataFrame, path: Path, *, scene: str) -> Path:
+    """Steering wheel angle and yaw rate over time of one scene (`queries.can_bus.steering_over_time`)."""
+    fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
+    rows = steering.filter(pl.col("scene_name") == scene)
+    steer = rows.filter(pl.col("source") == "steering_rad")
+    yaw = rows.filter(pl.col("source") == "yaw_rate_radps")
+    if rows.is_empty():
+        _empty(ax, "CAN bus messages")
+    else:
+        ax.plot(steer["time_s"], steer["value"], linewidth=1.2, label="steering wheel angle (rad)")
+        ax.set_xlabel("time since the scene's first sample (s)")
+        ax.set_ylabel("steering wheel angle (rad)")
+        twin = ax.twinx()
+        twin.plot(yaw["time_s"], yaw["value"], color="tab:orange", linewidth=1, label="yaw rate (rad/s)")
+        twin.set_ylabel("yaw rate (rad/s)")
+        ax.grid(alpha=0.3)
+        fig.legend(loc="upper right", fontsize=8)
+    ax.set_title(f"Steering and yaw rate (CAN bus) — {scene}")
+    return _save(fig, path)
+
+
 def write_plots(ds, out_dir: Path, *, scene: str | Sequence[str] | None = None,
                 results: dict[str, pl.DataFrame] | None = None) -> list[Path]:
-    """Write the four charts of `nuparquet stats --plots` into `out_dir`; returns their paths.
+    """Write the charts of `nuparquet stats --plots` into `out_dir` (four, and two more from the CAN bus when it
+    was converted); returns their paths.
 
     `results` may hold already collected `queries.summary` sections (``class_distribution``,
     ``distance_histogram``, ``points_per_box``, ``ego_motion``) to avoid running them again.
@@ -168,4 +213,23 @@ def write_plots(ds, out_dir: Path, *, scene: str | Sequence[str] | None = None,
                                 title=f"Distance from the ego vehicle by category{where}"),
         plot_points_per_box(results["points_per_box"], out_dir / "lidar_points_per_box.png"),
         plot_ego_speed(results["ego_motion"], out_dir / "ego_speed.png"),
+        *_can_bus_plots(ds, out_dir, scene),
     ]
+
+
+def _can_bus_plots(ds, out_dir: Path, scene) -> list[Path]:
+    """can_speed.png and steering.png for one scene (the one asked for, else the first with CAN bus data), when
+    the output has the CAN bus datasets."""
+    from nuparquet.queries import can_bus
+
+    if not {"can_bus/vehicle_monitor", "can_bus/pose", "can_bus/steeranglefeedback"} <= set(ds.datasets):
+        return []
+    if scene is None or not isinstance(scene, str):
+        names = ds.scan("can_bus/pose").select(pl.col("scene_name").unique().sort()).collect()["scene_name"].to_list()
+        candidates = [n for n in names if scene is None or n in scene]
+        if not candidates:
+            return []
+        scene = candidates[0]
+    speeds, steering = pl.collect_all([can_bus.speed_over_time(ds, scene=scene), can_bus.steering_over_time(ds, scene=scene)])
+    return [plot_can_speed(speeds, out_dir / "can_speed.png", scene=scene),
+            plot_steering(steering, out_dir / "steering.png", scene=scene)]

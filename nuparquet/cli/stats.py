@@ -26,7 +26,8 @@ def register(sub) -> None:
         "Table output is for reading; csv prints each section as '# <section>' followed by its CSV (a single "
         "section, --only X, as plain CSV); json "
         "prints one object {section: [rows]}. With --plots DIR the charts class_distribution.png, "
-        "distance_histogram.png, lidar_points_per_box.png and ego_speed.png are written to DIR.",
+        "distance_histogram.png, lidar_points_per_box.png and ego_speed.png are written to DIR, and with the CAN bus "
+        "converted can_speed.png (CAN vs ego-pose speed) and steering.png for the scene (default: the first).",
         epilog="examples: nuparquet stats OUT;  nuparquet stats OUT --scene scene-0061 --plots plots/;  "
         "nuparquet stats OUT --only class_distribution --format csv",
     )

@@ -20,6 +20,7 @@ import polars as pl
 from nuparquet.queries.annotations import (
     attribute_counts, class_distribution, distance_histogram, points_per_box, visibility_by_category,
 )
+from nuparquet.queries.can_bus import brake_throttle, can_speed, speed_over_time, steering_over_time
 from nuparquet.queries.frames import channel_rates, ego_motion, ego_speed_summary
 from nuparquet.queries.scenes import scene_summary, track_stats
 
@@ -62,12 +63,22 @@ SECTIONS: tuple[Section, ...] = (
             lambda ds, scene, o: ego_speed_summary(ds, scene=scene)),
     Section("channel_rates", "Frames per channel (rates measured from timestamps)",
             lambda ds, scene, o: channel_rates(ds, scene=scene)),
+    Section("can_speed", "CAN bus speed per scene, m/s (vehicle_monitor wheel speed, pose |vel|) vs ego-pose speed",
+            lambda ds, scene, o: can_speed(ds, scene=scene), requires=("can_bus/vehicle_monitor", "can_bus/pose")),
+    Section("brake_throttle", "CAN bus pedals per scene (vehicle_monitor: share of messages pressed, mean, max)",
+            lambda ds, scene, o: brake_throttle(ds, scene=scene), requires=("can_bus/vehicle_monitor",)),
     Section("class_distribution_by_scene", "Categories per scene",
             lambda ds, scene, o: class_distribution(ds, by_scene=True, scene=scene), default=False),
     Section("channel_rates_by_scene", "Frames per channel and scene",
             lambda ds, scene, o: channel_rates(ds, by_scene=True, scene=scene), default=False),
     Section("ego_motion", "Ego motion over time (reference lidar keyframe poses)",
             lambda ds, scene, o: ego_motion(ds, scene=scene), default=False),
+    Section("can_speed_over_time", "Speed over time: CAN vehicle_monitor, CAN pose and ego pose (m/s)",
+            lambda ds, scene, o: speed_over_time(ds, scene=scene), default=False,
+            requires=("can_bus/vehicle_monitor", "can_bus/pose")),
+    Section("steering_over_time", "Steering wheel angle (rad) and yaw rate (rad/s) over time, CAN bus",
+            lambda ds, scene, o: steering_over_time(ds, scene=scene), default=False,
+            requires=("can_bus/steeranglefeedback", "can_bus/pose")),
 )
 BY_NAME = {s.name: s for s in SECTIONS}
 

@@ -126,12 +126,18 @@ def test_every_subcommand_has_help(run, command):
 
 # --- stats --------------------------------------------------------------------------------------------------------
 
+def expected_sections(folder) -> list[str]:
+    """The core sections, then the CAN bus ones when the dataroot has the CAN bus expansion."""
+    has_can_bus = any((folder.parent / "can_bus").glob("*_vehicle_monitor.json"))
+    return list(queries.SECTIONS) + (["can_speed", "brake_throttle"] if has_can_bus else [])
+
+
 def test_stats_json_equals_the_library_queries(run, case):
-    _, out = case
+    folder, out = case
     code, stdout, _ = run("stats", out, "--format", "json")
     assert code == 0
     printed = json.loads(stdout)
-    assert list(printed) == list(queries.SECTIONS)
+    assert list(printed) == expected_sections(folder)
     lazy = queries.summary(nuparquet.open(out))
     for name, frame in zip(lazy, pl.collect_all(list(lazy.values()))):
         assert len(printed[name]) == frame.height, name
@@ -154,7 +160,7 @@ def test_stats_csv_prints_every_section_and_per_scene_annotation_counts(run, cas
     code, stdout, _ = run("stats", out, "--format", "csv")
     assert code == 0
     sections = parse_sections(stdout)
-    assert list(sections) == list(queries.SECTIONS)
+    assert list(sections) == expected_sections(folder)
     sample_scene = {s["token"]: s["scene_token"] for s in load(folder, "sample")}
     per_scene = Counter(sample_scene[a["sample_token"]] for a in load(folder, "sample_annotation"))
     name = {s["token"]: s["name"] for s in load(folder, "scene")}
@@ -196,13 +202,14 @@ def test_stats_unknown_scene_is_a_usage_error_with_suggestions(run, extract_out)
     assert code == 2 and "no scene named 'scene-091'" in stderr and "scene-0916" in stderr
 
 
-def test_stats_plots_writes_four_png_charts(run, synth_out, tmp_path):
+def test_stats_plots_writes_four_png_charts_and_two_from_the_can_bus(run, synth_out, tmp_path):
     import matplotlib.image
 
     code, stdout, _ = run("stats", synth_out, "--plots", tmp_path / "plots", "--only", "attributes")
-    assert code == 0 and "wrote 4 charts" in stdout
+    assert code == 0 and "wrote 6 charts" in stdout
     names = sorted(p.name for p in (tmp_path / "plots").iterdir())
-    assert names == ["class_distribution.png", "distance_histogram.png", "ego_speed.png", "lidar_points_per_box.png"]
+    assert names == ["can_speed.png", "class_distribution.png", "distance_histogram.png", "ego_speed.png",
+                     "lidar_points_per_box.png", "steering.png"]
     for name in names:
         path = tmp_path / "plots" / name
         assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -273,4 +280,4 @@ def test_stats_on_a_dataset_without_annotations_prints_empty_sections(run, extra
                     "tracks"):
         assert printed[section] == [], section
     assert all(r["num_annotations_list_scenes"] == 0 for r in printed["scenes"])
-    assert printed["channel_rates"] and len(list((tmp_path / "plots").glob("*.png"))) == 4
+    assert printed["channel_rates"] and len(list((tmp_path / "plots").glob("*.png"))) == 6  # 2 from the CAN bus

@@ -12,24 +12,24 @@ from nuparquet.queries import sections
 
 
 @pytest.fixture
-def with_can_section(monkeypatch):
-    extra = sections.Section("can_speed", "CAN speed", lambda ds, scene, o: pl.LazyFrame({"x": [1]}),
-                             requires=("sample_can_bus",))
+def with_unavailable_section(monkeypatch):
+    extra = sections.Section("fake_section", "a section of an unconverted dataset", lambda ds, scene, o: pl.LazyFrame({"x": [1]}),
+                             requires=("not_converted_dataset",))
     monkeypatch.setattr(sections, "SECTIONS", sections.SECTIONS + (extra,))
-    monkeypatch.setitem(sections.BY_NAME, "can_speed", extra)
+    monkeypatch.setitem(sections.BY_NAME, "fake_section", extra)
     return extra
 
 
-def test_default_sections_skip_sections_whose_datasets_are_absent(synth_out, with_can_section):
+def test_default_sections_skip_sections_whose_datasets_are_absent(synth_out, with_unavailable_section):
     ds = nuparquet.open(synth_out)
-    assert "can_speed" not in sections.default_sections(ds)
-    assert "can_speed" in sections.default_sections(None)  # no dataset given: every default section
+    assert "fake_section" not in sections.default_sections(ds)
+    assert "fake_section" in sections.default_sections(None)  # no dataset given: every default section
     assert set(sections.summary(ds)) == set(sections.default_sections(ds))
 
 
-def test_a_requested_section_without_its_dataset_is_a_usage_error(synth_out, with_can_section):
-    with pytest.raises(UsageError, match="can_speed needs dataset.*sample_can_bus"):
-        sections.summary(nuparquet.open(synth_out), sections=["scenes", "can_speed"])
+def test_a_requested_section_without_its_dataset_is_a_usage_error(synth_out, with_unavailable_section):
+    with pytest.raises(UsageError, match="fake_section needs dataset.*not_converted_dataset"):
+        sections.summary(nuparquet.open(synth_out), sections=["scenes", "fake_section"])
 
 
 def test_bin_width_reaches_the_distance_histogram(synth_out):
