@@ -94,9 +94,11 @@ def test_manifest_records_channels_and_the_files_read(synth_root, synth_out):
     assert sorted(channels["radars"]) == sorted(s["channel"] for s in sensors if s["modality"] == "radar")
     assert channels["camera_layout"] == [["CAM_FRONT_LEFT", "CAM_FRONT", "CAM_FRONT_RIGHT"],
                                          ["CAM_BACK_LEFT", "CAM_BACK", "CAM_BACK_RIGHT"]]
-    read = {f["path"] for f in manifest["files"]}
-    assert read == {f"{SYNTH_VERSION}/{p.name}" for p in (synth_root / SYNTH_VERSION).glob("*.json")}
-    assert {f["kind"] for f in manifest["files"]} == {"table"}
+    tables = {f["path"] for f in manifest["files"] if f["kind"] == "table"}
+    assert tables == {f"{SYNTH_VERSION}/{p.name}" for p in (synth_root / SYNTH_VERSION).glob("*.json")}
+    can_bus = {f["path"] for f in manifest["files"] if f["kind"].startswith("can_bus")}
+    assert can_bus == {f"can_bus/{p.name}" for p in (synth_root / "can_bus").glob("*.json")}
+    assert len(manifest["files"]) == len(tables) + len(can_bus)
     assert manifest["skipped"] == {}
 
 
