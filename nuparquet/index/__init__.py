@@ -81,7 +81,9 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
                     write_pickle(out / f"nuscenes_infos_{split}_corrected.pkl",
                                  {"metainfo": records.v2_metainfo(version, all_ignored), "data_list": fixed})
                 if options.parquet:
-                    tables[split] = parquet.infos_table(data_list, fixed, split)
+                    table = parquet.infos_table(data_list, fixed, split)
+                    if table is not None:
+                        tables[split] = table
                     progress.advance(step=f"parquet {split}")
             written[split] = target
             progress.advance(step=f"write {split}")

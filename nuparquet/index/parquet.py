@@ -30,7 +30,10 @@ def _plain(value):
     return value
 
 
-def infos_table(data_list: list[dict], corrected_list: list[dict], split: str) -> pa.Table:
+def infos_table(data_list: list[dict], corrected_list: list[dict], split: str) -> pa.Table | None:
+    """The split's rows as one Arrow table (None for an empty split: Arrow cannot type empty nested rows)."""
+    if not data_list:
+        return None
     rows = []
     for entry, fixed in zip(data_list, corrected_list):
         row = _plain(entry)
