@@ -19,7 +19,7 @@ import numpy as np
 
 from nuparquet.dataset import Dataset, open_dataset
 from nuparquet.errors import UsageError
-from nuparquet.index import bevformer, parquet, records, splits
+from nuparquet.index import bevformer, parquet, records, splits, transforms
 from nuparquet.index.compute import compute
 from nuparquet.index.inputs import read_inputs
 from nuparquet.index.options import IndexOptions
@@ -74,14 +74,16 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
                 data_list, last_ignored, all_ignored = records.v2_infos(
                     computed, samples, tuple(options.cameras), options.data_prefix)
                 write_pickle(target, {"metainfo": records.v2_metainfo(version, last_ignored), "data_list": data_list})
-                if options.corrected or options.parquet:
+                if options.corrected:
                     fixed, _, _ = records.v2_infos(computed, samples, tuple(options.cameras), options.data_prefix,
                                                    corrected=True)
-                if options.corrected:
                     write_pickle(out / f"nuscenes_infos_{split}_corrected.pkl",
                                  {"metainfo": records.v2_metainfo(version, all_ignored), "data_list": fixed})
                 if options.parquet:
-                    table = parquet.infos_table(data_list, fixed, split)
+                    d, lid = inputs.data, computed.lidar_row[samples]
+                    table = parquet.infos_table(data_list, split,
+                                                transforms.pose_matrix_f32(d.ego_q[lid], d.ego_t[lid], f32=False),
+                                                transforms.pose_matrix_f32(d.sensor_q[lid], d.sensor_t[lid], f32=False))
                     if table is not None:
                         tables[split] = table
                     progress.advance(step=f"parquet {split}")

@@ -6,6 +6,7 @@ before float32 rounding, `velocity_valid`)."""
 from __future__ import annotations
 
 import json
+import math
 from importlib import resources
 from pathlib import Path
 
@@ -19,31 +20,21 @@ def schema_doc() -> dict:
     return json.loads(path.read_text())
 
 
-def _plain(value):
-    """numpy scalars -> Python scalars (Arrow infers the same type for every row)."""
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
-def infos_table(data_list: list[dict], corrected_list: list[dict], split: str) -> pa.Table | None:
-    """The split's rows as one Arrow table (None for an empty split: Arrow cannot type empty nested rows)."""
+def infos_table(data_list: list[dict], split: str, ego2global_f64: np.ndarray,
+                lidar2ego_f64: np.ndarray) -> pa.Table | None:
+    """The split's rows as one Arrow table (None for an empty split: Arrow cannot type empty nested rows).
+    `*_f64`: (N, 4, 4) the matrices before float32 rounding, one per entry."""
     if not data_list:
         return None
     rows = []
-    for entry, fixed in zip(data_list, corrected_list):
-        row = _plain(entry)
+    for entry, e2g, l2e in zip(data_list, ego2global_f64.tolist(), lidar2ego_f64.tolist()):
+        row = dict(entry)
         row.setdefault("lidar_sweeps", [])
+        row["instances"] = [inst | {"velocity_valid": math.isfinite(inst["velocity"][0])
+                                    and math.isfinite(inst["velocity"][1])} for inst in entry["instances"]]
         row["split"] = split
-        row["ego2global_f64"] = fixed["ego2global"]
-        row["lidar2ego_f64"] = fixed["lidar_points"]["lidar2ego"]
-        for inst in row["instances"]:
-            inst["velocity_valid"] = bool(np.isfinite(inst["velocity"]).all())
+        row["ego2global_f64"] = e2g
+        row["lidar2ego_f64"] = l2e
         rows.append(row)
     names = [c["name"] for c in schema_doc()["columns"]]
-    table = pa.Table.from_pylist(rows)
-    return table.select(names)
+    return pa.Table.from_pylist(rows).select(names)

@@ -60,9 +60,9 @@ def v1_infos(c: Computed, samples: np.ndarray, cameras: tuple[str, ...], prefix:
     return infos
 
 
-def _matrix(q, t, f32: bool) -> list:
-    m = transforms.pose_matrix_f32(np.asarray(q)[None], np.asarray(t)[None], f32=f32)[0]
-    return m.tolist()
+def _copy(matrix: list) -> list:
+    """A fresh nested list per entry, so that no two entries share a matrix object."""
+    return [row[:] for row in matrix]
 
 
 def v2_infos(c: Computed, samples: np.ndarray, cameras: tuple[str, ...], prefix: str, *,
@@ -75,6 +75,10 @@ def v2_infos(c: Computed, samples: np.ndarray, cameras: tuple[str, ...], prefix:
     sweep_offsets = offsets(c.sweep_owner, n)
     sweep_l2s = transforms.sensor_from_lidar_f32(c.sweep_s2l_r, c.sweep_s2l_t, f32=f32)
     cam_l2c = transforms.sensor_from_lidar_f32(c.cam_s2l_r, c.cam_s2l_t, f32=f32)
+    # every 4x4 the entries need, computed once for all readings (not one small matrix at a time)
+    used = np.unique(np.concatenate([c.lidar_row[samples], c.cam_row[samples].ravel(), c.sweep_row]))
+    ego_m = dict(zip(used.tolist(), transforms.pose_matrix_f32(d.ego_q[used], d.ego_t[used], f32=f32).tolist()))
+    sensor_m = dict(zip(used.tolist(), transforms.pose_matrix_f32(d.sensor_q[used], d.sensor_t[used], f32=f32).tolist()))
     names = mapped_names(inp.ann_category[c.ann_order])
     labels = label_of(inp.ann_category[c.ann_order]).tolist()
     boxes, velocity = c.gt_boxes.tolist(), c.gt_velocity.tolist()
@@ -86,27 +90,28 @@ def v2_infos(c: Computed, samples: np.ndarray, cameras: tuple[str, ...], prefix:
         ci_c2d, ci_depth = ci.center_2d.tolist(), ci.depth.tolist()
         ci_label, ci_attr = ci.label.tolist(), ci.attr_label.tolist()
     data_list, last_ignored, all_ignored = [], set(), set()
-    for i, s in enumerate(samples):
-        lid = c.lidar_row[s]
+    cam_rows = c.cam_row.tolist()
+    for i, s in enumerate(samples.tolist()):
+        lid = int(c.lidar_row[s])
         entry = {"sample_idx": i, "token": inp.sample_token[s], "timestamp": int(inp.sample_timestamp_us[s]) / 1e6,
-                 "ego2global": _matrix(d.ego_q[lid], d.ego_t[lid], f32)}
+                 "ego2global": _copy(ego_m[lid])}
         images = {}
         for k, cam in enumerate(cameras):
-            row = c.cam_row[s, k]
+            row = cam_rows[s][k]
             images[cam] = {"img_path": PurePosixPath(d.filename[row]).name, "cam2img": d.intrinsic[row].tolist(),
-                           "cam2ego": _matrix(d.sensor_q[row], d.sensor_t[row], f32),
+                           "cam2ego": _copy(sensor_m[row]),
                            "sample_data_token": d.token[row], "timestamp": int(d.timestamp_us[row]) / 1e6,
                            "lidar2cam": cam_l2c[s, k].tolist()}
         entry["images"] = images
         entry["lidar_points"] = {"num_pts_feats": NUM_PTS_FEATS, "lidar_path": PurePosixPath(d.filename[lid]).name,
-                                 "lidar2ego": _matrix(d.sensor_q[lid], d.sensor_t[lid], f32)}
+                                 "lidar2ego": _copy(sensor_m[lid])}
         sweeps = []
         for w in range(sweep_offsets[s], sweep_offsets[s + 1]):
-            row = c.sweep_row[w]
+            row = int(c.sweep_row[w])
             path = d.filename[row] if corrected else os.path.join(prefix, d.filename[row])
-            sweeps.append({"timestamp": int(d.timestamp_us[row]) / 1e6, "ego2global": _matrix(d.ego_q[row], d.ego_t[row], f32),
+            sweeps.append({"timestamp": int(d.timestamp_us[row]) / 1e6, "ego2global": _copy(ego_m[row]),
                            "lidar_points": {"num_pts_feats": NUM_PTS_FEATS if corrected else None, "lidar_path": path,
-                                            "lidar2ego": _matrix(d.sensor_q[row], d.sensor_t[row], f32),
+                                            "lidar2ego": _copy(sensor_m[row]),
                                             "lidar2sensor": sweep_l2s[w].tolist()},
                            "sample_data_token": d.token[row]})
         if sweeps:  # the converter drops empty lists (clear_data_info_unused_keys)
