@@ -1,0 +1,128 @@
+"""Training index: `nuparquet index OUT --info-version 2` vs the devkit-based loop mmdetection3d's converter runs.
+
+    .venv/bin/python benchmarks/bench_index.py [--scenes 850] [--loop-samples 200]
+
+Ours: a fresh process running the CLI on the cached synthetic set (wall time, peak RSS). Reference, in the same
+run: a fresh process that does what `create_data.py nuscenes` + `update_infos_to_v2.py` do per sample with the
+devkit — `NuScenes(version, dataroot)` (timed in full), then for `--loop-samples` samples the converter's
+per-sample work reimplemented faithfully (get_sample_data, obtain_sensor2top for 6 cameras and 10 sweeps,
+box_velocity per box, and per camera the get_nuscenes_2d_boxes projection with its shapely clipping); the loop
+time is extrapolated linearly to every sample (stated as such in the row). `--scenes 850` is trainval scale
+(the default cache of bench_data.py); a smaller `--scenes` builds its own cached set.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+TARGET_RATIO = 15.0
+TARGET_RSS_MB = 4096.0
+CAMERAS = ("CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_FRONT_LEFT", "CAM_BACK", "CAM_BACK_LEFT", "CAM_BACK_RIGHT")
+
+
+def devkit_child(dataroot: str, version: str, loop_samples: int) -> None:
+    import numpy as np
+    from nuscenes.nuscenes import NuScenes
+    from nuscenes.utils.geometry_utils import view_points
+    from pyquaternion import Quaternion
+    from shapely.geometry import MultiPoint, box
+
+    start = time.perf_counter()
+    nusc = NuScenes(version=version, dataroot=dataroot, verbose=False)
+    loaded = time.perf_counter()
+
+    def sensor2top(token, l2e_t, l2e_r_mat, e2g_t, e2g_r_mat):
+        sd = nusc.get("sample_data", token)
+        cs = nusc.get("calibrated_sensor", sd["calibrated_sensor_token"])
+        pose = nusc.get("ego_pose", sd["ego_pose_token"])
+        l2e_r_s_mat = Quaternion(cs["rotation"]).rotation_matrix
+        e2g_r_s_mat = Quaternion(pose["rotation"]).rotation_matrix
+        back = np.linalg.inv(e2g_r_mat).T @ np.linalg.inv(l2e_r_mat).T
+        r = (l2e_r_s_mat.T @ e2g_r_s_mat.T) @ back
+        t = (np.array(cs["translation"]) @ e2g_r_s_mat.T + pose["translation"]) @ back
+        t -= np.array(e2g_t) @ back + np.array(l2e_t) @ np.linalg.inv(l2e_r_mat).T
+        return r.T, t
+
+    samples = nusc.sample[:loop_samples]
+    for sample in samples:
+        sd = nusc.get("sample_data", sample["data"]["LIDAR_TOP"])
+        cs = nusc.get("calibrated_sensor", sd["calibrated_sensor_token"])
+        pose = nusc.get("ego_pose", sd["ego_pose_token"])
+        _, boxes, _ = nusc.get_sample_data(sd["token"])
+        l2e_r_mat = Quaternion(cs["rotation"]).rotation_matrix
+        e2g_r_mat = Quaternion(pose["rotation"]).rotation_matrix
+        for cam in CAMERAS:
+            sensor2top(sample["data"][cam], cs["translation"], l2e_r_mat, pose["translation"], e2g_r_mat)
+        rec, n = sd, 0
+        while n < 10 and rec["prev"]:
+            sensor2top(rec["prev"], cs["translation"], l2e_r_mat, pose["translation"], e2g_r_mat)
+            rec, n = nusc.get("sample_data", rec["prev"]), n + 1
+        for b in boxes:
+            b.orientation.yaw_pitch_roll
+        for token in sample["anns"]:
+            np.array([*nusc.box_velocity(token)[:2], 0.0]) @ np.linalg.inv(e2g_r_mat).T @ np.linalg.inv(l2e_r_mat).T
+        for cam in CAMERAS:  # get_nuscenes_2d_boxes
+            cam_sd = nusc.get("sample_data", sample["data"][cam])
+            cam_cs = nusc.get("calibrated_sensor", cam_sd["calibrated_sensor_token"])
+            cam_pose = nusc.get("ego_pose", cam_sd["ego_pose_token"])
+            k = np.array(cam_cs["camera_intrinsic"])
+            for token in sample["anns"]:
+                b = nusc.get_box(token)
+                b.translate(-np.array(cam_pose["translation"]))
+                b.rotate(Quaternion(cam_pose["rotation"]).inverse)
+                b.translate(-np.array(cam_cs["translation"]))
+                b.rotate(Quaternion(cam_cs["rotation"]).inverse)
+                corners = b.corners()
+                corners = corners[:, corners[2] > 0]
+                hull = MultiPoint(view_points(corners, k, True).T[:, :2].tolist()).convex_hull
+                canvas = box(0, 0, 1600, 900)
+                if hull.intersects(canvas):
+                    hull.intersection(canvas)
+                nusc.box_velocity(token)
+    done = time.perf_counter()
+    per_sample = (done - loaded) / max(len(samples), 1)
+    print(json.dumps({"load_s": loaded - start, "loop_per_sample_s": per_sample, "samples": len(nusc.sample),
+                      "extrapolated_s": (loaded - start) + per_sample * len(nusc.sample)}))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--scenes", type=int, default=850)
+    parser.add_argument("--loop-samples", type=int, default=200)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--devkit-child", nargs=3)
+    args = parser.parse_args()
+    if args.devkit_child:
+        devkit_child(args.devkit_child[0], args.devkit_child[1], int(args.devkit_child[2]))
+        return
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import bench_data as datasets
+    from harness import log, python_child, repeat, run_child, summarize
+
+    version = datasets.TRAINVAL_VERSION
+    if args.scenes == datasets.TRAINVAL_SCENES:
+        root, out = datasets.trainval_root(), datasets.trainval_out()
+    else:
+        root = datasets._synth(datasets.CACHE / f"index-{args.scenes}", args.scenes, version, with_images=False)
+        out = datasets._convert(root, version, datasets.CACHE / f"index-{args.scenes}-out")
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = [*datasets.NUPARQUET, "index", str(out), "--out", tmp, "--version", "v1.0-trainval",
+               "--info-version", "2", "--quiet"]
+        ours = summarize(repeat(cmd, args.repeats, label="nuparquet index v2"))
+    log("devkit loop (load + sampled per-sample loop, extrapolated)")
+    ref = run_child(python_child(__file__, "--devkit-child", root, version, args.loop_samples)).report
+    ratio = ref["extrapolated_s"] / ours["wall_s"]
+    result = {"scenes": args.scenes, "samples": ref["samples"], "ours_wall_s": ours["wall_s"],
+              "ours_max_rss_mb": ours["max_rss_mb"], "devkit_load_s": ref["load_s"],
+              "devkit_loop_per_sample_s": ref["loop_per_sample_s"], "devkit_extrapolated_s": ref["extrapolated_s"],
+              "ratio": ratio, "met": ratio >= TARGET_RATIO and ours["max_rss_mb"] <= TARGET_RSS_MB}
+    print(json.dumps(result, indent=1))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,31 @@
+"""`nuparquet index OUT --out DIR`: mmdetection3d's nuScenes info files (and DIR/infos/ Parquet) from a converted
+directory, without the devkit. Flags come from `nuparquet.index.options.IndexOptions`."""
+
+from __future__ import annotations
+
+from nuparquet.cli.arguments import add_options, options_from
+from nuparquet.cli.progress import bars
+from nuparquet.index import build_index
+from nuparquet.index.options import IndexOptions
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "index",
+        help="write mmdetection3d training infos (nuscenes_infos_<split>.pkl) and DIR/infos/ Parquet",
+        description="Write the info pickles mmdetection3d's `create_data.py nuscenes` writes (v1, or v2 after "
+        "update_infos_to_v2; or the BEVFormer variant), equal to its output for the same dataroot, plus "
+        "DIR/infos/<split>.parquet (one row per sample, nested columns). Everything comes from the converted "
+        "tables; no sensor file is opened. Exit 1 when OUT lacks a dataset the index needs.",
+    )
+    p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
+    add_options(p, IndexOptions)
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    written = build_index(args.dataset, options_from(args, IndexOptions), on_progress=bars(not args.quiet))
+    for name, path in written.items():
+        print(f"{name}: {path}")
+    return 0

@@ -1,0 +1,95 @@
+"""Training index: mmdetection3d's nuScenes info files written from a converted directory, without the devkit.
+
+```python
+from nuparquet.index import IndexOptions, build_index
+paths = build_index("OUT", IndexOptions(out="infos", info_version=2))   # {"val": Path(".../nuscenes_infos_val.pkl"), ...}
+```
+
+Modules: `inputs` (what is read, checked first), `splits`, `quaternions` + `transforms` (the converter's
+arithmetic over arrays), `sweeps` (the lidar prev chain), `compute` (all numbers, vectorised over samples),
+`cam_instances` (v2 camera boxes), `records` (the dicts, v1 and v2), `bevformer`, `parquet` (DIR/infos/),
+`write` (atomic files).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from nuparquet.dataset import Dataset, open_dataset
+from nuparquet.errors import UsageError
+from nuparquet.index import bevformer, parquet, records, splits, transforms
+from nuparquet.index.compute import compute
+from nuparquet.index.inputs import read_inputs
+from nuparquet.index.options import IndexOptions
+from nuparquet.index.write import write_parquet_dir, write_pickle
+from nuparquet.progress import OnProgress, Reporter
+
+__all__ = ["IndexOptions", "build_index"]
+
+
+def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: OnProgress | None = None) -> dict:
+    """Write the info pickle(s) of `options` into `options.out`; returns {split: pickle path} (plus
+    "infos": the Parquet directory when written). Raises InputError when the Parquet lacks what is needed."""
+    ds = path if isinstance(path, Dataset) else open_dataset(path)
+    if options.max_sweeps < 0:
+        raise UsageError("--max-sweeps must be >= 0")
+    if options.format == "bevformer" and options.info_version != 1:
+        raise UsageError("--format bevformer writes v1 infos (--info-version 1)")
+    version = splits.converter_version(ds.version, options.version)
+    test = version == "v1.0-test"
+    wanted = splits.split_names(version) if options.split == "all" else (options.split,)
+    if options.split != "all" and options.split not in splits.split_names(version):
+        raise UsageError(f"{version} has no {options.split} split (it has {', '.join(splits.split_names(version))})")
+    out = Path(options.out)
+    out.mkdir(parents=True, exist_ok=True)
+
+    steps = 3 + len(wanted) * (2 if options.parquet and options.info_version == 2 else 1)
+    with Reporter(on_progress, "index", total=steps) as progress:
+        inputs = read_inputs(ds, tuple(options.cameras) + (options.lidar,))
+        can_bus = None
+        sample_links = None
+        if options.format == "bevformer":
+            can_bus = bevformer.can_bus_vectors(ds, inputs.sample_token)
+            sample = ds.scan("tables/sample").select("prev", "next").collect()
+            sample_links = (sample["prev"].to_numpy(), sample["next"].to_numpy())
+        progress.advance(step="read tables")
+        computed = compute(inputs, tuple(options.cameras), options.lidar, options.max_sweeps,
+                           with_annotations=not test, with_cam_instances=options.info_version == 2)
+        progress.advance(step="compute")
+        assigned = splits.assign_splits(version, inputs.scene_token, inputs.scene_name, inputs.sample_scene)
+        progress.advance(step="splits")
+        written: dict = {}
+        tables = {}
+        for split in wanted:
+            samples = np.flatnonzero(assigned == split)
+            target = out / f"nuscenes_infos_{split}.pkl"
+            if options.info_version == 1:
+                infos = records.v1_infos(computed, samples, tuple(options.cameras), options.data_prefix, test)
+                if options.format == "bevformer":
+                    infos = bevformer.bevformer_infos(computed, infos, samples, *sample_links, can_bus)
+                write_pickle(target, {"infos": infos, "metadata": {"version": version}})
+            else:
+                data_list, last_ignored, all_ignored = records.v2_infos(
+                    computed, samples, tuple(options.cameras), options.data_prefix)
+                write_pickle(target, {"metainfo": records.v2_metainfo(version, last_ignored), "data_list": data_list})
+                if options.corrected:
+                    fixed, _, _ = records.v2_infos(computed, samples, tuple(options.cameras), options.data_prefix,
+                                                   corrected=True)
+                    write_pickle(out / f"nuscenes_infos_{split}_corrected.pkl",
+                                 {"metainfo": records.v2_metainfo(version, all_ignored), "data_list": fixed})
+                if options.parquet:
+                    d, lid = inputs.data, computed.lidar_row[samples]
+                    table = parquet.infos_table(data_list, split,
+                                                transforms.pose_matrix_f32(d.ego_q[lid], d.ego_t[lid], f32=False),
+                                                transforms.pose_matrix_f32(d.sensor_q[lid], d.sensor_t[lid], f32=False))
+                    if table is not None:
+                        tables[split] = table
+                    progress.advance(step=f"parquet {split}")
+            written[split] = target
+            progress.advance(step=f"write {split}")
+        if tables:
+            write_parquet_dir(out / "infos", tables)
+            written["infos"] = out / "infos"
+    return written

@@ -1,0 +1,37 @@
+"""Options of `nuparquet index` (and `nuparquet.index.build_index`): one dataclass, the CLI flags come from it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from nuparquet.options import option
+
+# mmdetection3d's converter lists the cameras in this order (dict order of `cams` / `images`): defaults only.
+DEFAULT_CAMERAS = ("CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_FRONT_LEFT", "CAM_BACK", "CAM_BACK_LEFT", "CAM_BACK_RIGHT")
+DEFAULT_LIDAR = "LIDAR_TOP"
+
+
+@dataclass
+class IndexOptions:
+    out: str = option(help="output directory for the info files and infos/ (created; written atomically)",
+                      flag="--out", metavar="DIR")
+    format: Literal["mmdet3d", "bevformer"] = option(
+        "mmdet3d", help="mmdet3d: mmdetection3d's nuScenes infos; bevformer: the BEVFormer/UniAD v1 variant "
+        "(needs the sample_can_bus dataset)")
+    info_version: Literal[1, 2] = option(2, help="1: create_data.py's first pass (infos + metadata); "
+                                         "2: after update_infos_to_v2.py (metainfo + data_list, what mmdet3d 1.x reads)")
+    max_sweeps: int = option(10, help="lidar sweeps per sample, following the lidar's prev chain")
+    split: Literal["train", "val", "test", "all"] = option(
+        "all", help="which info files to write; all: every file the converter writes for this version "
+        "(train and val, or test for a test version)")
+    data_prefix: str = option("./data/nuscenes", help="dataroot as the converter saw it: the prefix of the "
+                              "v1 paths and of sweep paths")
+    version: str | None = option(None, help="the version the converter was run with (v1.0-trainval, v1.0-test, "
+                                 "v1.0-mini); default: the one the dataset's version starts with")
+    cameras: tuple[str, ...] = option(DEFAULT_CAMERAS, help="camera channels, in info order (comma-separated)")
+    lidar: str = option(DEFAULT_LIDAR, help="the keyframe lidar channel whose prev chain gives the sweeps")
+    corrected: bool = option(False, help="also write *_corrected.pkl beside each file: float64 matrices, "
+                             "sweep paths like keyframe paths with num_pts_feats, every unmapped class in "
+                             "metainfo (see docs)")
+    parquet: bool = option(True, help="also write DIR/infos/ (one row per sample, nested columns)")

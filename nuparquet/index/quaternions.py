@@ -1,0 +1,62 @@
+"""pyquaternion's arithmetic over arrays of quaternions `(N, 4)` [w, x, y, z], operation for operation, so
+that the infos carry the same float64 values the devkit-based converter computes (same products, same
+summation order, same normalisation rule)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+_UNIT_TOLERANCE = 1e-14  # pyquaternion's Quaternion.is_unit default
+
+
+def _sum4(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot products over the last axis of length 4, summed left to right like np.dot on 4-vectors."""
+    return ((a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]) + a[..., 2] * b[..., 2]) + a[..., 3] * b[..., 3]
+
+
+def normalised(q: np.ndarray) -> np.ndarray:
+    """(N, 4): q / |q| unless |1 - q.q| < 1e-14 (pyquaternion's `_normalise`)."""
+    q = np.asarray(q, dtype=np.float64)
+    squares = _sum4(q, q)
+    norm = np.sqrt(squares)
+    scale = ~(np.abs(1.0 - squares) < _UNIT_TOLERANCE) & (norm > 0)
+    return np.where(scale[..., None], q / np.where(scale, norm, 1.0)[..., None], q)
+
+
+def _q_matrix(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack([np.stack([w, -x, -y, -z], -1), np.stack([x, w, -z, y], -1),
+                     np.stack([y, z, w, -x], -1), np.stack([z, -y, x, w], -1)], -2)
+
+
+def _q_bar_matrix(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack([np.stack([w, -x, -y, -z], -1), np.stack([x, w, z, -y], -1),
+                     np.stack([y, -z, w, x], -1), np.stack([z, y, -x, w], -1)], -2)
+
+
+def rotation_matrices(q: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) `Quaternion(q).rotation_matrix`: q_matrix @ q_bar_matrix.T of the normalised q."""
+    q = normalised(q)
+    a, b = _q_matrix(q), _q_bar_matrix(q)
+    product = _sum4(a[..., :, None, :], b[..., None, :, :])  # [i, j] = sum_k a[i, k] * b[j, k]
+    return product[..., 1:, 1:]
+
+
+def inverse(q: np.ndarray) -> np.ndarray:
+    """(N, 4) `Quaternion(q).inverse`: the conjugate over q.q (not normalised)."""
+    q = np.asarray(q, dtype=np.float64)
+    conjugate = q * np.array([1.0, -1.0, -1.0, -1.0])
+    return conjugate / _sum4(q, q)[..., None]
+
+
+def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """(N, 4) the Hamilton product `p * q` (pyquaternion: q_matrix(p) @ q)."""
+    return _sum4(_q_matrix(p), np.asarray(q, dtype=np.float64)[..., None, :])
+
+
+def yaw(q: np.ndarray) -> np.ndarray:
+    """(N,) `Quaternion(q).yaw_pitch_roll[0]` in radians."""
+    q = normalised(q)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.arctan2(2 * (w * z - x * y), 1 - 2 * (y**2 + z**2))
