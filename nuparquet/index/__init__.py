@@ -64,7 +64,9 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
         tables = {}
         for split in wanted:
             samples = np.flatnonzero(assigned == split)
-            target = out / f"nuscenes_infos_{split}.pkl"
+            # BEVFormer, UniAD and VAD name their files nuscenes_infos_temporal_<split>.pkl
+            temporal = "temporal_" if options.format == "bevformer" else ""
+            target = out / f"nuscenes_infos_{temporal}{split}.pkl"
             if options.info_version == 1:
                 infos = records.v1_infos(computed, samples, tuple(options.cameras), options.data_prefix, test)
                 if options.format == "bevformer":

@@ -74,9 +74,11 @@ def test_missing_inputs_are_named(synth_out, tmp_path):
     manifest = dict(ds.manifest, datasets={k: v for k, v in ds.manifest["datasets"].items() if k != "annotations"})
     with pytest.raises(InputError, match="annotations"):
         build_index(Dataset(ds.root, manifest), IndexOptions(out=str(tmp_path / "a"), version="v1.0-trainval"))
+    without_can_bus = dict(ds.manifest, datasets={k: v for k, v in ds.manifest["datasets"].items()
+                                                  if k != "sample_can_bus"})
     with pytest.raises(InputError, match="sample_can_bus"):
-        build_index(ds, IndexOptions(out=str(tmp_path / "b"), version="v1.0-trainval", format="bevformer",
-                                     info_version=1))
+        build_index(Dataset(ds.root, without_can_bus), IndexOptions(out=str(tmp_path / "b"), version="v1.0-trainval",
+                                                                    format="bevformer", info_version=1))
     with pytest.raises(UsageError, match="--version"):
         build_index(ds, IndexOptions(out=str(tmp_path / "c")))
 
