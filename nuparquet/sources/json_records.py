@@ -18,6 +18,7 @@ import math
 from collections import Counter
 from dataclasses import dataclass, field
 
+import numpy as np
 import pyarrow as pa
 
 from nuparquet.problems import Problem
@@ -46,30 +47,33 @@ class Columns:
     key_orders: dict[int, list[str]] = field(default_factory=dict)  # global record index -> its key order
 
 
-def _kind(values: list) -> str:
+def _kind(values: list) -> tuple[str, bool]:
+    """The field's kind, and whether it holds JSON integers among floats (scalars or list elements)."""
     types = set(map(type, values)) - {type(None)}
     if not types:
-        return "null"
+        return "null", False
     if types == {bool}:
-        return "bool"
+        return "bool", False
     if types == {int}:
-        return "int"
+        return "int", False
     if types <= {int, float}:
-        return "float"
+        return "float", int in types
     if types == {str}:
-        return "string"
+        return "string", False
     if types == {list}:
-        elements = set(map(type, itertools.chain.from_iterable(v for v in values if v is not None))) - {type(None)}
+        elements = set(map(type, itertools.chain.from_iterable(v for v in values if v is not None)))
+        nulls = "_with_nulls" if type(None) in elements else ""  # null elements: Arrow builds those lists
+        elements -= {type(None)}
         if not elements or elements == {int}:
-            return "list_int"
+            return "list_int" + nulls, False
         if elements <= {int, float}:
-            return "list_float"
+            return "list_float" + nulls, int in elements
         if elements == {str}:
-            return "list_string"
-        return "json"
+            return "list_string", False
+        return "json", False
     if types == {dict}:
-        return "json"
-    return "mixed"
+        return "json", False
+    return "mixed", False
 
 
 def _majority(values: list) -> type:
@@ -104,7 +108,7 @@ def to_columns(records: list[dict], located: Located, what: str) -> tuple[Column
     arrays, json_fields, int_values = {}, [], {}
     for key in keys:
         values = [r[key] for r in records]
-        kind = _kind(values)
+        kind, has_ints = _kind(values)
         if kind == "mixed":
             expected = _majority(values)
             for i, v in enumerate(values):
@@ -115,23 +119,22 @@ def to_columns(records: list[dict], located: Located, what: str) -> tuple[Column
                     if len(problems) > 20:
                         break
             continue
-        if kind == "int" and any(v is not None and not INT64_MIN <= v <= INT64_MAX for v in values):
+        present = values if None not in values else [v for v in values if v is not None]
+        if kind == "int" and present and not (INT64_MIN <= min(present) and max(present) <= INT64_MAX):
             i = next(i for i, v in enumerate(values) if v is not None and not INT64_MIN <= v <= INT64_MAX)
             file, index = located.where(i)
             problems.append(Problem(file, f"{what} field {key!r}: integer {values[i]} is outside int64", index))
             continue
-        if kind in ("float", "list_float"):
+        if has_ints:  # integers among floats: refuse those float64 cannot hold, remember where the others are
             flat = values if kind == "float" else itertools.chain.from_iterable(v for v in values if v is not None)
             big = next((v for v in flat if type(v) is int and abs(v) > 2**53), None)
             if big is not None:  # float64 cannot hold it exactly: refuse rather than change it
                 problems.append(Problem(located.files[0], f"{what} field {key!r}: integer {big} among floats is "
                                                           "beyond 2**53 and would not convert exactly"))
                 continue
-        if kind == "float":
-            ints = [i for i, v in enumerate(values) if type(v) is int]
-            if ints:
-                int_values[key] = ints
-        if kind == "list_float":
+        if has_ints and kind == "float":
+            int_values[key] = [i for i, v in enumerate(values) if type(v) is int]
+        if has_ints and kind.startswith("list_float"):
             ints = [[i, j] for i, v in enumerate(values) if v is not None for j, x in enumerate(v) if type(x) is int]
             if ints:
                 int_values[key] = ints
@@ -149,10 +152,17 @@ def _array(values: list, kind: str) -> pa.Array:
     scalar = {"bool": pa.bool_(), "int": pa.int64(), "float": pa.float64(), "string": pa.string(), "null": pa.null()}
     if kind in scalar:
         return pa.array(values, scalar[kind])
+    numeric = not kind.endswith("_with_nulls") and kind != "list_string"
+    kind = kind.removesuffix("_with_nulls")
     element = {"list_int": pa.int64(), "list_float": pa.float64(), "list_string": pa.string()}[kind]
-    lengths = {len(v) for v in values if v is not None}
-    fixed = len(lengths) == 1 and 0 not in lengths and not any(v is None for v in values)
-    return pa.array(values, pa.list_(element, lengths.pop()) if fixed else pa.list_(element))
+    lengths = set(map(len, values)) if None not in values else {len(v) for v in values if v is not None} | {-1}
+    if len(lengths) == 1 and 0 not in lengths:
+        size = lengths.pop()
+        if numeric:  # numbers: numpy reads the nested lists in C, much faster than pa.array
+            flat = np.array(values, dtype=np.int64 if kind == "list_int" else np.float64).reshape(-1)
+            return pa.FixedSizeListArray.from_arrays(pa.array(flat, element), size)
+        return pa.array(values, pa.list_(element, size))
+    return pa.array(values, pa.list_(element))
 
 
 def to_records(rows: list[dict], keys: list[str], json_fields: list[str], int_values: dict[str, list],

@@ -1,0 +1,80 @@
+"""JSON records typed into Arrow and back: every record comes back equal, with its JSON types and key order; values
+that cannot convert exactly are refused as problems naming the file and the record."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pyarrow as pa
+import pytest
+
+from nuparquet.sources.json_records import Located, to_columns, to_records
+
+
+def round_trip(records, files=("f.json",), starts=(0,)):
+    columns, problems = to_columns(records, Located(list(files), list(starts)), "message")
+    assert problems == []
+    back = to_records(columns.table.to_pylist(), columns.keys, columns.json_fields, columns.int_values,
+                      columns.key_orders)
+    return columns, back
+
+
+def same(a, b):
+    return json.dumps(a) == json.dumps(b)  # same values, JSON types (1 vs 1.0) and key order
+
+
+def test_types_and_exact_round_trip():
+    records = [
+        {"utime": 1, "value": 0.5, "vec": [1.0, 2.5, 0.0], "flag": True, "name": "a", "stats": {"max": 1, "m": 0.5},
+         "ids": ["x", "y"], "var": [1.0], "none": None},
+        {"utime": 2, "value": 0, "vec": [1, 2.5, float("nan")], "flag": False, "name": "b", "stats": None,
+         "ids": ["z"], "var": [2.0, 3.0], "none": None},
+    ]
+    columns, back = round_trip(records)
+    schema = columns.table.schema
+    assert schema.field("utime").type == pa.int64() and schema.field("value").type == pa.float64()
+    assert schema.field("vec").type == pa.list_(pa.float64(), 3)  # fixed size: same length everywhere
+    assert schema.field("var").type == pa.list_(pa.float64())  # variable length
+    assert schema.field("ids").type == pa.list_(pa.string())
+    assert columns.json_fields == ["stats"]
+    assert columns.int_values == {"value": [1], "vec": [[1, 0]]}
+    assert same(back[0], records[0])
+    assert back[1]["value"] == 0 and type(back[1]["value"]) is int and type(back[1]["vec"][0]) is int
+    assert math.isnan(back[1]["vec"][2]) and back[1]["stats"] is None
+
+
+def test_each_record_keeps_its_key_order():
+    records = [{"a": 1, "b": 2.0}, {"b": 3.0, "a": 4}, {"a": 5, "b": 6.0}]
+    columns, back = round_trip(records)
+    assert columns.key_orders == {1: ["b", "a"]}
+    assert [list(r) for r in back] == [["a", "b"], ["b", "a"], ["a", "b"]]
+
+
+def test_null_list_elements_stay_null():
+    records = [{"v": [1.0, None]}, {"v": [0.5, 2.0]}]
+    _, back = round_trip(records)
+    assert back == records
+
+
+@pytest.mark.parametrize("records, message, index", [
+    ([{"a": 1.0}, {"a": "x"}, {"a": 2.0}], "field 'a' is a str where the others hold float values", 1),
+    ([{"a": 1, "b": 2}, {"a": 1}], "message lacks b", 1),
+    ([{"a": 1}, {"a": 1, "c": 2}], "message has extra c", 1),
+    ([{"a": 1}, {"a": 2**63}], "outside int64", 1),
+])
+def test_values_that_cannot_convert_are_problems(records, message, index):
+    columns, problems = to_columns(records, Located(["can_bus/x.json"], [0]), "message")
+    assert columns is None and problems
+    assert problems[0].file == "can_bus/x.json" and message in problems[0].message and problems[0].index == index
+
+
+def test_integers_beyond_float64_precision_among_floats_are_refused():
+    _, problems = to_columns([{"a": 0.5}, {"a": 2**53 + 1}], Located(["f.json"], [0]), "message")
+    assert problems and "beyond 2**53" in problems[0].message
+
+
+def test_problems_name_the_file_and_the_record_within_it():
+    records = [{"a": 1.0}] * 3 + [{"a": 1.0}, {"a": "x"}]
+    _, problems = to_columns(records, Located(["first.json", "second.json"], [0, 3]), "message")
+    assert (problems[0].file, problems[0].index) == ("second.json", 1)
