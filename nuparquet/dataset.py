@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -171,12 +172,19 @@ class Dataset:
             context.register(sql_name, scans[name])
         return context
 
-    def sql(self, query: str, *, lazy: bool = False) -> pl.DataFrame | pl.LazyFrame:
+    def sql(self, query: str, *, lazy: bool = False, allow_file_access: bool = False) -> pl.DataFrame | pl.LazyFrame:
         """Run polars SQL over every dataset (see the module docstring for the names) and collect the result.
 
         With ``lazy=True`` the LazyFrame is returned instead (only planning errors are raised here). Raises
-        `QueryError` with polars' message for bad SQL, unknown tables or columns.
+        `QueryError` with polars' message for bad SQL, unknown tables or columns. The query reads the dataset
+        only: polars' file-reading table functions (`read_csv('/etc/passwd')`, `read_parquet`, ...) are refused
+        unless `allow_file_access` (a notebook user joining their own files may want them).
         """
+        if not allow_file_access:
+            function = _file_reading_function(query)
+            if function is not None:
+                raise QueryError(f"SQL reads only this dataset: {function}(...) would read another file (pass "
+                                 "allow_file_access=True, or --allow-file-access, to allow it)")
         try:
             result = self.sql_context().execute(query, eager=False)
             return result if lazy else result.collect()
@@ -210,6 +218,17 @@ class Dataset:
                          "files": files, "bytes": size})
         return pl.DataFrame(rows, schema={"dataset": pl.String, "rows": pl.Int64, "manifest_rows": pl.Int64,
                                           "files": pl.Int64, "bytes": pl.Int64})
+
+
+# polars SQL table functions that read files (polars.SQLContext: read_csv, read_parquet, read_json, read_ipc).
+_FILE_FUNCTION = re.compile(r"\b(read_(?:csv|parquet|json|ndjson|ipc|delta|excel|avro))\s*\(", re.IGNORECASE)
+_SQL_STRING = re.compile(r"'(?:[^']|'')*'|\"(?:[^\"]|\"\")*\"")
+
+
+def _file_reading_function(query: str) -> str | None:
+    """The first file-reading table function called in `query` (string literals and quoted names ignored)."""
+    match = _FILE_FUNCTION.search(_SQL_STRING.sub("''", query))
+    return match.group(1) if match else None
 
 
 def _check_manifest(manifest: Any, where: str) -> dict:

@@ -12,12 +12,14 @@ import json
 from pathlib import Path
 from typing import Callable
 
+import pyarrow as pa
 import pyarrow.parquet as pq
 
-from nuparquet.convert.write import atomic_directory, check_target
+from nuparquet.convert.write import atomic_directory, check_apart, check_target
 from nuparquet.errors import FormatError
 from nuparquet.format import MANIFEST
 from nuparquet.progress import OnProgress, Reporter
+from nuparquet.sources import table_layouts
 from nuparquet.sources.json_records import to_records
 from nuparquet.schemas import table_schemas
 
@@ -29,11 +31,14 @@ def export_json(dataset_dir: Path | str, out: Path | str, *, overwrite: bool = F
     """Write every JSON file the conversion at `dataset_dir` read back under `out`, at its path relative to the
     dataroot (the tables at `out/<version>/<table>.json`); returns the paths written."""
     dataset_dir = Path(dataset_dir)
+    check_apart(out, dataset_dir, what="the converted dataset")
     check_target(out, overwrite=overwrite)
     manifest_path = dataset_dir / MANIFEST
     if not manifest_path.is_file():
         raise FormatError(f"{dataset_dir} is not a nuparquet output (no {MANIFEST})")
-    manifest = json.loads(manifest_path.read_text())
+    from nuparquet.dataset import open_dataset
+
+    manifest = open_dataset(dataset_dir).manifest  # checks the format and its version, names the file when damaged
     files = manifest.get("files") or _files_of_older_manifest(manifest)
     unknown = sorted({f["kind"] for f in files} - set(WRITERS))
     if unknown:
@@ -62,7 +67,7 @@ def _write_table_file(dataset_dir: Path, manifest: dict, entry: dict, target: Pa
     name = entry["dataset"].removeprefix("tables/")
     info = manifest["tables"][name]
     _write_table(dataset_dir / manifest["datasets"][entry["dataset"]]["path"], target, info["key_order"], name,
-                 set(info.get("json_fields", ())))
+                 set(info.get("json_fields", ())), info.get("layouts") or [info["key_order"]])
 
 
 def _scene_rows(dataset_dir: Path, manifest: dict, entry: dict) -> list[dict]:
@@ -94,33 +99,54 @@ def _write_can_bus_route(dataset_dir: Path, manifest: dict, entry: dict, target:
     target.write_text(json.dumps([[r["x"], r["y"]] for r in records], indent=0))
 
 
+def _write_inferred_table(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
+    import polars as pl
+
+    rows = pl.read_parquet(dataset_dir / manifest["datasets"][entry["dataset"]]["path"]).to_dicts()
+    records = to_records(rows, entry["keys"], entry.get("json_fields", []), entry.get("int_values", {}),
+                         entry.get("key_orders", {}))
+    target.write_text(json.dumps(records, indent=0))
+
+
 # How each kind of converted JSON file is written back (the manifest's "files" name the kind of each).
 # Map expansion files, ... add their writer here.
 WRITERS: dict[str, Callable[[Path, dict, dict, Path], None]] = {
     "table": _write_table_file,
+    "table_inferred": _write_inferred_table,
     "can_bus_messages": _write_can_bus_messages,
     "can_bus_meta": _write_can_bus_meta,
     "can_bus_route": _write_can_bus_route,
 }
 
 
-def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str, json_fields: set[str]) -> None:
-    empty_list_fields = {f.name for f in table_schemas()[name].fields if f.empty_list_is_null} \
-        if name in table_schemas() else set()
+def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str, json_fields: set[str],
+                 layouts: list[list[str]]) -> None:
+    schema = table_schemas().get(name)
+    empty_list_fields = {f.name for f in schema.fields if f.empty_list_is_null} if schema else set()
     files = sorted(parquet_dir.glob("*.parquet"))
     with path.open("w") as out:
         out.write("[")
         first = True
         for file in files:
-            for batch in pq.ParquetFile(file).iter_batches(batch_size=BATCH_ROWS, columns=key_order):
+            parquet = pq.ParquetFile(file)
+            hidden = [c for c in table_layouts.HIDDEN if c in parquet.schema_arrow.names]
+            int_columns = {f.name for f in parquet.schema_arrow if pa.types.is_integer(f.type)}
+            for batch in parquet.iter_batches(batch_size=BATCH_ROWS, columns=key_order + hidden):
                 columns = [batch.column(k).to_pylist() for k in key_order]
                 for key, values in zip(key_order, columns):
                     if key in empty_list_fields:
                         values[:] = [[] if v is None else v for v in values]
                     elif key in json_fields:  # fields the schema does not know, kept as raw JSON text
                         values[:] = [None if v is None else json.loads(v) for v in values]
-                for values in zip(*columns):
+                layout_ids = batch.column(table_layouts.LAYOUT).to_pylist() if table_layouts.LAYOUT in hidden else None
+                marks = batch.column(table_layouts.JSON_TYPES).to_pylist() if table_layouts.JSON_TYPES in hidden else None
+                for i, values in enumerate(zip(*columns)):
+                    record = dict(zip(key_order, values))
+                    if layout_ids is not None:  # the record's own keys, in its own order; absent stays absent
+                        record = {k: record[k] for k in layouts[layout_ids[i]]}
+                    if marks is not None and marks[i]:
+                        table_layouts.restore(record, marks[i], int_columns)
                     out.write("\n" if first else ",\n")
                     first = False
-                    out.write(json.dumps(dict(zip(key_order, values))))
+                    out.write(json.dumps(record))
         out.write("\n]\n")

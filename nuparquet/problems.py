@@ -16,12 +16,18 @@ class Problem:
     index: int | None = None  # 0-based record index in the JSON array
     token: str | None = None
     omitted: int = 0  # > 0: a summary standing for this many further problems of the same check
+    warning: bool = False  # accepted as the devkit accepts it, but worth knowing (a near-unit quaternion)
 
     def __str__(self) -> str:
         where = self.file if self.index is None else f"{self.file}[{self.index}]"
         if self.token is not None:
             where += f" token={self.token}"
-        return f"{where}: {self.message}"
+        return f"{'warning: ' if self.warning else ''}{where}: {self.message}"
+
+
+def split_warnings(problems: list[Problem]) -> tuple[list[Problem], list[Problem]]:
+    """(errors, warnings)."""
+    return [p for p in problems if not p.warning], [p for p in problems if p.warning]
 
 
 def count_problems(problems: list[Problem]) -> int:

@@ -12,6 +12,9 @@ from nuparquet.problems import MAX_REPORTED, Problem
 from nuparquet.schemas import table_schemas
 
 QUATERNION_NORM_TOLERANCE = 1e-6
+# Norms this close to 1 are accepted with a warning: quaternions written to 4 decimals (norm 0.99997) are unit
+# quaternions to the devkit, which normalises them (pyquaternion), and so does nuparquet's geometry.
+QUATERNION_NEAR_UNIT = 1e-3
 
 # Counts stored in one table that must equal the number of referring records in another:
 # (table, count field, referring table, referring field).
@@ -23,15 +26,17 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) 
     """All problems across the parsed tables (by table name): unique tokens, resolving foreign keys
     (including every non-empty prev/next), count fields, and finite unit quaternions. At most `limit`
     problems per check, plus a count of the rest."""
-    frames = {name: df.with_row_index("_idx") for name, df in tables.items()}
-    files = {name: table_schemas()[name].source for name in tables}
+    # Extra tables (typed by inference, no schema) have no declared keys to check.
+    frames = {name: df.with_row_index("_idx") for name, df in tables.items() if name in table_schemas()}
+    files = {name: table_schemas()[name].source for name in frames}
     problems: list[Problem] = []
 
-    def report(table: str, rows: pl.DataFrame, message) -> None:
+    def report(table: str, rows: pl.DataFrame, message, warning: bool = False) -> None:
         for row in rows.head(limit).iter_rows(named=True):
-            problems.append(Problem(files[table], message(row), row["_idx"], row.get("token")))
+            problems.append(Problem(files[table], message(row), row["_idx"], row.get("token"), warning=warning))
         if rows.height > limit:
-            problems.append(Problem(files[table], f"{rows.height - limit} more like the above", omitted=rows.height - limit))
+            problems.append(Problem(files[table], f"{rows.height - limit} more like the above",
+                                    omitted=rows.height - limit, warning=warning))
 
     for name, df in frames.items():
         schema = table_schemas()[name]
@@ -52,8 +57,12 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) 
             if f.quaternion and f.name in df.columns:
                 q = df.select("_idx", "token", pl.col(f.name).arr.to_list().alias("_q"))
                 norm = q.select("_idx", "token", "_q", (pl.col("_q").list.eval(pl.element() ** 2).list.sum().sqrt()).alias("_n"))
-                bad = norm.filter(~pl.col("_n").is_finite() | ((pl.col("_n") - 1.0).abs() > QUATERNION_NORM_TOLERANCE))
+                off = (pl.col("_n") - 1.0).abs()
+                bad = norm.filter(~pl.col("_n").is_finite() | (off > QUATERNION_NEAR_UNIT))
                 report(name, bad, lambda r, f=f: f"{f.name} {r['_q']} is not a finite unit quaternion (norm {r['_n']})")
+                near = norm.filter(pl.col("_n").is_finite() & (off > QUATERNION_NORM_TOLERANCE) & (off <= QUATERNION_NEAR_UNIT))
+                report(name, near, lambda r, f=f: f"{f.name} {r['_q']} has norm {r['_n']:.6f}, not 1 to 1e-6: accepted "
+                                                  "and normalised (as the devkit does)", warning=True)
     for table, count_field, referring, ref_field in _COUNTS:
         if table not in frames or referring not in frames:
             continue

@@ -34,6 +34,10 @@ def run(args) -> int:
     start = time.perf_counter()
     extra = {k: v for k, v in vars(options).items() if k not in ("version", "out")}
     manifest = convert(args.dataroot, options.version, options.out, on_progress=bars(not args.quiet), **extra)
+    for warning in manifest.get("warnings", [])[:20]:
+        print(warning, file=sys.stderr)
+    if len(manifest.get("warnings", [])) > 20:
+        print(f"... and {len(manifest['warnings']) - 20} more warnings (manifest.json lists them)", file=sys.stderr)
     rows = {name: d["rows"] for name, d in manifest["datasets"].items() if not name.startswith("tables/")}
     summary = ", ".join(f"{n} {r:,}" for n, r in rows.items())
     print(f"converted {args.dataroot}/{options.version} -> {options.out} in {time.perf_counter() - start:.1f} s ({summary})",

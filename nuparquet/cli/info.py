@@ -64,6 +64,10 @@ def run(args) -> int:
         print(f"  cameras:   {' | '.join(' '.join(row) for row in channels['camera_layout']) or '(none)'}")
         print(f"  lidars:    {' '.join(channels['lidars']) or '(none)'} (reference: {channels['reference_lidar']})")
         print(f"  radars:    {' '.join(channels['radars']) or '(none)'}")
+        if "scenes" in ds.datasets:  # the names `render --scene` and `stats --scene` take
+            names = ds.scan("scenes").select("name").collect()["name"].to_list()
+            shown_names = " ".join(names[:20]) + (f" ... ({len(names)} in all)" if len(names) > 20 else "")
+            print(f"  scenes:    {shown_names or '(none)'}")
         print()
         shown = inventory.with_columns(pl.col("bytes").map_elements(_size, return_dtype=pl.String).alias("size"))
         print_frame(shown.drop("manifest_rows", "bytes"), "table")

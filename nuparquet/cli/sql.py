@@ -23,11 +23,14 @@ def register(sub) -> None:
                    help="table (readable, default), csv (header + rows) or json (a list of row objects)")
     p.add_argument("--max-rows", type=int, default=100, metavar="N",
                    help="rows shown in table format (default 100; csv and json print every row)")
+    p.add_argument("--allow-file-access", action="store_true",
+                   help="let the query call polars' file-reading table functions (read_csv, read_parquet, ...); "
+                   "by default it reads this dataset only")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
-    result = open_dataset(args.out).sql(args.query)
+    result = open_dataset(args.out).sql(args.query, allow_file_access=args.allow_file_access)
     print_frame(result, args.format, max_rows=args.max_rows if args.format == "table" else None)
     if args.format == "table":
         print(f"({result.height:,} row{'s' if result.height != 1 else ''})")

@@ -22,8 +22,11 @@ def register(sub) -> None:
 def run(args) -> int:
     from nuparquet.cli.progress import bars
     from nuparquet.convert import validate
-    from nuparquet.problems import count_problems, format_problems
-    result, problems = validate(args.dataroot, args.version, on_progress=bars(not args.quiet))
+    from nuparquet.problems import count_problems, format_problems, split_warnings
+    result, found = validate(args.dataroot, args.version, on_progress=bars(not args.quiet))
+    problems, warnings = split_warnings(found)
+    if warnings:
+        print(format_problems(warnings, limit=args.max_problems))
     if problems:
         print(format_problems(problems, limit=args.max_problems))
         n = count_problems(problems)

@@ -21,9 +21,9 @@ from nuparquet.channels import channel_facts
 from nuparquet.convert.options import ConvertOptions
 from nuparquet.convert.registry import BUILDERS, BuildContext
 from nuparquet.convert.run import build_datasets, count_steps
-from nuparquet.convert.write import atomic_directory, check_target, utc_now, write_manifest, write_parquet
+from nuparquet.convert.write import atomic_directory, check_apart, check_target, utc_now, write_manifest, write_parquet
 from nuparquet.format import FORMAT_NAME, FORMAT_VERSION
-from nuparquet.problems import Problem, ProblemsFound
+from nuparquet.problems import Problem, ProblemsFound, split_warnings
 from nuparquet.progress import OnProgress, Reporter
 from nuparquet.schemas import fingerprint, table_schemas
 from nuparquet.sources.tables import ReadResult, read_tables
@@ -51,6 +51,7 @@ def convert(dataroot: Path | str, version: str, out: Path | str, *, on_progress:
     without `overwrite`.
     """
     opts = ConvertOptions(version=version, out=str(out), **options)
+    check_apart(out, dataroot, what="the dataroot")
     check_target(out, overwrite=opts.overwrite)
     with Reporter(on_progress, "convert", total=2 * len(table_schemas()) + 2) as reporter, \
             atomic_directory(Path(out), overwrite=opts.overwrite) as tmp:
@@ -63,11 +64,14 @@ def convert(dataroot: Path | str, version: str, out: Path | str, *, on_progress:
             size = write_parquet(source.table, tmp / "tables" / name)
             datasets[f"tables/{name}"] = {"path": f"tables/{name}", "rows": source.table.num_rows,
                                           "schema_fingerprint": fingerprint(source.table.schema), "bytes": size}
-            files.append({"path": f"{version}/{source.path.name}", "kind": "table", "dataset": f"tables/{name}"})
+            entry = {"path": f"{version}/{source.path.name}", "kind": "table", "dataset": f"tables/{name}"}
+            if source.inferred is not None:  # an extra table (T4's object_ann, ...): typed by inference
+                entry |= {"kind": "table_inferred", **source.inferred}
+            files.append(entry)
             tables[name] = pl.from_arrow(source.table)
             source.table = None  # the polars copy is all we need from here on
         reporter.advance(step="check integrity")
-        problems = result.problems + check_integrity(tables)
+        problems, warnings = split_warnings(result.problems + check_integrity(tables))
         if problems:
             raise ProblemsFound(problems)
         channels = _channel_facts(tables)
@@ -84,9 +88,11 @@ def convert(dataroot: Path | str, version: str, out: Path | str, *, on_progress:
             "datasets": datasets | built,
             "skipped": skipped,
             "channels": channels,
+            "warnings": [str(w) for w in warnings],
             "files": files + ctx.files,
-            "tables": {name: {"key_order": s.key_order, "float_fields": s.float_fields, "json_fields": s.json_fields}
-                       for name, s in result.tables.items()},
+            "tables": {name: {"key_order": s.key_order, "float_fields": s.float_fields, "json_fields": s.json_fields,
+                              **({"layouts": s.layouts} if s.layouts else {})}
+                       for name, s in result.tables.items() if s.inferred is None},
         }
         reporter.advance(step="write manifest")
         write_manifest(tmp, manifest)

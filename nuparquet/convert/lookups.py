@@ -12,8 +12,10 @@ from nuparquet.channels import reference_lidar
 
 
 def as_int(df: pl.DataFrame, *columns: str) -> pl.DataFrame:
-    """Integer fields the source stored as JSON floats (kept as float64 in tables/) as int64 for the joins."""
-    return df.with_columns([pl.col(c).round(0).cast(pl.Int64) for c in columns if df.schema[c].is_float()])
+    """Integer fields the source stored as JSON floats (kept as float64 in tables/) as int64 for the joins;
+    NaN and infinities (Lyft writes `"width": NaN` for lidar rows) become null."""
+    return df.with_columns([pl.when(pl.col(c).is_finite()).then(pl.col(c).round(0)).cast(pl.Int64).alias(c)
+                            for c in columns if df.schema[c].is_float()])
 
 
 def sample_lookup(t: dict[str, pl.DataFrame]) -> pl.DataFrame:

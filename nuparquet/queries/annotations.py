@@ -72,7 +72,9 @@ def visibility_by_category(annotations: Source, *, scene: Scene = None) -> pl.La
 
 
 def _point_stats(column: str, prefix: str) -> list[pl.Expr]:
-    values = pl.col(column)
+    # Negative counts are sentinels, not data (Lyft Level 5 writes num_lidar_pts = -1 where it did not count):
+    # they are left out of every statistic (num_boxes still counts the box).
+    values = pl.when(pl.col(column) >= 0).then(pl.col(column))
     return [
         values.mean().alias(f"{prefix}_mean"),
         values.min().alias(f"{prefix}_min"),
@@ -87,7 +89,8 @@ def points_per_box(annotations: Source, *, scene: Scene = None) -> pl.LazyFrame:
 
     One row per category: ``num_boxes``; for ``lidar`` (``num_lidar_pts``) and ``radar`` (``num_radar_pts``)
     the mean, min, 5/25/50/75/95th percentiles (``lidar_p05`` ... ``lidar_p95``, linear interpolation as
-    numpy.percentile), max, and ``*_zero_share``: the share of boxes with no point at all (0..1).
+    numpy.percentile), max, and ``*_zero_share``: the share of boxes with no point at all (0..1). Negative counts
+    (sentinels such as Lyft's -1, "not counted") are left out of these statistics.
     """
     lf = for_scene(lazy_of(annotations, "annotations"), scene)
     return (

@@ -31,6 +31,7 @@ import pyarrow.compute as pc
 from nuparquet.errors import UsageError
 from nuparquet.problems import Problem
 from nuparquet.schemas import Field, Schema, table_schemas
+from nuparquet.sources import table_layouts as layouts_
 
 
 
@@ -44,6 +45,8 @@ class SourceTable:
     key_order: list[str]  # the JSON key order of the source records
     float_fields: list[str] = field(default_factory=list)  # int fields the source stores as JSON floats
     json_fields: list[str] = field(default_factory=list)  # fields the schema does not know: raw JSON text
+    layouts: list[list[str]] = field(default_factory=list)  # key lists of records (table_layouts), when several
+    inferred: dict | None = None  # a table the schemas do not describe: what json_records needs to write it back
 
 
 @dataclass
@@ -90,7 +93,38 @@ def read_tables(
         if table is not None:
             tables[name] = table
     con.close()
+    known = {s.source for s in table_schemas().values()}
+    for path in sorted(p for p in folder.glob("*.json") if p.name not in known):  # T4: object_ann, vehicle_state, ...
+        if on_table:
+            on_table(path.stem)
+        stat = path.stat()
+        files[path.name] = {"bytes": stat.st_size, "mtime": stat.st_mtime}
+        table, table_problems = read_extra_table(path)
+        problems += table_problems
+        if table is not None:
+            tables[table.name] = table
     return ReadResult(tables, problems, files)
+
+
+def read_extra_table(path: Path) -> tuple[SourceTable | None, list[Problem]]:
+    """A table the schemas do not describe (extra tables of derived datasets), typed by inference and exactly
+    reversible (`sources.json_records`)."""
+    import json
+
+    from nuparquet.sources.json_records import Located, to_columns
+
+    try:
+        records = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        return None, [Problem(path.name, f"not valid JSON ({exc})")]
+    if not isinstance(records, list) or not all(isinstance(r, dict) for r in records):
+        return None, [Problem(path.name, "expected a JSON array of records (an extra table of the version folder)")]
+    columns, problems = to_columns(records, Located([path.name], [0]), "record")
+    if columns is None:
+        return None, problems
+    inferred = {"keys": columns.keys, "json_fields": columns.json_fields, "int_values": columns.int_values,
+                "key_orders": {str(k): v for k, v in columns.key_orders.items()}}
+    return SourceTable(path.stem, path, columns.table, columns.keys, inferred=inferred), []
 
 
 def _first_chars(path: Path, n: int = 2) -> str:
@@ -119,11 +153,15 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
     objects = f"read_json_objects({_sql_path(path)}, format='array', maximum_object_size=1073741824)"
     scalars = [f for f in schema.fields if f.type in _SCALAR_KINDS]
     paths = "[" + ", ".join(_json_path(f.name) for f in scalars) + "]"
-    try:  # pass 1: the layouts of all records: their keys and the JSON type of every scalar field
+    float_lists = [f for f in schema.fields if layouts_.is_float_list(f)]
+    ints_in_lists = "[" + ", ".join(layouts_.has_int_elements(f) for f in float_lists) + "]" if float_lists else "[]"
+    try:  # pass 1: the layouts of all records: their keys, the JSON type of every scalar field, integers in float lists
         layouts = con.sql(f"SELECT json_type(json) AS kind, json_keys(json) AS keys, json_type(json, {paths}) AS types, "
-                          f"count(*) AS n FROM {objects} GROUP BY ALL ORDER BY n DESC").fetchall()
+                          f"{ints_in_lists} AS list_ints, count(*) AS n FROM {objects} GROUP BY ALL ORDER BY n DESC").fetchall()
     except duckdb.Error as exc:
         return None, [Problem(file, _duckdb_message(exc))]
+    list_ints = [f for i, f in enumerate(float_lists) if any(row[3] and row[3][i] for row in layouts)]
+    layouts = [row[:3] + row[4:] for row in layouts]
     if any(kind != "OBJECT" for kind, *_ in layouts):
         rows = con.sql(f"SELECT idx, kind FROM (SELECT row_number() OVER () - 1 AS idx, json_type(json) AS kind "
                        f"FROM {objects}) WHERE kind != 'OBJECT' ORDER BY idx LIMIT 50").fetchall()
@@ -138,7 +176,10 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
     problems = [Problem(file, f"required field {f.name!r} is missing from every record")
                 for f in schema.fields if f.required and f.name not in present]
     seen = {f.name: {types[i] for _, _, types, _ in layouts} for i, f in enumerate(scalars)}
-    float_fields = [f.name for f in scalars if f.json_float_ok and "DOUBLE" in seen[f.name]]
+    # An integer field with JSON floats stays integer when every float is integral (each keeps its float form through
+    # `_json_types`); one fraction or NaN makes the whole column float64 (its integers marked the same way).
+    floats_seen = [f for f in scalars if f.json_float_ok and "DOUBLE" in seen[f.name]]
+    float_fields = [f.name for f in floats_seen if not layouts_.all_integral(con, objects, _json_path(f.name))]
     for f in scalars:
         allowed = set(_allowed_kinds(f))
         if f.name in present and not seen[f.name] <= allowed:
@@ -161,7 +202,22 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
     table, problems = _to_schema_types(raw, schema, file, float_fields)
     if problems:
         return None, problems
-    return SourceTable(schema.name, path, table, key_order, float_fields, extras), []
+    marks = {}
+    for f in scalars:
+        kinds = seen.get(f.name, set())
+        if f.type == "float64" or f.name in float_fields:
+            if kinds & {"UBIGINT", "BIGINT"} and kinds & {"DOUBLE"}:
+                marks[f.name] = (_json_path(f.name), layouts_.INTS.replace("[", "(").replace("]", ")"))
+        elif f.name in {g.name for g in floats_seen}:
+            marks[f.name] = (_json_path(f.name), "('DOUBLE')")
+    several = len({tuple(keys) for _, keys, *_ in layouts}) > 1 or list(layouts[0][1]) != key_order
+    record_layouts = [key_order]
+    if marks or list_ints or several:
+        hidden, record_layouts = layouts_.exceptions(con, objects, key_order, marks, list_ints, several)
+        for name, column in hidden.items():
+            table = table.append_column(name, column)
+    return SourceTable(schema.name, path, table, key_order, float_fields, extras,
+                       record_layouts if len(record_layouts) > 1 else []), []
 
 
 _SCALAR_KINDS = {"string": ("VARCHAR",), "bool": ("BOOLEAN",), "int64": ("UBIGINT", "BIGINT"),

@@ -19,3 +19,12 @@ def test_info_lists_the_cameras_in_layout_rows_and_the_lidars_with_the_reference
     assert main(["info", str(lyft_rig_out)]) == 0
     text = capsys.readouterr().out
     assert "CAM_FRONT_ZOOMED" in text and "(reference: LIDAR_TOP)" in text and "radars:    (none)" in text
+
+
+def test_info_lists_the_scene_names_render_and_stats_take(synth_root, synth_out, capsys):
+    from conftest import SYNTH_VERSION
+
+    names = [s["name"] for s in json.loads((synth_root / SYNTH_VERSION / "scene.json").read_text())]
+    assert main(["info", str(synth_out)]) == 0
+    line = next(l for l in capsys.readouterr().out.splitlines() if l.strip().startswith("scenes:"))
+    assert line.split()[1:] == sorted(names)

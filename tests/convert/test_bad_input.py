@@ -229,3 +229,66 @@ def test_wrong_json_type_or_shape_names_the_record(root, capsys, table, field, v
     code, message = validate(root, capsys)
     assert code == 1
     assert f"{table}.json[{index}] token={records[index]['token']}: field '{field}' {expected}" in message
+
+
+@pytest.mark.parametrize("norm, accepted", [(0.99997, True), (1.0009, True), (1.0011, False), (0.99, False)])
+def test_near_unit_quaternions_are_accepted_with_a_warning(root, tmp_path, capsys, norm, accepted):
+    """Quaternions written to 4 decimals (norm 0.99997) are unit to the devkit (pyquaternion normalises): accepted
+    with a warning naming the record; beyond 1e-3 of unit they stay errors."""
+    records = load(root, "ego_pose")
+    q = [x * norm for x in records[3]["rotation"]]
+    records[3]["rotation"] = q
+    save(root, "ego_pose", records)
+    out = tmp_path / "out"
+    code = main(["convert", str(root), "--version", V, "--out", str(out), "--quiet"])
+    err = capsys.readouterr().err
+    where = f"ego_pose.json[3] token={records[3]['token']}: rotation"
+    if accepted:
+        assert code == 0 and f"warning: {where}" in err and "accepted and normalised" in err
+        manifest = json.loads((out / "manifest.json").read_text())
+        assert any(where in w for w in manifest["warnings"])
+    else:
+        assert code == 1 and where in err and "not a finite unit quaternion" in err and not out.exists()
+
+
+def test_output_at_or_inside_the_dataroot_is_refused_and_nothing_is_deleted(root, tmp_path, capsys):
+    before = sorted(p.name for p in (root / V).iterdir())
+    for out in (root, root / "parquet", root / V):
+        code = main(["convert", str(root), "--version", V, "--out", str(out), "--overwrite", "--quiet"])
+        assert code == 2 and "write the output somewhere else" in capsys.readouterr().err
+    assert sorted(p.name for p in (root / V).iterdir()) == before and not (root / "parquet").exists()
+
+
+def test_dataroot_inside_the_output_is_refused(root, tmp_path, capsys):
+    code = main(["convert", str(root), "--version", V, "--out", str(root.parent), "--overwrite", "--quiet"])
+    assert code == 2 and "contains the dataroot" in capsys.readouterr().err
+    assert (root / V / "sample.json").exists()
+
+
+def test_export_json_into_the_converted_output_is_refused(root, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["convert", str(root), "--version", V, "--out", str(out), "--quiet"]) == 0
+    before = sorted(str(p) for p in out.rglob("*"))
+    for target in (out, out / "json"):
+        assert main(["export-json", str(out), "--out", str(target), "--overwrite"]) == 2
+        assert "write the output somewhere else" in capsys.readouterr().err
+    assert sorted(str(p) for p in out.rglob("*")) == before
+
+
+def test_an_output_that_appears_during_the_conversion_is_never_replaced(root, tmp_path, capsys, monkeypatch):
+    out = tmp_path / "out"
+
+    def appear_then_build(ctx):
+        out.mkdir()
+        (out / "theirs.txt").write_text("someone else's")
+        return original(ctx)
+
+    import nuparquet.convert as convert_module
+    from nuparquet.convert import registry
+
+    original = next(b.build for b in registry.BUILDERS if b.name == "instances")
+    _replace_builder(monkeypatch, "instances", appear_then_build)
+    assert main(["convert", str(root), "--version", V, "--out", str(out), "--quiet"]) == 2
+    assert "appeared while the output was being written" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["theirs.txt"]
+    assert list(tmp_path.glob(".out*")) == []  # no partial folder left behind

@@ -71,12 +71,16 @@ def test_lyft_like_dataset_round_trips_exactly(lyft_like, tmp_path):
 
 
 def test_float_fields_are_kept_as_float64_and_recorded(lyft_like):
+    """Non-integral timestamps make the column float64; integral floats (width 1600.0) keep the integer column and
+    only their own JSON form (`_json_types`)."""
     _, out = lyft_like
     manifest = json.loads((out / "manifest.json").read_text())
-    assert set(manifest["tables"]["sample_data"]["float_fields"]) == {"timestamp", "width", "height"}
+    assert set(manifest["tables"]["sample_data"]["float_fields"]) == {"timestamp"}
     table = pl.read_parquet(out / "tables/sample_data/*.parquet")
     assert table.schema["timestamp"] == pl.Float64
     assert (table["timestamp"] % 1 == 0.25).all()
+    assert table.schema["width"] == pl.Int64 and table.schema["height"] == pl.Int64
+    assert table["_json_types"].to_list() == [["height", "width"]] * table.height
     # A field the schema does not know is kept as its raw JSON text (and recorded as such).
     assert json.loads(pl.read_parquet(out / "tables/log/*.parquet")["map_token"][0]) == "extra field kept as found"
     assert manifest["tables"]["log"]["json_fields"] == ["map_token"]

@@ -33,7 +33,7 @@ def build_annotations(t: dict[str, pl.DataFrame], annotations: pl.DataFrame, sam
         .join(t["category"].lazy().select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
               on="category_token", how="left")
         .join(ego.lazy(), on="sample_token", how="left")
-        .with_columns(visibility_level=pl.col("visibility_token").cast(pl.Int8, strict=False))
+        .join(visibility_levels(t["visibility"]).lazy(), on="visibility_token", how="left")
         .collect()
     )
     translation = to_numpy(ann["translation"], (3,))
@@ -43,6 +43,20 @@ def build_annotations(t: dict[str, pl.DataFrame], annotations: pl.DataFrame, sam
         distance_to_ego_m=pl.Series(_xy_distance(translation, ann["_ego"])).fill_nan(None),
     )
     return ann.drop("_ego", "category_token").sort("scene_name", "timestamp", "instance_token", "token")
+
+
+def visibility_levels(visibility: pl.DataFrame) -> pl.DataFrame:
+    """visibility_token -> visibility_level (ordinal), visibility_name, visibility_description, from the table.
+
+    The ordinal exists only where the table gives one: levels that are numeric ranges ("v0-40", "v40-60", ...),
+    ranked by their lower bound (nuScenes: 1..4). Worded levels (T4: "full", "most", ...) get none; the token is
+    never parsed (T4's tokens are hashes)."""
+    bounds = visibility["level"].str.extract(r"^v?(\d+(?:\.\d+)?)\s*-\s*\d+(?:\.\d+)?%?$", 1).cast(pl.Float64, strict=False)
+    ranked = bounds.rank("dense").cast(pl.Int8) if bounds.null_count() == 0 and len(bounds) else pl.repeat(
+        None, len(visibility), dtype=pl.Int8, eager=True)
+    return visibility.select(pl.col("token").alias("visibility_token"),
+                             ranked.alias("visibility_level"), pl.col("level").alias("visibility_name"),
+                             pl.col("description").alias("visibility_description"))
 
 
 def _xy_distance(translation: np.ndarray, ego: pl.Series) -> np.ndarray:

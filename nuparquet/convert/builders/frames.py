@@ -14,7 +14,8 @@ from nuparquet.convert.registry import BuildContext, Builder, SceneBatch
 
 def build_frames(t: dict[str, pl.DataFrame], sample_data: pl.DataFrame, samples: pl.DataFrame) -> pl.DataFrame:
     """One row per row of `sample_data` (a batch of scenes). `samples` is `lookups.sample_lookup(t)`."""
-    sample_data = as_int(sample_data, "timestamp", "width", "height")
+    sample_data = as_int(sample_data, "timestamp", "width", "height").with_columns(
+        pl.col("width").fill_null(0), pl.col("height").fill_null(0))  # 0 for non-images, as nuScenes writes it
     frames = (
         sample_data.lazy()
         .join(t["ego_pose"].lazy().select(
