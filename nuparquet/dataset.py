@@ -274,7 +274,11 @@ def open_dataset(path: str | os.PathLike, *, storage_options: Mapping[str, Any] 
         if not (local / MANIFEST).is_file():
             raise FormatError(f"{local}: not a nuparquet output (no {MANIFEST}; create one with `nuparquet convert`)")
         root = str(local.resolve())
-        text = (local / MANIFEST).read_text()
+        try:
+            text = (local / MANIFEST).read_text()
+        except (UnicodeDecodeError, OSError) as exc:
+            raise FormatError(f"{root}: {MANIFEST} cannot be read as text ({exc.__class__.__name__}); "
+                              "the output is damaged: convert again") from exc
     try:
         manifest = json.loads(text)
     except json.JSONDecodeError as exc:

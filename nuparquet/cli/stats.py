@@ -100,6 +100,12 @@ def display(section: str, df: pl.DataFrame) -> pl.DataFrame:
 
 
 def run(args) -> int:
+    import math
+
+    if not (math.isfinite(args.bin_width) and args.bin_width > 0):
+        raise UsageError(f"--bin-width must be a positive number of metres, got {args.bin_width}")
+    if args.max_rows < 1:
+        raise UsageError(f"--max-rows must be at least 1, got {args.max_rows}")
     ds = open_dataset(args.out)
     scene = None
     if args.scene:

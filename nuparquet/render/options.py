@@ -77,6 +77,8 @@ class RenderOptions:
         """Raise UsageError for contradictory or out-of-range options."""
         if self.out is None and self.frames_dir is None:
             raise UsageError("nothing to write: give --out FILE.mp4, --frames-dir DIR, or both")
+        if self.out is not None and Path(self.out).is_dir():
+            raise UsageError(f"--out {self.out} is a directory; give the video file to write (e.g. scene.mp4)")
         if not (0 < self.scale <= 4):
             raise UsageError(f"--scale must be in (0, 4], got {self.scale}")
         if self.fps is not None and not self.fps > 0:

@@ -109,6 +109,12 @@ def render(dataset_or_path, options: RenderOptions, *, on_progress: OnProgress |
     """
     options.check()
     dataset = _dataset(dataset_or_path)
+    if not dataset.is_remote:  # never write into the converted dataset (--out OUT/manifest.json replaced it)
+        from nuparquet.convert.write import check_apart
+
+        for target in (options.out, options.frames_dir):
+            if target is not None:
+                check_apart(target, dataset.root, what="the converted dataset")
     dataroot = _dataroot(dataset, options.dataroot)
     channel, layout = cameras_to_render(dataset, options.channel)
     rows = load_scene(dataset, options.scene, [c for row in layout for c in row], all_frames=options.all_frames,

@@ -57,6 +57,8 @@ class ReadResult:
 
 
 def version_dir(dataroot: Path | str, version: str) -> Path:
+    if not version or not version.strip() or "/" in version or version in (".", ".."):
+        raise UsageError(f"--version must name the version folder inside the dataroot (e.g. v1.0-mini), got {version!r}")
     dataroot = Path(dataroot)
     if not dataroot.is_dir():
         raise UsageError(f"dataroot {dataroot} is not a directory")

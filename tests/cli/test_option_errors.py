@@ -1,0 +1,53 @@
+"""Bad option values and damaged outputs end as one clear message with the right exit code, never a traceback,
+and never write into the converted dataset."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+
+from conftest import SYNTH_VERSION
+from nuparquet.cli.main import main
+
+
+@pytest.mark.parametrize("args, message", [
+    (["stats", "{out}", "--bin-width", "0"], "--bin-width must be a positive number"),
+    (["stats", "{out}", "--bin-width", "-5"], "--bin-width must be a positive number"),
+    (["stats", "{out}", "--bin-width", "nan"], "--bin-width must be a positive number"),
+    (["stats", "{out}", "--max-rows", "0"], "--max-rows must be at least 1"),
+    (["render", "{out}", "--scene", "scene-0001", "--out", "{tmp}"], "is a directory"),
+    (["render", "{out}", "--scene", "scene-0001", "--out", "{out}/manifest.json"], "inside the converted dataset"),
+    (["render", "{out}", "--scene", "scene-0001", "--frames-dir", "{out}/rendered"], "inside the converted dataset"),
+    (["validate", "{root}", "--version", ""], "--version must name the version folder"),
+    (["validate", "{root}", "--version", ".."], "--version must name the version folder"),
+    (["convert", "{root}", "--version", " ", "--out", "{tmp}/x"], "--version must name the version folder"),
+])
+def test_usage_errors_exit_2_with_the_reason(synth_root, synth_out, tmp_path, capsys, args, message):
+    copy = tmp_path / "out"
+    shutil.copytree(synth_out, copy)
+    before = (copy / "manifest.json").read_bytes()
+    filled = [a.format(out=copy, tmp=tmp_path, root=synth_root) for a in args]
+    assert main(filled) == 2
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err
+    assert (copy / "manifest.json").read_bytes() == before and not (copy / "rendered").exists()
+
+
+@pytest.mark.parametrize("damage, message", [
+    (b"\xae\xff\x00", "cannot be read as text"),
+    (b"{not json", "is not valid JSON"),
+    (b'{"format": "nuparquet", "format_version": "1", "datasets": {"frames": {}}}', "no integer format_version"),
+    (b'{"format": "nuparquet", "format_version": 1, "datasets": {}}', "lists no datasets"),
+])
+@pytest.mark.parametrize("command", [["info"], ["stats"], ["sql", "SELECT 1"], ["export-json"]])
+def test_a_damaged_manifest_is_a_clear_error_naming_it(synth_out, tmp_path, capsys, damage, message, command):
+    copy = tmp_path / "out"
+    shutil.copytree(synth_out, copy)
+    (copy / "manifest.json").write_bytes(damage)
+    args = [command[0], str(copy), *command[1:]]
+    if command[0] == "export-json":
+        args += ["--out", str(tmp_path / "json")]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "manifest.json" in err and message in err and "Traceback" not in err
