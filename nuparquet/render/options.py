@@ -25,6 +25,13 @@ DEFAULT_CRF = 23  # x264 quality: visually clean at a modest size
 DEFAULT_PRESET = "veryfast"  # encoding speed vs size; faster presets leave the 2 cores to decoding
 
 
+def existing_frames(folder: Path) -> list[Path]:
+    """The frame images a render wrote into `folder` before (00000.jpg, ...)."""
+    if not folder.is_dir():
+        return []
+    return sorted(p for p in folder.iterdir() if p.suffix in (".jpg", ".png") and p.stem.isdigit() and len(p.stem) == 5)
+
+
 @dataclass
 class RenderOptions:
     """What to render and how (see each field's help; the CLI flags of `nuparquet render` one to one)."""
@@ -39,6 +46,7 @@ class RenderOptions:
     frames_dir: str | Path | None = option(
         None, metavar="DIR", help="also (or instead) write each frame as an image: DIR/00000.jpg, ...")
     frame_format: Literal["jpg", "png"] = option("jpg", help="image format for --frames-dir (default jpg)")
+    overwrite: bool = option(False, help="replace the frames a --frames-dir already holds (refused otherwise)")
     all_frames: bool = option(
         False, help="every camera frame (~12 Hz, boxes interpolated between keyframes as the devkit does) instead "
         "of keyframes only (2 Hz). Needs the sweeps/ images")
@@ -77,6 +85,8 @@ class RenderOptions:
         """Raise UsageError for contradictory or out-of-range options."""
         if self.out is None and self.frames_dir is None:
             raise UsageError("nothing to write: give --out FILE.mp4, --frames-dir DIR, or both")
+        if self.frames_dir is not None and not self.overwrite and any(existing_frames(Path(self.frames_dir))):
+            raise UsageError(f"--frames-dir {self.frames_dir} already holds frames; pass --overwrite to replace them")
         if self.out is not None and Path(self.out).is_dir():
             raise UsageError(f"--out {self.out} is a directory; give the video file to write (e.g. scene.mp4)")
         if not (0 < self.scale <= 4):

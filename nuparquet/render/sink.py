@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+
 from concurrent.futures import Executor, Future
 from pathlib import Path
 
 import numpy as np
 
 from nuparquet.render.decode import write_image
+from nuparquet.render.options import existing_frames
 from nuparquet.render.video import VideoWriter
 
 
@@ -26,8 +30,12 @@ class FrameSink:
         self.fps = fps
         self.video, self.crf, self.preset = video, crf, preset
         self.frames_dir, self.frame_format = frames_dir, frame_format
-        if frames_dir is not None:
-            frames_dir.mkdir(parents=True, exist_ok=True)
+        self._frames_partial = None
+        if frames_dir is not None:  # written into a hidden sibling, moved into place by close()
+            frames_dir.parent.mkdir(parents=True, exist_ok=True)
+            self._frames_partial = frames_dir.parent / f".{frames_dir.name}.partial-{os.getpid()}"
+            shutil.rmtree(self._frames_partial, ignore_errors=True)
+            self._frames_partial.mkdir()
         self.written = 0
         self._writer: VideoWriter | None = None
         self._image_writes: list[Future] = []
@@ -39,7 +47,7 @@ class FrameSink:
                                            crf=self.crf, preset=self.preset)
             self._writer.write(picture_bgr)
         if self.frames_dir is not None:
-            target = self.frames_dir / f"{self.written:05d}.{self.frame_format}"
+            target = self._frames_partial / f"{self.written:05d}.{self.frame_format}"
             self._image_writes.append(self.executor.submit(write_image, target, picture_bgr))
         self.written += 1
 
@@ -50,9 +58,24 @@ class FrameSink:
         if self._writer is not None:
             self._writer.close()
             self._writer = None
+        if self._frames_partial is not None:
+            self._frames_partial, partial = None, self._frames_partial
+            if not self.frames_dir.exists():
+                os.rename(partial, self.frames_dir)
+                return
+            for old in existing_frames(self.frames_dir):  # --overwrite was given (options.check refuses otherwise)
+                old.unlink()
+            for new in sorted(partial.iterdir()):
+                os.replace(new, self.frames_dir / new.name)
+            partial.rmdir()
 
     def abort(self) -> None:
         """An error stopped the render: do not leave a truncated MP4 behind."""
         if self._writer is not None:
             self._writer.abort()
             self._writer = None
+        for future in self._image_writes:
+            future.cancel()
+        if self._frames_partial is not None:
+            shutil.rmtree(self._frames_partial, ignore_errors=True)
+            self._frames_partial = None

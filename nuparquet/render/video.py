@@ -6,6 +6,7 @@ taking the whole (N, H, W, 3) video as one array, and with `movflags` set on the
 
 from __future__ import annotations
 
+import os
 from fractions import Fraction
 from pathlib import Path
 
@@ -46,7 +47,8 @@ class VideoWriter:
 
     The size is fixed by the constructor (odd sizes are padded by one pixel, see `even_size`); frames of
     another size are rejected. `crf` is x264's constant rate factor (0 lossless .. 51 worst, 23 default);
-    `preset` trades encoding speed for file size. The file is only complete after `close()`.
+    `preset` trades encoding speed for file size. Frames go to a hidden temporary file beside `path`, renamed
+    to `path` by `close()`: a render killed midway (even by SIGKILL) never leaves a truncated video at `path`.
     """
 
     def __init__(
@@ -66,8 +68,11 @@ class VideoWriter:
         self.input_size = (int(width), int(height))
         self.width, self.height = even_size(int(width), int(height))
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        for stale in self.path.parent.glob(f".{self.path.name}.partial-*"):  # left by a killed render
+            stale.unlink(missing_ok=True)
+        self.partial = self.path.parent / f".{self.path.name}.partial-{os.getpid()}"
         # movflags is a muxer option: on the stream (as av2 sets it) ffmpeg ignores it and moov stays at the end.
-        self._container = av.open(str(self.path), mode="w", format="mp4", options={"movflags": "+faststart"})
+        self._container = av.open(str(self.partial), mode="w", format="mp4", options={"movflags": "+faststart"})
         stream = self._container.add_stream("libx264", rate=frame_rate(fps))
         stream.width, stream.height = self.width, self.height
         stream.pix_fmt = "yuv420p"
@@ -96,6 +101,7 @@ class VideoWriter:
         finally:
             self._container.close()
             self._container = None
+        os.replace(self.partial, self.path)
 
     def abort(self) -> None:
         """Close without flushing and delete the partial file."""
@@ -105,7 +111,7 @@ class VideoWriter:
             except Exception:  # noqa: BLE001 - the file is being thrown away
                 pass
             self._container = None
-        self.path.unlink(missing_ok=True)
+        self.partial.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoWriter:
         return self
