@@ -13,8 +13,9 @@ from nuparquet.channels import reference_lidar
 
 def as_int(df: pl.DataFrame, *columns: str) -> pl.DataFrame:
     """Integer fields the source stored as JSON floats (kept as float64 in tables/) as int64 for the joins;
-    NaN and infinities (Lyft writes `"width": NaN` for lidar rows) become null."""
-    return df.with_columns([pl.when(pl.col(c).is_finite()).then(pl.col(c).round(0)).cast(pl.Int64).alias(c)
+    NaN, infinities (Lyft writes `"width": NaN` for lidar rows) and values beyond int64 become null."""
+    in_range = lambda c: pl.col(c).is_finite() & (pl.col(c).abs() < 2.0**63)  # noqa: E731
+    return df.with_columns([pl.when(in_range(c)).then(pl.col(c).round(0)).cast(pl.Int64).alias(c)
                             for c in columns if df.schema[c].is_float()])
 
 

@@ -182,6 +182,9 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
     # `_json_types`); one fraction or NaN makes the whole column float64 (its integers marked the same way).
     floats_seen = [f for f in scalars if f.json_float_ok and "DOUBLE" in seen[f.name]]
     float_fields = [f.name for f in floats_seen if not layouts_.all_integral(con, objects, _json_path(f.name))]
+    for f in floats_seen:  # a required integer (a timestamp) may be written as a float, but must be a usable one
+        if f.required and f.name in float_fields:
+            problems += _diagnose_unusable_floats(con, objects, file, f)
     for f in scalars:
         allowed = set(_allowed_kinds(f))
         if f.name in present and not seen[f.name] <= allowed:
@@ -258,6 +261,20 @@ def _diagnose_scalar(con: duckdb.DuckDBPyConnection, objects: str, file: str, f:
     if len(rows) > limit:
         problems.append(Problem(file, f"{len(rows) - limit} more records with a bad {f.name!r}", omitted=len(rows) - limit))
     return problems
+
+
+def _diagnose_unusable_floats(con: duckdb.DuckDBPyConnection, objects: str, file: str, f: Field,
+                              limit: int = 50) -> list[Problem]:
+    """Records whose required integer field holds NaN, an infinity or a value beyond int64."""
+    path = _json_path(f.name)
+    rows = con.sql(f"""
+        SELECT idx, token, value FROM (
+            SELECT row_number() OVER () - 1 AS idx, json_extract_string(json, '$.token') AS token,
+                   json_extract(json, {path})::VARCHAR AS value, json_extract(json, {path})::DOUBLE AS v FROM {objects}
+            WHERE json_type(json, {path}) = 'DOUBLE')
+        WHERE isnan(v) OR isinf(v) OR abs(v) >= 9.2e18 ORDER BY idx LIMIT {limit}""").fetchall()
+    return [Problem(file, f"field {f.name!r} must be an integer, got {value[:40]}", idx, token)
+            for idx, token, value in rows]
 
 
 def _sql_ident(name: str) -> str:
