@@ -2,11 +2,25 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from nuparquet.errors import InputError
 
 MAX_REPORTED = 50  # problems printed per run; the rest are counted
+ECHO_CHARS = 100  # a value quoted in a message is cut to about this many characters
+
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029]")
+
+
+def echo(value, limit: int = ECHO_CHARS, *, quote: bool = True) -> str:
+    """`value` as quoted in a message: its repr (`quote=False`: the text as it is, e.g. a JSON fragment), control
+    characters escaped, cut to about `limit` characters (a 4 MB string in the data must not fill the terminal; an
+    escape sequence must not reach it raw)."""
+    text = repr(value) if isinstance(value, str) and quote else str(value)
+    text = _CONTROL.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), text)
+    length = len(value) if isinstance(value, str) else len(text)
+    return text if len(text) <= limit else f"{text[:limit]}... ({length:,} characters)"
 
 
 @dataclass(frozen=True)
@@ -22,7 +36,9 @@ class Problem:
         where = self.file if self.index is None else f"{self.file}[{self.index}]"
         if self.token is not None:
             where += f" token={self.token}"
-        return f"{'warning: ' if self.warning else ''}{where}: {self.message}"
+        # control characters from the data never reach the terminal raw, whatever the message quotes
+        text = _CONTROL.sub(lambda m: m.group(0).encode("unicode_escape").decode("ascii"), f"{where}: {self.message}")
+        return f"{'warning: ' if self.warning else ''}{text}"
 
 
 def split_warnings(problems: list[Problem]) -> tuple[list[Problem], list[Problem]]:

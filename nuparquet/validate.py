@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import polars as pl
 
-from nuparquet.problems import MAX_REPORTED, Problem
+from nuparquet.problems import MAX_REPORTED, Problem, echo
 from nuparquet.schemas import table_schemas
 
 QUATERNION_NORM_TOLERANCE = 1e-6
@@ -52,7 +52,7 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) 
             if f.empty_ok:
                 values = values.filter(pl.col("_ref") != "")
             dangling = values.join(targets, on="_ref", how="anti").sort("_idx")
-            report(name, dangling, lambda r, f=f: f"{f.name} {r['_ref']!r} does not resolve to a {f.ref} record")
+            report(name, dangling, lambda r, f=f: f"{f.name} {echo(r['_ref'])} does not resolve to a {f.ref} record")
         for f in schema.fields:
             if f.quaternion and f.name in df.columns:
                 q = df.select("_idx", "token", pl.col(f.name).arr.to_list().alias("_q"))

@@ -29,7 +29,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 
 from nuparquet.errors import UsageError
-from nuparquet.problems import Problem
+from nuparquet.problems import Problem, echo
 from nuparquet.schemas import Field, Schema, table_schemas
 from nuparquet.sources import table_layouts as layouts_
 
@@ -254,7 +254,7 @@ def _diagnose_scalar(con: duckdb.DuckDBPyConnection, objects: str, file: str, f:
     rows = con.sql(query).fetchall()
     problems = []
     for idx, token, kind, value in rows[:limit]:
-        got = "a missing value or null" if kind in (None, "NULL") else f"{value}"
+        got = "a missing value or null" if kind in (None, "NULL") else echo(value, quote=False)
         if f.type == "int64" and kind == "DOUBLE":
             got += " (not an integer: it would be truncated)"
         problems.append(Problem(file, f"field {f.name!r} must be {_SCALAR_WORDS[f.type]}, got {got}", idx, token))
@@ -273,7 +273,7 @@ def _diagnose_unusable_floats(con: duckdb.DuckDBPyConnection, objects: str, file
                    json_extract(json, {path})::VARCHAR AS value, json_extract(json, {path})::DOUBLE AS v FROM {objects}
             WHERE json_type(json, {path}) = 'DOUBLE')
         WHERE isnan(v) OR isinf(v) OR abs(v) >= 9.2e18 ORDER BY idx LIMIT {limit}""").fetchall()
-    return [Problem(file, f"field {f.name!r} must be an integer, got {value[:40]}", idx, token)
+    return [Problem(file, f"field {f.name!r} must be an integer, got {echo(value, 40, quote=False)}", idx, token)
             for idx, token, value in rows]
 
 
@@ -316,7 +316,7 @@ def _diagnose_field(con: duckdb.DuckDBPyConnection, src: str, file: str, f: Fiel
             FROM {src}, columns={{token: 'JSON', {col}: 'JSON'}}))
         WHERE structure IS NULL OR structure NOT IN ({allowed})
         ORDER BY idx LIMIT {limit}"""
-    return [Problem(file, f"field {f.name!r} must be {word}, got {'a missing value' if value is None else value[:80]}",
+    return [Problem(file, f"field {f.name!r} must be {word}, got {'a missing value' if value is None else echo(value, quote=False)}",
                     idx, token)
             for idx, token, value in con.sql(query).fetchall()]
 

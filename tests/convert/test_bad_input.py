@@ -292,3 +292,19 @@ def test_an_output_that_appears_during_the_conversion_is_never_replaced(root, tm
     assert "appeared while the output was being written" in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == ["theirs.txt"]
     assert list(tmp_path.glob(".out*")) == []  # no partial folder left behind
+
+
+def test_echoed_values_are_cut_and_escaped(root, tmp_path, capsys):
+    """A 100,000-character token with a terminal escape sequence: the message names the record, quotes at most
+    about 100 characters of it, and no control character reaches the terminal."""
+    records = load(root, "sample")
+    records[1]["scene_token"] = "\x1b[31m" + "x" * 100_000
+    save(root, "sample", records)
+    records = load(root, "sensor")
+    records[0]["channel"] = 7
+    save(root, "sensor", records)
+    assert main(["validate", str(root), "--version", V, "--quiet"]) == 1
+    out = capsys.readouterr().out
+    assert "sample.json[1]" in out and "\\x1b[31m" in out and "\x1b" not in out
+    assert max(len(line) for line in out.splitlines()) < 400
+    assert "(100,005 characters)" in out
