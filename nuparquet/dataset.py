@@ -154,6 +154,20 @@ class Dataset:
         location = Path(self.location(name))
         return [(str(p), p.stat().st_size) for p in sorted(location.rglob("*.parquet"))]
 
+    def damaged_files(self) -> list[tuple[str, str]]:
+        """Parquet files of this output whose footer cannot be read (truncated, overwritten), with the reason.
+        Reads footers only (local directories only)."""
+        import pyarrow.parquet as pq
+
+        damaged = []
+        for name in self.datasets:
+            for path, _ in self.files(name):
+                try:
+                    pq.read_metadata(path)
+                except Exception as exc:  # noqa: BLE001 - any unreadable footer is what we look for
+                    damaged.append((path, str(exc).splitlines()[0] if str(exc) else type(exc).__name__))
+        return damaged
+
     def sql_names(self) -> dict[str, str]:
         """Every SQL name `sql` registers, mapped to the dataset it stands for."""
         names = {name: name for name in self.datasets}
@@ -190,6 +204,9 @@ class Dataset:
             return result if lazy else result.collect()
         except pl.exceptions.PolarsError as exc:
             message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            damaged = self.damaged_files() if "parquet" in message.lower() and not self.is_remote else []
+            if damaged:
+                raise FormatError(f"{damaged[0][0]} is damaged ({damaged[0][1]}); convert the dataset again") from exc
             hint = ""
             lowered = message.lower()
             if "not found" in lowered and ("relation" in lowered or "table" in lowered):

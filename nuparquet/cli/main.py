@@ -38,6 +38,28 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # a damaged output (a truncated Parquet file) is named, not shown as a traceback
+        damaged = _damaged_files(args)
+        if not damaged:
+            raise
+        path, reason = damaged[0]
+        more = f" (and {len(damaged) - 1} more)" if len(damaged) > 1 else ""
+        print(f"error: {path} is damaged ({reason}){more}; convert the dataset again", file=sys.stderr)
+        return 1
+
+
+def _damaged_files(args) -> list[tuple[str, str]]:
+    """Unreadable Parquet files of the converted output the command was reading, if any."""
+    target = getattr(args, "out", None) if args.command in ("info", "stats", "sql") else getattr(args, "dataset", None)
+    if target is None:
+        return []
+    try:
+        from nuparquet.dataset import open_dataset
+
+        ds = open_dataset(target)
+        return [] if ds.is_remote else ds.damaged_files()
+    except Exception:  # noqa: BLE001 - the original error is the one to show then
+        return []
 
 
 if __name__ == "__main__":

@@ -51,3 +51,17 @@ def test_a_damaged_manifest_is_a_clear_error_naming_it(synth_out, tmp_path, caps
     assert main(args) == 1
     err = capsys.readouterr().err
     assert "manifest.json" in err and message in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("command", [["info"], ["stats"], ["sql", "SELECT count(*) AS n FROM annotations"],
+                                     ["render", "--scene", "scene-0001", "--out", "{tmp}/x.mp4", "--quiet"]])
+def test_a_truncated_parquet_file_is_named(synth_out, tmp_path, capsys, command):
+    copy = tmp_path / "out"
+    shutil.copytree(synth_out, copy)
+    damaged = sorted((copy / "annotations").glob("*.parquet"))[0]
+    damaged.write_bytes(damaged.read_bytes()[:1000])
+    args = [command[0], str(copy), *(a.format(tmp=tmp_path) for a in command[1:])]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert f"{damaged} is damaged" in err and "convert the dataset again" in err and "Traceback" not in err
+    assert not (tmp_path / "x.mp4").exists()
