@@ -34,6 +34,7 @@ class CameraTile:
     overlay: Overlay
     style: DrawStyle
     lidar: LidarPoints | None = None
+    image_size_px: np.ndarray | None = None  # (F, 2) width, height of each row's image as its sample_data says
 
     def key(self, t: int) -> int | None:
         row = int(self.rows[t])
@@ -43,7 +44,8 @@ class CameraTile:
         row = self.key(t)
         if row is None:
             return TileLoad()
-        image = decode_image(self.paths[row], self.tile_size, float(self.decode_scale[row]))
+        expected = None if self.image_size_px is None else tuple(int(v) for v in self.image_size_px[row])
+        image = decode_image(self.paths[row], self.tile_size, float(self.decode_scale[row]), expected)
         if image is None:
             return TileLoad(None, (self.paths[row],))
         points, missing = self.lidar.load(row) if self.lidar is not None else (None, None)

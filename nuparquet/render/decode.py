@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import stat
+
 from pathlib import Path
 
 import cv2
@@ -17,25 +20,44 @@ def reduced_decode_flag(scale: float) -> tuple[int, int]:
     return cv2.IMREAD_COLOR, 1
 
 
-def decode_image(path: str, size: tuple[int, int], scale: float) -> np.ndarray | None:
-    """Read an image file resized to `size` (width, height), or None if it is missing or not decodable.
+def decode_image(path: str, size: tuple[int, int], scale: float,
+                 expected_px: tuple[int, int] | None = None) -> np.ndarray | None:
+    """Read an image file resized to `size` (width, height), or None if it is missing, not a regular file (a named
+    pipe would block the read forever), damaged (a JPEG cut short decodes with grey rows: refused), or not of the
+    `expected_px` size (width, height) its sample_data says (the intrinsic would not fit it).
 
     JPEGs are decoded directly at 1/2, 1/4 or 1/8 size when `scale` (output size / file size) allows
     (libjpeg's DCT scaling: several times cheaper than a full decode), then resized with area averaging.
     """
     try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            return None
         data = np.fromfile(path, dtype=np.uint8)
     except OSError:
         return None
     if data.size == 0:
         return None
-    flag, _ = reduced_decode_flag(scale)
+    if path.lower().endswith((".jpg", ".jpeg")) and not _jpeg_complete(data):
+        return None
+    flag, divisor = reduced_decode_flag(scale)
     image = cv2.imdecode(data, flag)
     if image is None:
         return None
+    if expected_px is not None and expected_px[0] > 0:
+        want = (-(-expected_px[0] // divisor), -(-expected_px[1] // divisor))  # libjpeg rounds reduced sizes up
+        if abs(image.shape[1] - want[0]) > 1 or abs(image.shape[0] - want[1]) > 1:
+            return None
     if image.shape[1] != size[0] or image.shape[0] != size[1]:
         image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
     return image
+
+
+def _jpeg_complete(data: np.ndarray) -> bool:
+    """A JPEG starts with SOI (FF D8) and ends with EOI (FF D9), allowing a little padding after it."""
+    if data.size < 4 or data[0] != 0xFF or data[1] != 0xD8:
+        return False
+    tail = data[-32:].tobytes()
+    return b"\xff\xd9" in tail
 
 
 def write_image(path: Path, image_bgr: np.ndarray) -> None:

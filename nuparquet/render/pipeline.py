@@ -72,6 +72,15 @@ def _dataroot(dataset, given) -> Path:
     return dataroot
 
 
+def _image_path(dataroot: Path, filename: str) -> str:
+    """The image file of a frame; a filename that leaves the dataroot ("../..", an absolute path) is refused: it is
+    reported as unreadable under a name that says why."""
+    relative = Path(filename)
+    if relative.is_absolute() or ".." in relative.parts:
+        return f"{dataroot / filename} (outside the dataroot: refused)"
+    return str(dataroot / relative)
+
+
 def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic: bool, all_frames: bool,
                 fps: float, clip: bool = False, labels: str = "category") -> TilePlan:
     """The tile plan of a camera render: the cameras built and every box projected once, one `CameraTile` per
@@ -90,11 +99,12 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
     channels = [channel for row in layout for channel in row]
     times_us, plan_rows = camera_rows_per_output(cameras, rows.samples, channels, mosaic=mosaic,
                                                  all_frames=all_frames, fps=fps)
-    paths = [str(dataroot / name) for name in cameras["filename"].to_list()]
+    paths = [_image_path(dataroot, name) for name in cameras["filename"].to_list()]
+    image_size_px = np.stack([cameras["width"].to_numpy(), cameras["height"].to_numpy()], axis=1)
     decode_scale = np.max(tile_cameras.scale, axis=1)  # the decoded image must cover the tile on both axes
     style = DrawStyle.for_scale(scale)
-    tiles = iter(CameraTile(channel, plan_rows[:, column], paths, decode_scale, size, overlay, style, lidar)
-                 for column, channel in enumerate(channels))
+    tiles = iter(CameraTile(channel, plan_rows[:, column], paths, decode_scale, size, overlay, style, lidar,
+                            image_size_px) for column, channel in enumerate(channels))
     return TilePlan(times_us, tuple(tuple(next(tiles) for _ in row) for row in layout), size)
 
 
