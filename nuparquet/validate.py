@@ -15,6 +15,9 @@ QUATERNION_NORM_TOLERANCE = 1e-6
 # Norms this close to 1 are accepted with a warning: quaternions written to 4 decimals (norm 0.99997) are unit
 # quaternions to the devkit, which normalises them (pyquaternion), and so does nuparquet's geometry.
 QUATERNION_NEAR_UNIT = 1e-3
+# Timestamps are microseconds since 1970 (nuScenes, Lyft, T4); values outside 2000..2100 in that unit are in
+# another unit. They convert (the data is kept as it is), with a warning naming the field and the range.
+PLAUSIBLE_TIMESTAMP_US = (946_684_800_000_000, 4_102_444_800_000_000)
 
 # Counts stored in one table that must equal the number of referring records in another:
 # (table, count field, referring table, referring field).
@@ -63,6 +66,7 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) 
                 near = norm.filter(pl.col("_n").is_finite() & (off > QUATERNION_NORM_TOLERANCE) & (off <= QUATERNION_NEAR_UNIT))
                 report(name, near, lambda r, f=f: f"{f.name} {r['_q']} has norm {r['_n']:.6f}, not 1 to 1e-6: accepted "
                                                   "and normalised (as the devkit does)", warning=True)
+    problems += _timestamp_units(frames, files)
     for table, count_field, referring, ref_field in _COUNTS:
         if table not in frames or referring not in frames:
             continue
@@ -72,3 +76,21 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) 
         bad = joined.filter(pl.col(count_field) != pl.col("_actual"))
         report(table, bad, lambda r, c=count_field, ref=referring: f"{c} is {r[c]} but {r['_actual']} {ref} records refer to it")
     return problems
+
+
+def _timestamp_units(frames: dict[str, pl.DataFrame], files: dict[str, str]) -> list[Problem]:
+    """A warning per table whose `timestamp` values are not plausible microseconds, with a guess at their unit."""
+    warnings = []
+    low, high = PLAUSIBLE_TIMESTAMP_US
+    for name, df in frames.items():
+        if "timestamp" not in df.columns or df.height == 0 or not df.schema["timestamp"].is_numeric():
+            continue
+        lo, hi = df["timestamp"].min(), df["timestamp"].max()
+        if lo is None or (low <= lo and hi <= high):
+            continue
+        scale = hi if hi > high else lo
+        unit = ("nanoseconds" if scale > high * 100 else "milliseconds" if scale < low / 100 and scale > low / 1e5
+                else "seconds" if scale < low / 1e5 else "another unit")
+        warnings.append(Problem(files[name], f"timestamp values {lo:g}..{hi:g} are not microseconds between 2000 and "
+                                             f"2100 (they look like {unit}); converted as they are", warning=True))
+    return warnings

@@ -36,9 +36,17 @@ def _decimals(column: pl.Series) -> int:
     return 3 if largest < 10 else 2 if largest < 10_000 else 1
 
 
+def _datetimes_as_text(df: pl.DataFrame) -> pl.DataFrame:
+    """Datetime columns as ISO 8601 text, formatted by polars: Python's datetime stops at year 9999, and timestamps
+    in the wrong unit (nanoseconds read as microseconds) land far beyond it; they must print, not crash."""
+    columns = [pl.col(name).dt.to_string("%Y-%m-%dT%H:%M:%S%.6f") for name, dtype in df.schema.items()
+               if isinstance(dtype, pl.Datetime)]
+    return df.with_columns(columns) if columns else df
+
+
 def format_table(df: pl.DataFrame, *, max_rows: int | None = None) -> str:
     """Plain-text table: left-aligned strings, right-aligned numbers, no wrapping."""
-    rows = df.head(max_rows) if max_rows is not None else df
+    rows = _datetimes_as_text(df.head(max_rows) if max_rows is not None else df)
     numeric = [dtype.is_numeric() for dtype in df.dtypes]
     decimals = [_decimals(rows[name]) if dtype.is_float() else 3 for name, dtype in rows.schema.items()]
     cells = [[_cell(v, d) for v, d in zip(row, decimals)] for row in rows.iter_rows()]
