@@ -32,6 +32,7 @@ from nuparquet.errors import UsageError
 from nuparquet.problems import Problem, echo
 from nuparquet.schemas import Field, Schema, table_schemas
 from nuparquet.sources import table_layouts as layouts_
+from nuparquet.sources.strict_json import strict_problem
 
 
 
@@ -151,6 +152,9 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
     if head == "[]":
         empty = pa.table({f.name: pa.array([], f.arrow_type) for f in schema.fields})
         return SourceTable(schema.name, path, empty, schema.names), []
+    invalid = strict_problem(path)  # DuckDB would read a trailing comma or a bare `nan` without a word
+    if invalid is not None:
+        return None, [invalid]
 
     objects = f"read_json_objects({_sql_path(path)}, format='array', maximum_object_size=1073741824)"
     scalars = [f for f in schema.fields if f.type in _SCALAR_KINDS]

@@ -308,3 +308,28 @@ def test_echoed_values_are_cut_and_escaped(root, tmp_path, capsys):
     assert "sample.json[1]" in out and "\\x1b[31m" in out and "\x1b" not in out
     assert max(len(line) for line in out.splitlines()) < 400
     assert "(100,005 characters)" in out
+
+
+@pytest.mark.parametrize("edit, position", [
+    (lambda text: text.replace("}]", "},\n]", 1) if text.rstrip().endswith("}]") else text[:-2] + ",\n]\n",
+     "not valid JSON at line"),
+    (lambda text: text.replace('"timestamp": ', '"timestamp": nan, "x": ', 1), "not valid JSON at line 4, column 14"),
+])
+def test_invalid_json_that_duckdb_would_accept_is_refused_with_its_position(root, tmp_path, capsys, edit, position):
+    path = root / V / "sample.json"
+    path.write_text(edit(path.read_text()))
+    assert main(["convert", str(root), "--version", V, "--out", str(tmp_path / "out"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert "sample.json: " + position in err and not (tmp_path / "out").exists()
+
+
+def test_nan_and_infinity_literals_are_valid_json_here(root, tmp_path):
+    """Python's json (and the devkit) read NaN and Infinity: a float field holding them converts and comes back."""
+    path = root / V / "ego_pose.json"
+    records = json.loads(path.read_text())
+    records[0]["extra"] = [math.nan, math.inf, -math.inf]
+    path.write_text(json.dumps(records))
+    assert main(["convert", str(root), "--version", V, "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert main(["export-json", str(tmp_path / "out"), "--out", str(tmp_path / "back"), "--quiet"]) == 0
+    again = json.loads((tmp_path / "back" / V / "ego_pose.json").read_text())
+    assert json.dumps(again[0]) == json.dumps(records[0])
