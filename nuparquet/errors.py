@@ -21,3 +21,8 @@ class FormatError(NuparquetError):
 
 class QueryError(NuparquetError):
     """A SQL query that polars cannot plan or run (syntax error, unknown table or column): exit code 1."""
+
+
+class EnvironmentFault(NuparquetError):
+    """The machine refused a file operation (a read-only folder, a file where a folder should be, a full disk):
+    one line naming the path and the reason, exit code 1."""

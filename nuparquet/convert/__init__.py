@@ -23,6 +23,7 @@ from nuparquet.convert.registry import BUILDERS, BuildContext
 from nuparquet.convert.run import build_datasets, count_steps
 from nuparquet.convert.write import atomic_directory, check_apart, check_target, utc_now, write_manifest, write_parquet
 from nuparquet.format import FORMAT_NAME, FORMAT_VERSION
+from nuparquet.errors import EnvironmentFault
 from nuparquet.problems import Problem, ProblemsFound, split_warnings
 from nuparquet.progress import OnProgress, Reporter
 from nuparquet.schemas import fingerprint, table_schemas
@@ -53,6 +54,14 @@ def convert(dataroot: Path | str, version: str, out: Path | str, *, on_progress:
     opts = ConvertOptions(version=version, out=str(out), **options)
     check_apart(out, dataroot, what="the dataroot")
     check_target(out, overwrite=opts.overwrite)
+    try:
+        return _convert(dataroot, version, out, opts, on_progress)
+    except OSError as exc:  # the machine refused (read-only folder, full disk): the partial output is already gone
+        raise EnvironmentFault(f"{exc.filename or out}: {exc.strerror or exc}") from exc
+
+
+def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertOptions,
+             on_progress: OnProgress | None) -> dict:
     with Reporter(on_progress, "convert", total=2 * len(table_schemas()) + 2) as reporter, \
             atomic_directory(Path(out), overwrite=opts.overwrite) as tmp:
         result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"))

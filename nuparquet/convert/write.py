@@ -20,7 +20,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from nuparquet.errors import UsageError
+from nuparquet.errors import EnvironmentFault, UsageError
 from nuparquet.format import MANIFEST
 
 PART_NAME = "part-00000.parquet"
@@ -115,6 +115,12 @@ def utc_now() -> str:
 def check_target(out: Path | str, *, overwrite: bool) -> Path:
     """Refuse an existing output unless told to replace it (call before doing the work, to fail fast)."""
     out = Path(out).absolute()
+    if out.is_symlink() and not out.exists():
+        raise EnvironmentFault(f"{out} is a symbolic link to {os.readlink(out)}, which does not exist; remove the link "
+                               "or choose another output path")
+    blocking = next((p for p in out.parents if p.exists() and not p.is_dir()), None)
+    if blocking is not None:
+        raise EnvironmentFault(f"cannot create {out}: {blocking} is a file, not a folder")
     if out.exists() and not overwrite:
         raise UsageError(f"{out} already exists; pass --overwrite to replace it")
     if out.exists() and not out.is_dir():
