@@ -26,14 +26,16 @@ from typing import Callable
 
 import duckdb
 import pyarrow as pa
-import pyarrow.compute as pc
 
 from nuparquet.errors import UsageError
-from nuparquet.problems import Problem, echo
+from nuparquet.problems import Problem
 from nuparquet.schemas import Field, Schema, table_schemas
 from nuparquet.sources import table_layouts as layouts_
 from nuparquet.sources.strict_json import strict_problem
-
+from nuparquet.sources.table_diagnostics import (
+    diagnose_field, diagnose_scalar, diagnose_unusable_floats, json_path, sql_ident,
+)
+from nuparquet.sources.table_types import to_schema_types
 
 
 @dataclass
@@ -158,7 +160,7 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
 
     objects = f"read_json_objects({_sql_path(path)}, format='array', maximum_object_size=1073741824)"
     scalars = [f for f in schema.fields if f.type in _SCALAR_KINDS]
-    paths = "[" + ", ".join(_json_path(f.name) for f in scalars) + "]"
+    paths = "[" + ", ".join(json_path(f.name) for f in scalars) + "]"
     float_lists = [f for f in schema.fields if layouts_.is_float_list(f)]
     ints_in_lists = "[" + ", ".join(layouts_.has_int_elements(f) for f in float_lists) + "]" if float_lists else "[]"
     try:  # pass 1: the layouts of all records: their keys, the JSON type of every scalar field, integers in float lists
@@ -185,14 +187,14 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
     # An integer field with JSON floats stays integer when every float is integral (each keeps its float form through
     # `_json_types`); one fraction or NaN makes the whole column float64 (its integers marked the same way).
     floats_seen = [f for f in scalars if f.json_float_ok and "DOUBLE" in seen[f.name]]
-    float_fields = [f.name for f in floats_seen if not layouts_.all_integral(con, objects, _json_path(f.name))]
+    float_fields = [f.name for f in floats_seen if not layouts_.all_integral(con, objects, json_path(f.name))]
     for f in floats_seen:  # a required integer (a timestamp) may be written as a float, but must be a usable one
         if f.required and f.name in float_fields:
-            problems += _diagnose_unusable_floats(con, objects, file, f)
+            problems += diagnose_unusable_floats(con, objects, file, f)
     for f in scalars:
         allowed = set(_allowed_kinds(f))
         if f.name in present and not seen[f.name] <= allowed:
-            problems += _diagnose_scalar(con, objects, file, f, allowed)
+            problems += diagnose_scalar(con, objects, file, f, allowed)
     if problems:
         return None, problems
 
@@ -200,15 +202,15 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
     fields = [f for f in schema.fields if f.name in present]
     columns = {f.name: "DOUBLE" if f.name in float_fields else _duckdb_type(f) for f in fields}
     columns |= dict.fromkeys(extras, "JSON")
-    spec = "{" + ", ".join(f"{_sql_ident(k)}: '{v}'" for k, v in columns.items()) + "}"
+    spec = "{" + ", ".join(f"{sql_ident(k)}: '{v}'" for k, v in columns.items()) + "}"
     src = f"read_json({_sql_path(path)}, format='array', records=true, maximum_object_size=1073741824"
     try:
         raw = con.sql(f"SELECT * FROM {src}, columns={spec})").to_arrow_table()
     except duckdb.Error as exc:  # a list field of the wrong shape: name the records
         problems = [p for f in fields if f.type.startswith(("list", "fixed_size_list"))
-                    for p in _diagnose_field(con, src, file, f)]
+                    for p in diagnose_field(con, src, file, f)]
         return None, problems or [Problem(file, _duckdb_message(exc))]
-    table, problems = _to_schema_types(raw, schema, file, float_fields)
+    table, problems = to_schema_types(raw, schema, file, float_fields)
     if problems:
         return None, problems
     marks = {}
@@ -216,9 +218,9 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
         kinds = seen.get(f.name, set())
         if f.type == "float64" or f.name in float_fields:
             if kinds & {"UBIGINT", "BIGINT"} and kinds & {"DOUBLE"}:
-                marks[f.name] = (_json_path(f.name), layouts_.INTS.replace("[", "(").replace("]", ")"))
+                marks[f.name] = (json_path(f.name), layouts_.INTS.replace("[", "(").replace("]", ")"))
         elif f.name in {g.name for g in floats_seen}:
-            marks[f.name] = (_json_path(f.name), "('DOUBLE')")
+            marks[f.name] = (json_path(f.name), "('DOUBLE')")
     several = len({tuple(keys) for _, keys, *_ in layouts}) > 1 or list(layouts[0][1]) != key_order
     record_layouts = [key_order]
     if marks or list_ints or several:
@@ -231,58 +233,12 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
 
 _SCALAR_KINDS = {"string": ("VARCHAR",), "bool": ("BOOLEAN",), "int64": ("UBIGINT", "BIGINT"),
                  "float64": ("UBIGINT", "BIGINT", "DOUBLE")}
-_SCALAR_WORDS = {"string": "a string", "bool": "a boolean", "int64": "an integer", "float64": "a number"}
 
 
 def _allowed_kinds(f: Field) -> tuple[str | None, ...]:
     """JSON types (duckdb json_type; None for an absent key) field `f` may hold."""
     kinds: tuple[str | None, ...] = _SCALAR_KINDS[f.type] + (("DOUBLE",) if f.json_float_ok else ())
     return kinds if f.required else kinds + ("NULL", None)
-
-
-def _json_path(name: str) -> str:
-    return "'$.\"" + name.replace("'", "''").replace('"', '\\"') + "\"'"
-
-
-def _diagnose_scalar(con: duckdb.DuckDBPyConnection, objects: str, file: str, f: Field, allowed: set,
-                     limit: int = 50) -> list[Problem]:
-    """Every record whose scalar field `f` has a JSON type outside `allowed` (the slow path, only on error)."""
-    kinds = ", ".join(f"'{k}'" for k in allowed if k is not None)
-    path = _json_path(f.name)
-    where = f"kind IS NULL OR kind NOT IN ({kinds})" if None not in allowed else f"kind NOT IN ({kinds})"
-    query = f"""
-        SELECT idx, token, kind, value FROM (
-            SELECT row_number() OVER () - 1 AS idx, json_extract_string(json, '$.token') AS token,
-                   json_type(json, {path}) AS kind, json_extract(json, {path})::VARCHAR AS value FROM {objects})
-        WHERE {where} ORDER BY idx"""
-    rows = con.sql(query).fetchall()
-    problems = []
-    for idx, token, kind, value in rows[:limit]:
-        got = "a missing value or null" if kind in (None, "NULL") else echo(value, quote=False)
-        if f.type == "int64" and kind == "DOUBLE":
-            got += " (not an integer: it would be truncated)"
-        problems.append(Problem(file, f"field {f.name!r} must be {_SCALAR_WORDS[f.type]}, got {got}", idx, token))
-    if len(rows) > limit:
-        problems.append(Problem(file, f"{len(rows) - limit} more records with a bad {f.name!r}", omitted=len(rows) - limit))
-    return problems
-
-
-def _diagnose_unusable_floats(con: duckdb.DuckDBPyConnection, objects: str, file: str, f: Field,
-                              limit: int = 50) -> list[Problem]:
-    """Records whose required integer field holds NaN, an infinity or a value beyond int64."""
-    path = _json_path(f.name)
-    rows = con.sql(f"""
-        SELECT idx, token, value FROM (
-            SELECT row_number() OVER () - 1 AS idx, json_extract_string(json, '$.token') AS token,
-                   json_extract(json, {path})::VARCHAR AS value, json_extract(json, {path})::DOUBLE AS v FROM {objects}
-            WHERE json_type(json, {path}) = 'DOUBLE')
-        WHERE isnan(v) OR isinf(v) OR abs(v) >= 9.2e18 ORDER BY idx LIMIT {limit}""").fetchall()
-    return [Problem(file, f"field {f.name!r} must be an integer, got {echo(value, 40, quote=False)}", idx, token)
-            for idx, token, value in rows]
-
-
-def _sql_ident(name: str) -> str:
-    return '"' + name.replace('"', '""') + '"'
 
 
 def _duckdb_message(exc: duckdb.Error) -> str:
@@ -298,110 +254,3 @@ def _duckdb_type(f: Field) -> str:
             "list<string>": "VARCHAR[]"}[f.type]
 
 
-def _accepted_structures(f: Field) -> tuple[set[str], str]:
-    """JSON structures (duckdb json_structure) a list field may hold, and a word for the error message."""
-    if f.type == "list<string>":
-        return {'["VARCHAR"]', '["NULL"]'}, "a list of strings"
-    if f.type.count("fixed_size_list") == 2:
-        return {'[["DOUBLE"]]', '[["UBIGINT"]]', '[["BIGINT"]]', '["NULL"]'}, "a 3x3 list of numbers or []"
-    return {'["DOUBLE"]', '["UBIGINT"]', '["BIGINT"]'}, "a list of numbers"
-
-
-def _diagnose_field(con: duckdb.DuckDBPyConnection, src: str, file: str, f: Field, limit: int = 50) -> list[Problem]:
-    """Every record whose list field `f` has the wrong JSON structure (the slow path, only on error).
-    `src` is an unclosed `read_json(...` call."""
-    structures, word = _accepted_structures(f)
-    col = _sql_ident(f.name)
-    allowed = ", ".join("'" + k.replace("'", "''") + "'" for k in structures)
-    query = f"""
-        SELECT idx, token, value FROM (
-            SELECT row_number() OVER () - 1 AS idx, token ->> '$' AS token, json_structure({col}) AS structure,
-                   {col}::VARCHAR AS value
-            FROM {src}, columns={{token: 'JSON', {col}: 'JSON'}}))
-        WHERE structure IS NULL OR structure NOT IN ({allowed})
-        ORDER BY idx LIMIT {limit}"""
-    return [Problem(file, f"field {f.name!r} must be {word}, got {'a missing value' if value is None else echo(value, quote=False)}",
-                    idx, token)
-            for idx, token, value in con.sql(query).fetchall()]
-
-
-def _to_schema_types(raw: pa.Table, schema: Schema, file: str, float_fields: list[str]) -> tuple[pa.Table, list[Problem]]:
-    """Cast DuckDB's Arrow output to the schema's types: variable lists to fixed-size lists (checking
-    lengths), [] intrinsics to null, required fields non-null. Unknown fields are kept as read."""
-    tokens = raw.column("token") if "token" in raw.column_names else None
-    problems: list[Problem] = []
-
-    def record_problems(mask: pa.ChunkedArray, message: str) -> None:
-        indices = pc.indices_nonzero(mask.combine_chunks() if isinstance(mask, pa.ChunkedArray) else mask)
-        for idx in indices.to_pylist()[:50]:
-            token = tokens[idx].as_py() if tokens is not None else None
-            problems.append(Problem(file, message, idx, token))
-
-    columns = {}
-    for f in schema.fields:
-        if f.name not in raw.column_names:
-            columns[f.name] = pa.nulls(raw.num_rows, f.arrow_type)
-            continue
-        col = raw.column(f.name)
-        if f.required and col.null_count:
-            record_problems(pc.is_null(col), f"required field {f.name!r} is missing or null")
-            continue
-        target = f.arrow_type
-        if f.name in float_fields:
-            target = pa.float64()
-        if pa.types.is_fixed_size_list(target):
-            col, bad = _fixed_size(col, target, empty_is_null=f.empty_list_is_null)
-            if bad is not None:
-                n = target.list_size
-                shape = f"{n}x{target.value_type.list_size}" if pa.types.is_fixed_size_list(target.value_type) else n
-                record_problems(bad, f"field {f.name!r} must have {shape} numbers" + (" or be []" if f.empty_list_is_null else ""))
-                continue
-        else:
-            col = col.cast(target)
-        columns[f.name] = col
-    for name in raw.column_names:
-        if name not in columns:
-            columns[name] = raw.column(name)
-    if problems:
-        return raw, problems
-    order = schema.names + [n for n in raw.column_names if n not in schema.names]
-    nullable = {f.name: f.nullable for f in schema.fields}
-    fields = [pa.field(n, columns[n].type, nullable=nullable.get(n, True)) for n in order]
-    return pa.table([columns[n] for n in order], schema=pa.schema(fields)), []
-
-
-def _fixed_size(col: pa.ChunkedArray, target: pa.FixedSizeListType, *, empty_is_null: bool):
-    """Variable list -> fixed_size_list, checking every length. Returns (array, bad-rows mask or None)."""
-    arr = col.combine_chunks()
-    n = target.list_size
-    lengths = pc.list_value_length(arr)
-    is_empty = pc.equal(lengths, 0)
-    inner_type = target.value_type
-    ok = pc.equal(lengths, n)
-    if pa.types.is_fixed_size_list(inner_type):
-        inner_lengths = pc.list_value_length(pc.list_flatten(arr))
-        inner_ok = pc.all(pc.equal(inner_lengths, inner_type.list_size)).as_py() is not False
-        if not inner_ok:  # find the rows holding a bad inner list
-            parents = pc.list_parent_indices(arr)
-            bad_parent = pc.filter(parents, pc.not_equal(inner_lengths, inner_type.list_size))
-            bad = pc.is_in(pa.array(range(len(arr))), value_set=pc.unique(bad_parent))
-            return None, bad
-    if empty_is_null:
-        ok = pc.or_(ok, is_empty)
-    if not pc.all(ok).as_py():
-        return None, pc.invert(ok)
-    values = pc.list_flatten(arr)
-    if pa.types.is_fixed_size_list(inner_type):
-        values = pa.FixedSizeListArray.from_arrays(pc.list_flatten(values).cast(pa.float64()), inner_type.list_size)
-    else:
-        values = values.cast(inner_type)
-    if empty_is_null and pc.any(is_empty).as_py():
-        # `values` holds only the non-empty rows: spread them back out, with nulls where the list was [].
-        keep = pc.invert(is_empty)
-        if not pc.any(keep).as_py():
-            return pa.chunked_array([pa.nulls(len(arr), target)]), None
-        dense = pa.FixedSizeListArray.from_arrays(values, n)
-        positions = pc.subtract(pc.cumulative_sum(keep.cast(pa.int64())), 1)
-        taken = dense.take(pc.if_else(keep, positions, 0))
-        return pa.chunked_array([pc.if_else(keep, taken, pa.scalar(None, taken.type))]), None
-    return pa.chunked_array([pa.FixedSizeListArray.from_arrays(values, n)]), None
