@@ -11,6 +11,10 @@ REPO = Path(__file__).resolve().parent.parent
 EXTRACT_ROOT = REPO.parent / "shared" / "data" / "nuscenes-extract"
 EXTRACT_VERSION = "v1.0-mini-extract"
 SYNTH_VERSION = "v1.0-synth"
+# The sensor channels of nuScenes (and of the generator's default rig).
+NUSCENES_CHANNELS = {"CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_BACK_RIGHT", "CAM_BACK", "CAM_BACK_LEFT", "CAM_FRONT_LEFT",
+                     "LIDAR_TOP", "RADAR_FRONT", "RADAR_FRONT_LEFT", "RADAR_FRONT_RIGHT", "RADAR_BACK_LEFT",
+                     "RADAR_BACK_RIGHT"}
 
 
 @pytest.fixture(scope="session")

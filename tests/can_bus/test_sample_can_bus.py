@@ -5,7 +5,6 @@ interpolated signals (linear; slerp by pyquaternion for quaternions; the gap rul
 from __future__ import annotations
 
 import json
-import math
 
 import numpy as np
 import polars as pl
@@ -13,6 +12,7 @@ import pytest
 
 from conftest import EXTRACT_VERSION, SYNTH_VERSION
 from nuparquet.can_bus.align import MAX_INTERPOLATION_GAP_US
+from references import bevformer_can_bus
 
 
 @pytest.fixture(scope="module", params=["extract", "synth"])
@@ -106,35 +106,13 @@ def test_real_vehicle_monitor_gap_over_the_limit_is_not_interpolated(extract_roo
     assert inside["vehicle_monitor"].is_not_null().all()
 
 
-def _converters_can_bus(pose_list, sample_timestamp):
-    """BEVFormer tools/data_converter/nuscenes_converter.py `_get_can_bus_info`, as written there (pose_list
-    freshly loaded per sample, as NuScenesCanBus.get_messages does)."""
-    if pose_list is None:
-        return np.zeros(18)
-    can_bus = []
-    last_pose = pose_list[0]
-    for i, pose in enumerate(pose_list):
-        if pose['utime'] > sample_timestamp:
-            break
-        last_pose = pose
-    _ = last_pose.pop('utime')
-    pos = last_pose.pop('pos')
-    rotation = last_pose.pop('orientation')
-    can_bus.extend(pos)
-    can_bus.extend(rotation)
-    for key in last_pose.keys():
-        can_bus.extend(pose[key])
-    can_bus.extend([0., 0.])
-    return np.array(can_bus)
-
-
 def test_can_bus_vector_equals_the_converters_loop(case):
     root, _, samples, scenes, aligned = case
     rows = {r["sample_token"]: r for r in aligned.iter_rows(named=True)}
     differs = 0
     for sample in samples:
         poses = _messages(root, scenes[sample["scene_token"]], "pose")  # loaded per sample, as the converter does
-        expected = _converters_can_bus(poses, sample["timestamp"])
+        expected = bevformer_can_bus(poses, sample["timestamp"])
         got = rows[sample["token"]]
         assert got["can_bus"] == expected.tolist()
         if poses is None:

@@ -14,6 +14,7 @@ import pytest
 
 import nuparquet
 from nuparquet.index import IndexOptions, build_index
+from references import bevformer_can_bus
 
 BEVFORMER_KEYS = ["lidar_path", "token", "prev", "next", "can_bus", "frame_idx", "sweeps", "cams", "scene_token",
                   "lidar2ego_translation", "lidar2ego_rotation", "ego2global_translation", "ego2global_rotation",
@@ -21,26 +22,9 @@ BEVFORMER_KEYS = ["lidar_path", "token", "prev", "next", "can_bus", "frame_idx",
 
 
 def _get_can_bus_info(root, scene_name, sample_timestamp):
-    """The converter's function, with NuScenesCanBus.get_messages inlined (a fresh json.load per call)."""
+    """The converter's function with NuScenesCanBus.get_messages inlined (a fresh json.load per call)."""
     path = root / "can_bus" / f"{scene_name}_pose.json"
-    if not path.exists():
-        return np.zeros(18)
-    pose_list = json.loads(path.read_text())
-    can_bus = []
-    last_pose = pose_list[0]
-    for i, pose in enumerate(pose_list):
-        if pose['utime'] > sample_timestamp:
-            break
-        last_pose = pose
-    _ = last_pose.pop('utime')
-    pos = last_pose.pop('pos')
-    rotation = last_pose.pop('orientation')
-    can_bus.extend(pos)
-    can_bus.extend(rotation)
-    for key in last_pose.keys():
-        can_bus.extend(pose[key])
-    can_bus.extend([0., 0.])
-    return np.array(can_bus)
+    return bevformer_can_bus(json.loads(path.read_text()) if path.exists() else None, sample_timestamp)
 
 
 @pytest.fixture(scope="module")

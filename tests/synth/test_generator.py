@@ -14,13 +14,10 @@ import pytest
 
 from nuparquet.errors import UsageError
 from nuparquet.synth import synthesize
-from conftest import REPO, EXTRACT_ROOT, EXTRACT_VERSION, SYNTH_VERSION
+from conftest import EXTRACT_ROOT, EXTRACT_VERSION, NUSCENES_CHANNELS, REPO, SYNTH_VERSION
 
 TABLES = ("attribute", "calibrated_sensor", "category", "ego_pose", "instance", "log", "map", "sample",
           "sample_annotation", "sample_data", "scene", "sensor", "visibility")
-NUSCENES_CHANNELS = {"CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_BACK_RIGHT", "CAM_BACK", "CAM_BACK_LEFT", "CAM_FRONT_LEFT",
-                     "LIDAR_TOP", "RADAR_FRONT", "RADAR_FRONT_LEFT", "RADAR_FRONT_RIGHT", "RADAR_BACK_LEFT",
-                     "RADAR_BACK_RIGHT"}
 
 
 def load_tables(root: Path, version: str = SYNTH_VERSION) -> dict[str, list[dict]]:
@@ -34,11 +31,6 @@ def by_token(records: list[dict]) -> dict[str, dict]:
 @pytest.fixture(scope="session")
 def tables(synth_root) -> dict[str, list[dict]]:
     return load_tables(synth_root)
-
-
-@pytest.fixture(scope="session")
-def nusc(synth_root, devkit):
-    return devkit.NuScenes(SYNTH_VERSION, dataroot=str(synth_root), verbose=False)
 
 
 # -- determinism ----------------------------------------------------------------------------------------------
