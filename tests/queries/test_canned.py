@@ -1,12 +1,9 @@
-"""Every canned query in nuparquet.queries against an independent computation: the devkit's printed
-list_categories / list_attributes / list_scenes on the real extract, and plain Python over the source JSON
-(real extract and synthetic data)."""
+"""Every canned query in nuparquet.queries against plain Python over the source JSON (real extract and synthetic
+data); the comparisons with the devkit's printed listings are in tests/parity/test_listings_devkit.py."""
 
 from __future__ import annotations
 
-import contextlib
 import datetime as dt
-import io
 import json
 import math
 import statistics
@@ -73,18 +70,6 @@ def case(request):
     else:
         root, version, out = request.getfixturevalue("synth_root"), SYNTH_VERSION, request.getfixturevalue("synth_out")
     return JsonSource(root, version), nuparquet.open(out)
-
-
-@pytest.fixture(scope="module")
-def nusc(devkit, extract_root):
-    return devkit.NuScenes(version=EXTRACT_VERSION, dataroot=str(extract_root), verbose=False)
-
-
-def printed(function) -> list[str]:
-    buffer = io.StringIO()
-    with contextlib.redirect_stdout(buffer):
-        function()
-    return buffer.getvalue().splitlines()
 
 
 def rows_by(df: pl.DataFrame, *keys: str) -> dict:
