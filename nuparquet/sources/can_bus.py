@@ -91,8 +91,7 @@ def read_messages(dataroot: Path, files: list[CanBusFile]) -> tuple[Read | None,
         scene_names += [file.scene] * len(messages)
     if problems:
         return None, problems
-    kept = [f for f in files]
-    columns, column_problems = to_columns(records, Located([f.name for f in kept], starts), "message")
+    columns, column_problems = to_columns(records, Located([f.name for f in files], starts), "message")
     if column_problems:
         return None, column_problems
     table = columns.table
@@ -101,7 +100,7 @@ def read_messages(dataroot: Path, files: list[CanBusFile]) -> tuple[Read | None,
     else:  # scene_name, utime, then the fields in the files' order
         table = table.select(["utime"] + [k for k in columns.keys if k != "utime"])
         table = table.add_column(0, "scene_name", pa.array(scene_names, pa.string()))
-    return Read(table, columns, kept, starts), []
+    return Read(table, columns, list(files), starts), []
 
 
 def _check_messages(file: CanBusFile, messages: list) -> list[Problem]:
