@@ -20,6 +20,7 @@ Fields the schema does not know are kept as their raw JSON text and written back
 from __future__ import annotations
 
 import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -154,10 +155,17 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
     if head == "[]":
         empty = pa.table({f.name: pa.array([], f.arrow_type) for f in schema.fields})
         return SourceTable(schema.name, path, empty, schema.names), []
-    invalid = strict_problem(path)  # DuckDB would read a trailing comma or a bare `nan` without a word
-    if invalid is not None:
-        return None, [invalid]
+    # DuckDB would read a trailing comma or a bare `nan` without a word: the strict scan runs on a second thread while
+    # DuckDB (which releases the GIL) parses the file in pass 1, and its verdict comes first.
+    with ThreadPoolExecutor(1) as pool:
+        strict = pool.submit(strict_problem, path)
+        table, problems = _read_checked(con, path, schema)
+        invalid = strict.result()
+    return (None, [invalid]) if invalid is not None else (table, problems)
 
+
+def _read_checked(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tuple[SourceTable | None, list[Problem]]:
+    file = path.name
     objects = f"read_json_objects({_sql_path(path)}, format='array', maximum_object_size=1073741824)"
     scalars = [f for f in schema.fields if f.type in _SCALAR_KINDS]
     paths = "[" + ", ".join(json_path(f.name) for f in scalars) + "]"
