@@ -20,6 +20,7 @@ Fields the schema does not know are kept as their raw JSON text and written back
 from __future__ import annotations
 
 import os
+import re
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +30,7 @@ import duckdb
 import pyarrow as pa
 
 from nuparquet.errors import UsageError
-from nuparquet.problems import Problem
+from nuparquet.problems import Problem, echo
 from nuparquet.schemas import Field, Schema, table_schemas
 from nuparquet.sources import table_layouts as layouts_
 from nuparquet.sources.strict_json import strict_problem
@@ -175,7 +176,7 @@ def _read_checked(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) ->
         layouts = con.sql(f"SELECT json_type(json) AS kind, json_keys(json) AS keys, json_type(json, {paths}) AS types, "
                           f"{ints_in_lists} AS list_ints, count(*) AS n FROM {objects} GROUP BY ALL ORDER BY n DESC").fetchall()
     except duckdb.Error as exc:
-        return None, [Problem(file, _duckdb_message(exc))]
+        return None, [_duckdb_problem(con, objects, file, exc)]
     list_ints = [f for i, f in enumerate(float_lists) if any(row[3] and row[3][i] for row in layouts)]
     layouts = [row[:3] + row[4:] for row in layouts]
     if any(kind != "OBJECT" for kind, *_ in layouts):
@@ -217,7 +218,7 @@ def _read_checked(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) ->
     except duckdb.Error as exc:  # a list field of the wrong shape: name the records
         problems = [p for f in fields if f.type.startswith(("list", "fixed_size_list"))
                     for p in diagnose_field(con, src, file, f)]
-        return None, problems or [Problem(file, _duckdb_message(exc))]
+        return None, problems or [_duckdb_problem(con, objects, file, exc)]
     table, problems = to_schema_types(raw, schema, file, float_fields)
     if problems:
         return None, problems
@@ -247,6 +248,26 @@ def _allowed_kinds(f: Field) -> tuple[str | None, ...]:
     """JSON types (duckdb json_type; None for an absent key) field `f` may hold."""
     kinds: tuple[str | None, ...] = _SCALAR_KINDS[f.type] + (("DOUBLE",) if f.json_float_ok else ())
     return kinds if f.required else kinds + ("NULL", None)
+
+
+_RECORD = re.compile(r'JSON transform error in file ".*?", in record/value (\d+): (?:Object .*?\.\.\. )?(.*)')
+
+
+def _duckdb_problem(con: duckdb.DuckDBPyConnection, objects: str, file: str, exc: duckdb.Error) -> Problem:
+    """DuckDB's error as a problem; one naming a record ("in record/value 5001": DuckDB counts from 1) gets the
+    0-based index and the token every other message uses."""
+    message = _duckdb_message(exc)
+    found = _RECORD.search(message)
+    if found is None:
+        return Problem(file, message)
+    index = int(found.group(1)) - 1
+    try:
+        token = con.sql(f"SELECT json_extract_string(json, '$.token') FROM (SELECT row_number() OVER () - 1 AS idx, "
+                        f"json FROM {objects}) WHERE idx = {index}").fetchall()
+    except duckdb.Error:
+        token = []
+    token = token[0][0] if token and token[0][0] else None
+    return Problem(file, f"record {found.group(2)}", index, None if token is None else echo(token, quote=False))
 
 
 def _duckdb_message(exc: duckdb.Error) -> str:
