@@ -57,7 +57,10 @@ def convert(dataroot: Path | str, version: str, out: Path | str, *, on_progress:
     try:
         return _convert(dataroot, version, out, opts, on_progress)
     except OSError as exc:  # the machine refused (read-only folder, full disk): the partial output is already gone
-        raise EnvironmentFault(f"{exc.filename or out}: {exc.strerror or exc}") from exc
+        where = str(exc.filename or out)
+        if Path(where).name.startswith(f".{Path(out).name}.partial-"):  # the hidden folder is ours; name what the user gave
+            where = f"cannot write {out} in {Path(out).parent}"
+        raise EnvironmentFault(f"{where}: {exc.strerror or exc}") from exc
 
 
 def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertOptions,
