@@ -113,6 +113,9 @@ def _raise_unknown(dataset, scene: str, channel: str) -> None:
     if scene not in scenes:
         raise UsageError(f"unknown scene {scene!r}; valid scenes: {', '.join(scenes) or '(none)'}")
     channels = sorted(listing.filter(pl.col("scene_name") == scene)["channel"].unique().to_list())
-    raise UsageError(
-        f"unknown channel {channel!r} for {scene}; valid channels: {', '.join(channels + [ALL_CHANNELS])}"
-    )
+    valid = ", ".join(channels + [ALL_CHANNELS])
+    modality = (dataset.scan("frames").filter(pl.col("channel").cast(pl.String) == channel)
+                .select(pl.col("modality").cast(pl.String)).head(1).collect())
+    if modality.height:  # a lidar or radar: say so rather than "unknown"
+        raise UsageError(f"{channel} is a {modality.item()} channel; render draws camera channels: {valid}")
+    raise UsageError(f"unknown channel {channel!r} for {scene}; valid channels: {valid}")
