@@ -38,6 +38,8 @@ class Field:
     ref: str | None = None  # the table whose token this field (or each list element) refers to
     empty_ok: bool = False  # "" means "no reference" (prev/next)
     quaternion: bool = False  # must be finite and of unit norm
+    finite: bool = False  # every value (every element of a list) must be finite: no NaN or infinity
+    non_negative: bool = False  # every value (every element of a list) must be >= 0
     json_float_ok: bool = False  # the source may store it as a JSON float: kept as float64, losslessly
     empty_list_is_null: bool = False  # [] in the JSON, null in Arrow (camera_intrinsic)
 

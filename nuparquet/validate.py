@@ -66,6 +66,11 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) 
                 near = norm.filter(pl.col("_n").is_finite() & (off > QUATERNION_NORM_TOLERANCE) & (off <= QUATERNION_NEAR_UNIT))
                 report(name, near, lambda r, f=f: f"{f.name} {r['_q']} has norm {r['_n']:.6f}, not 1 to 1e-6: accepted "
                                                   "and normalised (as the devkit does)", warning=True)
+        for f in schema.fields:
+            if (f.finite or f.non_negative) and f.name in df.columns and df.schema[f.name] != pl.Null:
+                report(name, _out_of_range(df, f), lambda r, f=f: f"{f.name} {echo(r['_v'], quote=False)} "
+                       + ("must be finite" if f.finite and not f.non_negative else
+                          "must be >= 0" if not f.finite else "must be finite and >= 0"))
     problems += _timestamp_units(frames, files)
     for table, count_field, referring, ref_field in _COUNTS:
         if table not in frames or referring not in frames:
@@ -76,6 +81,20 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) 
         bad = joined.filter(pl.col(count_field) != pl.col("_actual"))
         report(table, bad, lambda r, c=count_field, ref=referring: f"{c} is {r[c]} but {r['_actual']} {ref} records refer to it")
     return problems
+
+
+def _out_of_range(df: pl.DataFrame, f) -> pl.DataFrame:
+    """Rows whose value of `f` (any element of a list) is NaN or infinite (`f.finite`) or below 0 (`f.non_negative`;
+    NaN is no value below 0: Lyft writes NaN widths for lidar rows)."""
+    is_list = isinstance(df.schema[f.name], (pl.Array, pl.List))
+    values = pl.col(f.name).arr.to_list() if isinstance(df.schema[f.name], pl.Array) else pl.col(f.name)
+
+    def bad(x: pl.Expr) -> pl.Expr:
+        conditions = ([~x.is_finite()] if f.finite else []) + ([x < 0] if f.non_negative else [])
+        return pl.any_horizontal(conditions)
+
+    flag = values.list.eval(bad(pl.element())).list.any() if is_list else bad(values)
+    return df.select("_idx", "token", values.alias("_v"), flag.fill_null(False).alias("_bad")).filter("_bad").sort("_idx")
 
 
 def _timestamp_units(frames: dict[str, pl.DataFrame], files: dict[str, str]) -> list[Problem]:

@@ -40,16 +40,34 @@ def diagnose_scalar(con: duckdb.DuckDBPyConnection, objects: str, file: str, f: 
 
 def diagnose_unusable_floats(con: duckdb.DuckDBPyConnection, objects: str, file: str, f: Field,
                               limit: int = 50) -> list[Problem]:
-    """Records whose required integer field holds NaN, an infinity or a value beyond int64."""
+    """Records whose integer field `f`, read by DuckDB as a double, cannot be kept: an integer literal beyond the
+    64-bit range (Python's json reads it exactly; as a double it would change), and for a required field (a
+    timestamp) NaN, an infinity or a value beyond int64."""
+    path = json_path(f.name)
+    unusable = "isnan(v) OR isinf(v) OR abs(v) >= 9.2e18 OR " if f.required else ""
+    rows = con.sql(f"""
+        SELECT idx, token, value FROM (
+            SELECT row_number() OVER () - 1 AS idx, json_extract_string(json, '$.token') AS token,
+                   json_type(json, {path}) AS kind, json_extract(json, {path})::VARCHAR AS value,
+                   json_extract(json, {path})::DOUBLE AS v FROM {objects})
+        WHERE kind = 'DOUBLE' AND ({unusable}regexp_full_match(value, '-?[0-9]+'))
+        ORDER BY idx LIMIT {limit}""").fetchall()
+    return [Problem(file, f"field {f.name!r} must be an integer within the 64-bit range, got {echo(value, 40, quote=False)}",
+                    idx, token) for idx, token, value in rows]
+
+
+def diagnose_beyond_int64(con: duckdb.DuckDBPyConnection, objects: str, file: str, f: Field,
+                          limit: int = 50) -> list[Problem]:
+    """Records whose integer field `f` holds an integer between 2**63 and 2**64 (DuckDB types it UBIGINT; int64
+    cannot hold it)."""
     path = json_path(f.name)
     rows = con.sql(f"""
         SELECT idx, token, value FROM (
             SELECT row_number() OVER () - 1 AS idx, json_extract_string(json, '$.token') AS token,
-                   json_extract(json, {path})::VARCHAR AS value, json_extract(json, {path})::DOUBLE AS v FROM {objects}
-            WHERE json_type(json, {path}) = 'DOUBLE')
-        WHERE isnan(v) OR isinf(v) OR abs(v) >= 9.2e18 ORDER BY idx LIMIT {limit}""").fetchall()
-    return [Problem(file, f"field {f.name!r} must be an integer, got {echo(value, 40, quote=False)}", idx, token)
-            for idx, token, value in rows]
+                   json_type(json, {path}) AS kind, json_extract(json, {path})::VARCHAR AS value FROM {objects})
+        WHERE kind = 'UBIGINT' AND value::UBIGINT > 9223372036854775807 ORDER BY idx LIMIT {limit}""").fetchall()
+    return [Problem(file, f"field {f.name!r} must be an integer within the 64-bit range, got {echo(value, 40, quote=False)}",
+                    idx, token) for idx, token, value in rows]
 
 
 def sql_ident(name: str) -> str:

@@ -35,7 +35,7 @@ from nuparquet.schemas import Field, Schema, table_schemas
 from nuparquet.sources import table_layouts as layouts_
 from nuparquet.sources.strict_json import strict_problem
 from nuparquet.sources.table_diagnostics import (
-    diagnose_field, diagnose_scalar, diagnose_unusable_floats, json_path, sql_ident,
+    diagnose_beyond_int64, diagnose_field, diagnose_scalar, diagnose_unusable_floats, json_path, sql_ident,
 )
 from nuparquet.sources.table_types import to_schema_types
 
@@ -197,9 +197,11 @@ def _read_checked(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) ->
     # `_json_types`); one fraction or NaN makes the whole column float64 (its integers marked the same way).
     floats_seen = [f for f in scalars if f.json_float_ok and "DOUBLE" in seen[f.name]]
     float_fields = [f.name for f in floats_seen if not layouts_.all_integral(con, objects, json_path(f.name))]
-    for f in floats_seen:  # a required integer (a timestamp) may be written as a float, but must be a usable one
-        if f.required and f.name in float_fields:
-            problems += diagnose_unusable_floats(con, objects, file, f)
+    for f in floats_seen:  # an integer may be written as a float, but must be a usable one (and not a huge integer)
+        problems += diagnose_unusable_floats(con, objects, file, f)
+    for f in scalars:
+        if f.type == "int64" and "UBIGINT" in seen[f.name]:
+            problems += diagnose_beyond_int64(con, objects, file, f)
     for f in scalars:
         allowed = set(_allowed_kinds(f))
         if f.name in present and not seen[f.name] <= allowed:

@@ -349,3 +349,41 @@ def test_a_duplicate_key_in_a_record_is_named_by_its_0_based_index_and_token(roo
     code, message = convert(root, tmp_path, capsys)
     assert code == 1
     assert f'sample_data.json[{index}] token={token}: record has duplicate key "{key}"' in message
+
+
+@pytest.mark.parametrize("table, index, field, value, message", [
+    ("sample_data", 3, "width", 2**70, "field 'width' must be an integer within the 64-bit range, got 1180591620717411303424"),
+    ("sample_data", 3, "width", 2**64 - 1, "field 'width' must be an integer within the 64-bit range, got 18446744073709551615"),
+    ("sample", 1, "timestamp", 2**70, "field 'timestamp' must be an integer within the 64-bit range"),
+    ("sample_data", 4, "timestamp", 2**63, "field 'timestamp' must be an integer within the 64-bit range, got 9223372036854775808"),
+    ("ego_pose", 2, "timestamp", math.nan, "field 'timestamp' must be an integer within the 64-bit range, got NaN"),
+    ("sample_data", 5, "height", -1, "height -1 must be >= 0"),
+    ("sample_annotation", 2, "size", [-1.0, 2.0, math.inf], "size [-1.0, 2.0, inf] must be finite and >= 0"),
+    ("sample_annotation", 6, "translation", [math.nan, 0.0, 0.0], "translation [nan, 0.0, 0.0] must be finite"),
+    ("ego_pose", 7, "translation", [0.0, -math.inf, 0.0], "translation [0.0, -inf, 0.0] must be finite"),
+    ("calibrated_sensor", 1, "translation", [0.0, 0.0, math.nan], "translation [0.0, 0.0, nan] must be finite"),
+])
+def test_values_that_cannot_be_kept_or_used_are_named_by_validate_and_convert(root, tmp_path, capsys, table, index,
+                                                                              field, value, message):
+    """Integers beyond int64 would change (a double) or not fit; NaN sizes and positions break every box and pose.
+    Each is named with the record's 0-based index and token, by validate as by convert."""
+    records = load(root, table)
+    records[index][field] = value
+    save(root, table, records)
+    where = f"{table}.json[{index}] token={records[index]['token']}: {message}"
+    code, out = validate(root, capsys)
+    assert code == 1 and where in out
+    code, out = convert(root, tmp_path, capsys)
+    assert code == 1 and where in out
+
+
+@pytest.mark.parametrize("value", [1e21, 2**63 - 1])
+def test_a_float_literal_or_the_largest_int64_in_an_integer_field_comes_back_exactly(root, tmp_path, capsys, value):
+    records = load(root, "sample_data")
+    records[3]["width"] = value
+    save(root, "sample_data", records)
+    code, out = convert(root, tmp_path, capsys)
+    assert code == 0, out
+    assert main(["export-json", str(tmp_path / "out"), "--out", str(tmp_path / "back"), "--quiet"]) == 0
+    again = json.loads((tmp_path / "back" / V / "sample_data.json").read_text())
+    assert json.dumps(again) == json.dumps(records)
