@@ -187,6 +187,9 @@ def _read_checked(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) ->
     for _, keys, _, _ in layouts[1:]:
         key_order += [k for k in keys if k not in key_order]
 
+    clashes = _case_clashes(key_order)
+    if clashes:  # DuckDB's columns (and many Parquet readers') ignore case: `Token` and `token` cannot both be kept
+        return None, _diagnose_case_clash(con, objects, file, clashes)
     known = {f.name for f in schema.fields}
     extras = [k for k in key_order if k not in known]
     present = set(key_order)
@@ -240,6 +243,33 @@ def _read_checked(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) ->
             table = table.append_column(name, column)
     return SourceTable(schema.name, path, table, key_order, float_fields, extras,
                        record_layouts if len(record_layouts) > 1 else []), []
+
+
+def _case_clashes(keys: list[str]) -> list[tuple[str, str]]:
+    """Pairs of keys that differ only in case, in key order."""
+    first: dict[str, str] = {}
+    pairs = []
+    for key in keys:
+        if key.lower() in first:
+            pairs.append((first[key.lower()], key))
+        else:
+            first[key.lower()] = key
+    return pairs
+
+
+def _diagnose_case_clash(con: duckdb.DuckDBPyConnection, objects: str, file: str,
+                         clashes: list[tuple[str, str]]) -> list[Problem]:
+    """The first record holding each pair of keys that differ only in case."""
+    problems = []
+    for a, b in clashes:
+        rows = con.sql(f"""SELECT idx, token FROM (SELECT row_number() OVER () - 1 AS idx, json_keys(json) AS keys,
+                               json_extract_string(json, '$.token') AS token FROM {objects})
+                           WHERE list_contains(keys, ?) AND list_contains(keys, ?) ORDER BY idx LIMIT 1""",
+                       params=[a, b]).fetchall()
+        idx, token = rows[0] if rows else (None, None)
+        problems.append(Problem(file, f"fields {echo(a)} and {echo(b)} differ only in case; Parquet columns as DuckDB "
+                                      "and Spark read them cannot hold both (rename one)", idx, token))
+    return problems
 
 
 _SCALAR_KINDS = {"string": ("VARCHAR",), "bool": ("BOOLEAN",), "int64": ("UBIGINT", "BIGINT"),

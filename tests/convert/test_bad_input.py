@@ -387,3 +387,12 @@ def test_a_float_literal_or_the_largest_int64_in_an_integer_field_comes_back_exa
     assert main(["export-json", str(tmp_path / "out"), "--out", str(tmp_path / "back"), "--quiet"]) == 0
     again = json.loads((tmp_path / "back" / V / "sample_data.json").read_text())
     assert json.dumps(again) == json.dumps(records)
+
+
+def test_a_field_differing_from_another_only_in_case_is_named_with_its_record(root, tmp_path, capsys):
+    records = load(root, "sample")
+    records[1]["Token"] = "abc"
+    save(root, "sample", records)
+    code, out = convert(root, tmp_path, capsys)
+    assert code == 1 and "Traceback" not in out
+    assert f"sample.json[1] token={records[1]['token']}: fields 'token' and 'Token' differ only in case" in out

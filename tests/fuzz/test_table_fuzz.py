@@ -72,6 +72,13 @@ def _mutate(rng: random.Random, root: Path, version: str) -> str:
         return f"{table}:empty-table"
     index = rng.randrange(len(records))
     field = rng.choice(list(records[index]))
+    lists = [k for k, v in records[index].items() if isinstance(v, list) and v]
+    if kind == "field" and lists and rng.random() < 0.5:  # one element of a list: a number that cannot be kept or used
+        field = rng.choice(lists)
+        element = rng.randrange(len(records[index][field]))
+        records[index][field][element] = rng.choice([math.nan, math.inf, -1e308, 2**70, -1, 0, "1", None])
+        path.write_text(json.dumps(records))
+        return f"{table}[{index}].{field}[{element}]:element"
     if kind == "delete":
         del records[index][field]
     else:
