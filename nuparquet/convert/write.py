@@ -21,6 +21,7 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from nuparquet.errors import EnvironmentFault, UsageError
+from nuparquet.partials import partial_path, remove_stale
 from nuparquet.format import MANIFEST
 
 PART_NAME = "part-00000.parquet"
@@ -143,8 +144,8 @@ def atomic_directory(out: Path, *, overwrite: bool) -> Iterator[Path]:
     """Yield a temporary sibling of `out` to write into; on success it replaces `out` by renames."""
     out = check_target(out, overwrite=overwrite)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.parent / f".{out.name}.partial-{os.getpid()}"
-    shutil.rmtree(tmp, ignore_errors=True)
+    remove_stale(out)  # what killed runs left (SIGKILL cannot clean up); a live run's partial stays
+    tmp = partial_path(out)
     tmp.mkdir()
     try:
         yield tmp

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nuparquet.partials import partial_path, remove_stale
 from nuparquet.render.decode import write_image
 from nuparquet.render.options import existing_frames
 from nuparquet.render.video import VideoWriter
@@ -33,8 +34,8 @@ class FrameSink:
         self._frames_partial = None
         if frames_dir is not None:  # written into a hidden sibling, moved into place by close()
             frames_dir.parent.mkdir(parents=True, exist_ok=True)
-            self._frames_partial = frames_dir.parent / f".{frames_dir.name}.partial-{os.getpid()}"
-            shutil.rmtree(self._frames_partial, ignore_errors=True)
+            remove_stale(frames_dir)
+            self._frames_partial = partial_path(frames_dir)
             self._frames_partial.mkdir()
         self.written = 0
         self._writer: VideoWriter | None = None

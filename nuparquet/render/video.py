@@ -14,6 +14,7 @@ import av
 import cv2
 import numpy as np
 
+from nuparquet.partials import partial_path, remove_stale
 from nuparquet.render.options import DEFAULT_CRF, DEFAULT_PRESET
 
 
@@ -68,9 +69,8 @@ class VideoWriter:
         self.input_size = (int(width), int(height))
         self.width, self.height = even_size(int(width), int(height))
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        for stale in self.path.parent.glob(f".{self.path.name}.partial-*"):  # left by a killed render
-            stale.unlink(missing_ok=True)
-        self.partial = self.path.parent / f".{self.path.name}.partial-{os.getpid()}"
+        remove_stale(self.path)  # left by a killed render (a live render's partial stays)
+        self.partial = partial_path(self.path)
         # movflags is a muxer option: on the stream (as av2 sets it) ffmpeg ignores it and moov stays at the end.
         self._container = av.open(str(self.partial), mode="w", format="mp4", options={"movflags": "+faststart"})
         stream = self._container.add_stream("libx264", rate=frame_rate(fps))

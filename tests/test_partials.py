@@ -1,0 +1,41 @@
+"""Hidden partial outputs left by killed runs are removed by the next run for the same target; a live process's
+partial is never touched (two runs may write side by side)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+from nuparquet.cli.main import main
+from nuparquet.partials import remove_stale
+from conftest import SYNTH_VERSION
+
+
+def _dead_pid() -> int:
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid  # reaped: no process has this pid now (pids are not reused this quickly)
+
+
+def test_remove_stale_removes_dead_runs_partials_and_keeps_live_ones(tmp_path):
+    target = tmp_path / "out"
+    dead, live = _dead_pid(), os.getppid()  # our parent (pytest's launcher or shell) is alive
+    (tmp_path / f".out.partial-{dead}").mkdir()
+    (tmp_path / f".out.partial-{dead}" / "file").write_text("x")
+    (tmp_path / f".out.replaced-{dead}").mkdir()
+    (tmp_path / f".out.partial-{live}").mkdir()
+    (tmp_path / f".other.partial-{dead}").mkdir()  # another target's: not ours to judge
+    (tmp_path / f".out.partial-{dead}x").mkdir()  # not a partial's name
+    removed = remove_stale(target)
+    assert sorted(p.name for p in removed) == sorted([f".out.partial-{dead}", f".out.replaced-{dead}"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [f".out.partial-{live}", f".other.partial-{dead}", f".out.partial-{dead}x"])
+
+
+def test_convert_removes_a_killed_runs_partial_folder(synth_root, tmp_path):
+    dead = _dead_pid()
+    stale = tmp_path / f".out.partial-{dead}"
+    (stale / "tables").mkdir(parents=True)
+    assert main(["convert", str(synth_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
