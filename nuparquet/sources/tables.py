@@ -221,8 +221,11 @@ def _read_checked(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) ->
     try:
         raw = con.sql(f"SELECT * FROM {src}, columns={spec})").to_arrow_table()
     except duckdb.Error as exc:  # a list field of the wrong shape: name the records
-        problems = [p for f in fields if f.type.startswith(("list", "fixed_size_list"))
-                    for p in diagnose_field(con, src, file, f)]
+        try:
+            problems = [p for f in fields if f.type.startswith(("list", "fixed_size_list"))
+                        for p in diagnose_field(con, src, file, f)]
+        except duckdb.Error:  # the diagnosis reads the same way and fails the same way (a duplicate key)
+            problems = []
         return None, problems or [_duckdb_problem(con, objects, file, exc)]
     table, problems = to_schema_types(raw, schema, file, float_fields)
     if problems:

@@ -335,20 +335,21 @@ def test_nan_and_infinity_literals_are_valid_json_here(root, tmp_path):
     assert json.dumps(again[0]) == json.dumps(records[0])
 
 
-@pytest.mark.parametrize("key", ["timestamp", "token"])
-def test_a_duplicate_key_in_a_record_is_named_by_its_0_based_index_and_token(root, tmp_path, capsys, key):
+@pytest.mark.parametrize("table, key", [("sample_data", "timestamp"), ("sample_data", "token"),
+                                        ("ego_pose", "translation")])
+def test_a_duplicate_key_in_a_record_is_named_by_its_0_based_index_and_token(root, tmp_path, capsys, table, key):
     """Python's json keeps a repeated key's last value, DuckDB refuses it: refused, with the index every other
     message uses (DuckDB counts records from 1) and the record's token."""
-    records = load(root, "sample_data")
+    records = load(root, table)
     index = len(records) - 3
     token = records[index]["token"]
     text = json.dumps(records, indent=1)
     at = text.index(f'"token": "{token}"')
     repeated = json.dumps(records[index][key])  # a value of the right type: only the repetition is wrong
-    (root / V / "sample_data.json").write_text(text[:at] + f'"{key}": {repeated}, ' + text[at:])
+    (root / V / f"{table}.json").write_text(text[:at] + f'"{key}": {repeated}, ' + text[at:])
     code, message = convert(root, tmp_path, capsys)
     assert code == 1
-    assert f'sample_data.json[{index}] token={token}: record has duplicate key "{key}"' in message
+    assert f'{table}.json[{index}] token={token}: record has duplicate key "{key}"' in message
 
 
 @pytest.mark.parametrize("table, index, field, value, message", [

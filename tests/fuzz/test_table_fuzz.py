@@ -61,9 +61,9 @@ def _mutate(rng: random.Random, root: Path, version: str) -> str:
             text = "{}"
         elif op == "null":
             text = "null"
-        elif op == "duplicate" and records:
-            first = json.dumps(records[0])
-            text = text.replace(first, first[:-1] + ', "token": "dup"}', 1)
+        elif op == "duplicate" and records:  # a repeated key in one record (Python's json keeps the last value)
+            key = rng.choice(list(records[0]))
+            text = text.replace("{", "{" + json.dumps(key) + ': "dup", ', 1)
         elif op == "truncate":
             text = text[: len(text) // 2]
         path.write_text(text)
