@@ -4,6 +4,7 @@
 
     out_dir/<version>/{attribute,calibrated_sensor,...,visibility}.json   the 13 tables
     out_dir/maps/<map token>.png                                         tiny placeholder semantic maps
+    out_dir/maps/expansion/<location>.json                               map expansion v1.3 along the roads
     out_dir/samples/<CHANNEL>/..., out_dir/sweeps/<CHANNEL>/...          with images and/or lidar
 
 It is a producer of nuScenes JSON like any real dataset: nothing else in nuparquet depends on its internals.
