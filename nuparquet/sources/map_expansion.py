@@ -205,16 +205,21 @@ def _add_geometry(data: dict, out: dict[str, np.ndarray]) -> None:
         lines[ok] = shapely.linestrings(xy[flat], indices=np.repeat(np.arange(len(ok)), lengths[ok]))
     out["line"] = lines
     # polygons: the exterior, then the non-empty holes (the devkit drops empty ones), one polygon per record
+    # (a ring of fewer than 3 nodes makes no polygon, for the devkit's shapely either: no geometry, null)
     rings, owners = [], []
+    n_polygons = len(data["polygon"])
     for i, record in enumerate(data["polygon"]):
-        rings.append(record["exterior_node_tokens"])
-        owners.append(i)
-        for hole in record["holes"]:
-            if hole["node_tokens"]:
-                rings.append(hole["node_tokens"])
-                owners.append(i)
-    polygons = shapely.polygons(_rings(rings, index, xy), indices=np.array(owners, dtype=np.int64)) \
-        if rings else np.empty(0, dtype=object)
+        holes = [h["node_tokens"] for h in record["holes"] if h["node_tokens"]]
+        if len(record["exterior_node_tokens"]) < 3 or any(len(h) < 3 for h in holes):
+            continue
+        for ring in [record["exterior_node_tokens"]] + holes:
+            rings.append(ring)
+            owners.append(i)
+    polygons = np.full(n_polygons, None, dtype=object)
+    if rings:
+        owners = np.array(owners, dtype=np.int64)
+        built = shapely.polygons(_rings(rings, index, xy), indices=np.unique(owners, return_inverse=True)[1])
+        polygons[np.unique(owners)] = built
     out["polygon"] = polygons
     polygon_index = {r["token"]: i for i, r in enumerate(data["polygon"])}
     line_index = {r["token"]: i for i, r in enumerate(data["line"])}
@@ -222,7 +227,7 @@ def _add_geometry(data: dict, out: dict[str, np.ndarray]) -> None:
         records = data[layer]
         if layer == "drivable_area":
             parts = [[polygon_index[t] for t in r["polygon_tokens"]] for r in records]
-            geoms = np.array([shapely.multipolygons(polygons[p]) for p in parts], dtype=object) \
+            geoms = np.array([shapely.multipolygons([g for g in polygons[p] if g is not None]) for p in parts], dtype=object) \
                 if records else np.empty(0, dtype=object)
         else:
             geoms = polygons[np.fromiter((polygon_index[r["polygon_token"]] for r in records), np.int64, len(records))]

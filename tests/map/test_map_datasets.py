@@ -137,8 +137,12 @@ def test_unusual_values_come_back_exactly(small_root, tmp_path):
     data["lane"][0] = dict(reversed(list(data["lane"][0].items())))  # another key order
     data["traffic_light"][0]["items"][0]["rel_pos"]["tx"] = 0  # an int inside a nested struct: kept as JSON text
     data["extra_top_level"] = {"note": [1, 2.5]}
+    nodes = [n["token"] for n in data["node"][:2]]
+    data["polygon"].append({"token": "degenerate", "exterior_node_tokens": nodes, "holes": []})  # no polygon: null
     path.write_text(json.dumps(data))
     convert(small_root, SYNTH_VERSION, tmp_path / "out")
+    degenerate = [r for r in _layer(tmp_path / "out", "polygon") if r["token"] == "degenerate"]
+    assert degenerate[0]["geometry"] is None and degenerate[0]["bbox"] is None
     export_json(tmp_path / "out", tmp_path / "back")
     again = json.loads((tmp_path / "back" / "maps" / "expansion" / path.name).read_text())
     assert json.dumps(again) == json.dumps(data)
