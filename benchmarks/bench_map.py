@@ -69,8 +69,13 @@ def queries(root: Path, location: str, n: int) -> tuple[np.ndarray, tuple]:
     return points, (float(centre[0]), float(centre[1]), 100.0, 100.0)
 
 
+def _load_queries() -> tuple[np.ndarray, tuple]:
+    """The points and patch the parent wrote (so neither side pays for making them)."""
+    return np.load(CACHE / "points.npy"), tuple(json.loads((CACHE / "patch.json").read_text()))
+
+
 def child_ours(root: str, out: str, location: str, n: str) -> None:
-    points, patch = queries(Path(root), location, int(n))
+    points, patch = _load_queries()
     t0 = time.perf_counter()
     from nuparquet.map.queries import MapLayers
 
@@ -88,7 +93,7 @@ def child_ours(root: str, out: str, location: str, n: str) -> None:
 
 
 def child_devkit(root: str, out: str, location: str, n: str, k: str) -> None:
-    points, patch = queries(Path(root), location, int(n))
+    points, patch = _load_queries()
     points = points[:int(k)]
     t0 = time.perf_counter()
     from nuscenes.map_expansion.map_api import NuScenesMap
@@ -127,6 +132,9 @@ def main() -> None:
     location = largest_map(root)
     path = root / "maps" / "expansion" / f"{location}.json"
     log(f"map {location}: {path.stat().st_size / 2**20:.1f} MiB")
+    points, patch = queries(root, location, args.points)
+    np.save(CACHE / "points.npy", points)
+    (CACHE / "patch.json").write_text(json.dumps(patch))
     keys = {k: k for k in ("load_s", "layers_on_point_s", "closest_lane_s", "map_mask_s")}
     ours_runs = repeat(python_child(__file__, "--child", "ours", str(root), str(out), location, str(args.points)),
                        args.repeats, label="nuparquet MapLayers")
