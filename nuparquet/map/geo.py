@@ -29,10 +29,12 @@ def geometry_columns(geometries: np.ndarray) -> tuple[pa.Array, pa.Array]:
     return pa.array(list(wkb), pa.binary()), bbox
 
 
-def with_geo_metadata(table: pa.Table, extra: dict | None = None) -> pa.Table:
+def with_geo_metadata(table: pa.Table, extra: dict | None = None, geometries: np.ndarray | None = None) -> pa.Table:
     """`table` (with `geometry` WKB and `bbox` columns) carrying GeoParquet 1.1 `geo` metadata (geometry types
-    and bbox computed from the data) and `nuparquet.map` (`extra`)."""
-    geometries = shapely.from_wkb(table.column("geometry").to_numpy(zero_copy_only=False))
+    and bbox computed from the data) and `nuparquet.map` (`extra`). `geometries`: the (R,) shapely geometries of
+    the `geometry` column when the caller has them (else parsed back from the WKB)."""
+    if geometries is None:
+        geometries = shapely.from_wkb(table.column("geometry").to_numpy(zero_copy_only=False))
     present = geometries[~shapely.is_missing(geometries)] if len(geometries) else geometries
     types = sorted({t for t in shapely.get_type_id(present).tolist()}) if len(present) else []
     names = {0: "Point", 1: "LineString", 3: "Polygon", 4: "MultiPoint", 5: "MultiLineString", 6: "MultiPolygon"}

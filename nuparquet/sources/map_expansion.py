@@ -117,7 +117,7 @@ def layer_columns(maps: list[MapRead], layer: str) -> tuple[LayerColumns | None,
     columns, problems = to_columns(records, Located([m.path for m in maps], starts), f"{layer} record")
     if columns is None:
         return None, problems
-    return LayerColumns(columns, _structure_json_fields(columns), starts), problems
+    return LayerColumns(columns, _structure_json_fields(columns, records), starts), problems
 
 
 def _check_references(name: str, data: dict) -> list[Problem]:
@@ -157,13 +157,12 @@ def _check_references(name: str, data: dict) -> list[Problem]:
     return problems
 
 
-def _structure_json_fields(columns: Columns) -> list[str]:
+def _structure_json_fields(columns: Columns, records: list[dict]) -> list[str]:
     """Turn JSON-text fields into Arrow lists/structs where that gives back exactly the same JSON (a hole list,
-    a lane's divider segments); returns the fields converted."""
+    a lane's divider segments); returns the fields converted. `records`: the parsed records typed in `columns`."""
     converted = []
     for name in list(columns.json_fields):
-        text = columns.table.column(name).to_pylist()
-        values = [None if t is None else json.loads(t) for t in text]
+        values = [r[name] for r in records]
         try:
             array = pa.array(values)
         except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):

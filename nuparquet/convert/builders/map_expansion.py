@@ -52,7 +52,8 @@ def build(ctx: BuildContext) -> dict[str, pa.Table]:
         table, layer_problems = _layer_table(maps, layer, entries)
         problems += layer_problems
         if table is not None:
-            out[f"map/{layer}"] = with_geo_metadata(table, extra)
+            geometries = np.concatenate([m.geometry[layer] for m in maps]) if maps else np.empty(0, object)
+            out[f"map/{layer}"] = with_geo_metadata(table, extra, geometries)
     for layer in source.DICT_LAYERS:
         table, layer_problems = _dict_layer_table(maps, layer, entries)
         problems += layer_problems
@@ -60,7 +61,8 @@ def build(ctx: BuildContext) -> dict[str, pa.Table]:
             out[f"map/{layer}"] = table
     if problems:
         raise ProblemsFound(problems)
-    out["map/lane_centerlines"] = with_geo_metadata(_centerlines(maps), extra | {"resolution_m": CENTERLINE_RESOLUTION_M})
+    centerlines, lines = _centerlines(maps)
+    out["map/lane_centerlines"] = with_geo_metadata(centerlines, extra | {"resolution_m": CENTERLINE_RESOLUTION_M}, lines)
     ctx.files += entries
     return out
 
@@ -128,7 +130,7 @@ def _record_facts(entries, layer, columns, struct_fields, starts, counts) -> Non
         entry["layers"][layer] = facts
 
 
-def _centerlines(maps: list[source.MapRead]) -> pa.Table:
+def _centerlines(maps: list[source.MapRead]) -> tuple[pa.Table, np.ndarray]:
     """Every lane and lane connector (the devkit's `discretize_centerlines` order) at CENTERLINE_RESOLUTION_M."""
     columns: dict[str, list] = {"location": [], "token": [], "layer": []}
     paths = []
@@ -149,7 +151,7 @@ def _centerlines(maps: list[source.MapRead]) -> pa.Table:
         keep = np.repeat(counts >= 2, counts)
         lines[ok] = shapely.linestrings(poses[keep, :2], indices=np.repeat(np.arange(len(ok)), counts[ok]))
     wkb, bbox = geometry_columns(lines)
-    return table.append_column("geometry", wkb).append_column("bbox", bbox)
+    return table.append_column("geometry", wkb).append_column("bbox", bbox), lines
 
 
 BUILDER = Builder("map", build, scope="whole", group_by="location", wanted=wanted)
