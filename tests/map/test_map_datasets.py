@@ -119,10 +119,19 @@ def test_export_json_writes_every_map_file_back_exactly(map_root, map_out, tmp_p
         assert json.dumps(a) == json.dumps(b)  # key order everywhere, ints stay ints (1 vs 1.0)
 
 
+@pytest.fixture(scope="module")
+def tiny_root(tmp_path_factory):
+    """One scene, two samples, one map: the input the bad-map tests damage (a conversion takes a fraction of a s)."""
+    from nuparquet.synth import synthesize
+
+    return synthesize(tmp_path_factory.mktemp("tiny-map") / "data", scenes=1, samples_per_scene=2, seed=9,
+                      version=SYNTH_VERSION, with_can_bus=False)
+
+
 @pytest.fixture
-def small_root(map_root, tmp_path):
+def small_root(tiny_root, tmp_path):
     copy = tmp_path / "data"
-    shutil.copytree(map_root, copy)
+    shutil.copytree(tiny_root, copy)
     return copy
 
 

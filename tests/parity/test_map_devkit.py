@@ -32,27 +32,27 @@ def test_layers_on_point_for_many_points(maps):
     rng = np.random.default_rng(1)
     found = 0
     for nusc_map, ours in maps.values():
-        points = _points(nusc_map, rng, 600)
+        points = _points(nusc_map, rng, 500)
         mine = ours.layers_on_point(points[:, 0], points[:, 1])
         for i, (x, y) in enumerate(points):
             expected = nusc_map.layers_on_point(x, y)
             assert {layer: mine[layer][i] for layer in expected} == expected, (x, y)
             found += sum(v != "" for v in expected.values())
-    assert found > 800  # the points do land on the layers
+    assert found > 600  # the points do land on the layers
 
 
 def test_closest_lane_for_many_points(maps):
     rng = np.random.default_rng(2)
     hits = 0
     for nusc_map, ours in maps.values():
-        points = _points(nusc_map, rng, 400)
+        points = _points(nusc_map, rng, 300)
         mine = ours.closest_lane(points[:, 0], points[:, 1], radius_m=5.0)
         expected = [nusc_map.get_closest_lane(x, y, radius=5.0) for x, y in points]
         assert mine.tolist() == expected
         hits += sum(e != "" for e in expected)
         wide = ours.closest_lane(points[:50, 0], points[:50, 1], radius_m=12.5)
         assert wide.tolist() == [nusc_map.get_closest_lane(x, y, radius=12.5) for x, y in points[:50]]
-    assert hits > 250
+    assert hits > 200
 
 
 @pytest.mark.parametrize("mode", ["intersect", "within"])
@@ -60,7 +60,7 @@ def test_records_in_patch(maps, mode):
     rng = np.random.default_rng(3)
     non_empty = 0
     for nusc_map, ours in maps.values():
-        centres = _points(nusc_map, rng, 120)
+        centres = _points(nusc_map, rng, 80)
         for cx, cy in centres:
             hw, hh = rng.uniform(2.0, 120.0, 2)
             box = (cx - hw, cy - hh, cx + hw, cy + hh)

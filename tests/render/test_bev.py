@@ -100,7 +100,7 @@ def test_bev_pixels_show_the_map_where_the_devkit_says(bev_north, map_out, devki
         ex, ey = poses["ego_translation"][k][:2]
         yaw = _yaw(poses["ego_rotation"][k]) if up == "ego" else np.pi / 2  # the direction shown as "up"
         centres, sizes = _boxes_near(map_out, SCENE, k)
-        for u, v in rng.integers([0, 0], [w, h], (400, 2)):
+        for u, v in rng.integers([0, 0], [w, h], (250, 2)):
             if u < 0.3 * w and v < 0.35 * h:  # the legend
                 continue
             right, forward = (u - (w - 1) / 2) / s, ((h - 1) / 2 - v) / s
@@ -115,7 +115,7 @@ def test_bev_pixels_show_the_map_where_the_devkit_says(bev_north, map_out, devki
             if pixel in [tuple(c) for _, c in FILLS] + [BACKGROUND]:  # else a lidar point (none here) or a label
                 assert pixel == color, (k, u, v, x, y)
                 checked[color] = checked.get(color, 0) + 1
-    assert checked.get((78, 78, 78), 0) + checked.get((98, 98, 98), 0) > 50  # road under the ego's path
+    assert checked.get((78, 78, 78), 0) + checked.get((98, 98, 98), 0) > 30  # road under the ego's path
     assert checked.get((70, 115, 70), 0) > 5  # walkways beside it
 
 
