@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 import polars as pl
 
-from nuparquet.map.queries import POLYGON_LAYERS, MapLayers
 from nuparquet.queries.frames import ego_motion
 from nuparquet.queries.inputs import for_scene
 
@@ -25,12 +24,17 @@ if TYPE_CHECKING:
     from nuparquet.dataset import Dataset
     from nuparquet.queries.inputs import Scene
 
-LAYERS = POLYGON_LAYERS + ("lane_connector",)
+# The polygon layers (the devkit's non_geometric_polygon_layers) and lane connectors; `nuparquet.map.queries`
+# (shapely, pyarrow.dataset, OpenCV) loads only when a map query runs, not with `nuparquet stats`.
+LAYERS = ("drivable_area", "road_segment", "road_block", "lane", "ped_crossing", "walkway", "stop_line",
+          "carpark_area", "lane_connector")
 SURFACES = ("ped_crossing", "walkway", "carpark_area", "intersection", "lane", "drivable_area", "off_map")
 
 
 def _surfaces(ds: Dataset, points: pl.DataFrame) -> pl.DataFrame:
     """points (location, x_m, y_m, ...) -> the same rows with one token column per layer and `surface`."""
+    from nuparquet.map.queries import MapLayers
+
     root = Path(ds.root)
     locations = set(ds.scan("map/lane").select("location").unique().collect()["location"].to_list())
     intersections = set(ds.scan("map/road_segment").filter(pl.col("is_intersection")).select("token")
