@@ -89,7 +89,21 @@ class MapLayers:
 
     @classmethod
     def open(cls, dataset_dir: Path | str, location: str) -> MapLayers:
+        """One location's map from a conversion's `map/` datasets.
+
+        Raises:
+            UsageError: the output has no map datasets, or no map of `location` (the message lists those it has).
+        """
+        from nuparquet.errors import UsageError
+
         dataset_dir = Path(dataset_dir)
+        if not (dataset_dir / "map" / "lane").is_dir():
+            raise UsageError(f"{dataset_dir} has no map/ datasets: convert a dataroot holding maps/expansion/*.json "
+                             "(without --no-map)")
+        held = ds.dataset(str(dataset_dir / "map" / "lane"), format="parquet").to_table(columns=["location"])
+        locations = sorted(set(held.column("location").to_pylist()))
+        if location not in locations:
+            raise UsageError(f"no map of {location!r} in {dataset_dir}; maps: {', '.join(locations) or '(none)'}")
         layers, parts, line_nodes = {}, {}, {}
         for layer in LOOKUP_POLYGON_LAYERS + LINE_LAYERS:
             table = _read(dataset_dir, layer, location, ["token", "geometry"])

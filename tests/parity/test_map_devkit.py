@@ -101,3 +101,12 @@ def test_map_mask_is_pixel_equal(maps):
             assert mine.shape[0] == 2  # traffic_light has no mask
             assert np.array_equal(mine, expected_lines)
     assert painted > 10_000
+
+
+def test_open_names_what_is_missing(map_out, tmp_path):
+    from nuparquet.errors import UsageError
+
+    with pytest.raises(UsageError, match="no map of 'atlantis'.*maps: boston-seaport"):
+        MapLayers.open(map_out, "atlantis")
+    with pytest.raises(UsageError, match="has no map/ datasets"):
+        MapLayers.open(tmp_path, "boston-seaport")
