@@ -108,14 +108,46 @@ def _write_inferred_table(dataset_dir: Path, manifest: dict, entry: dict, target
     target.write_text(json.dumps(records, indent=0))
 
 
+def _map_layer_rows(dataset_dir: Path, manifest: dict, layer: str, location: str) -> list[dict]:
+    """The rows of one map's layer, in file order, without the columns nuparquet added (Arrow to Python: nested
+    structs keep their field order)."""
+    import pyarrow.compute as pc
+
+    path = dataset_dir / manifest["datasets"][f"map/{layer}"]["path"]
+    table = pq.read_table(path)
+    table = table.filter(pc.equal(table.column("location"), location))
+    return table.drop_columns([c for c in ("location", "geometry", "bbox") if c in table.column_names]).to_pylist()
+
+
+def _write_map_expansion(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
+    """A map expansion file: every layer in the file's key order, each record as it was (`json_records` facts)."""
+    out = {}
+    for key in entry["top_keys"]:
+        if key in entry["scalars"]:
+            out[key] = entry["scalars"][key]
+            continue
+        facts = entry["layers"][key]
+        rows = _map_layer_rows(dataset_dir, manifest, key, entry["location"])
+        lanes = [row.pop("lane_token") for row in rows] if key in ("arcline_path_3", "connectivity") else None
+        records = to_records(rows, facts["keys"], facts.get("json_fields", []), facts.get("int_values", {}),
+                             facts.get("key_orders", {}))
+        if key == "arcline_path_3":
+            out[key] = {lane: record["paths"] for lane, record in zip(lanes, records)}
+        elif lanes is not None:
+            out[key] = dict(zip(lanes, records))
+        else:
+            out[key] = records
+    target.write_text(json.dumps(out))
+
+
 # How each kind of converted JSON file is written back (the manifest's "files" name the kind of each).
-# Map expansion files, ... add their writer here.
 WRITERS: dict[str, Callable[[Path, dict, dict, Path], None]] = {
     "table": _write_table_file,
     "table_inferred": _write_inferred_table,
     "can_bus_messages": _write_can_bus_messages,
     "can_bus_meta": _write_can_bus_meta,
     "can_bus_route": _write_can_bus_route,
+    "map_expansion": _write_map_expansion,
 }
 
 

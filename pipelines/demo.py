@@ -1,7 +1,7 @@
 """The demo pipeline (`make demo`): the whole job on a small synthetic nuScenes-format dataset.
 
-synthesise (with camera images and lidar) -> validate -> convert -> info -> stats (+ plots) -> render a
-CAM_FRONT video and a 6-camera mosaic. Every step is a public `nuparquet` command, exactly as a user
+synthesise (with camera images, lidar and map expansion) -> validate -> convert -> info -> stats (+ plots) ->
+render a CAM_FRONT video, a 6-camera mosaic, a bird's-eye view and the six cameras with the bird's-eye view. Every step is a public `nuparquet` command, exactly as a user
 would type it; the outputs land in --out (default demo-out/).
 """
 
@@ -44,7 +44,11 @@ def run(out: Path, scenes: int, samples: int) -> None:
     scene = nuparquet_open(converted).scan("scenes").select("name").sort("name").first().collect().item()
     step("render", str(converted), "--scene", scene, "--channel", "CAM_FRONT", "--out", str(out / f"{scene}-CAM_FRONT.mp4"))
     step("render", str(converted), "--scene", scene, "--channel", "all", "--out", str(out / f"{scene}-mosaic.mp4"))
-    print(f"\ndemo outputs in {out}/: plots/, {scene}-CAM_FRONT.mp4, {scene}-mosaic.mp4")
+    step("render", str(converted), "--scene", scene, "--channel", "bev", "--out", str(out / f"{scene}-bev.mp4"))
+    step("render", str(converted), "--scene", scene, "--channel", "all", "--bev",
+         "--out", str(out / f"{scene}-mosaic-bev.mp4"))
+    print(f"\ndemo outputs in {out}/: plots/, {scene}-CAM_FRONT.mp4, {scene}-mosaic.mp4, {scene}-bev.mp4, "
+          f"{scene}-mosaic-bev.mp4")
 
 
 if __name__ == "__main__":

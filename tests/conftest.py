@@ -81,3 +81,30 @@ def lyft_rig_out(lyft_rig_root, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("lyft-rig-out") / "out"
     convert(lyft_rig_root, LYFT_RIG_VERSION, out)
     return out
+
+
+@pytest.fixture(scope="session")
+def map_root(tmp_path_factory) -> Path:
+    """6 scenes x 4 samples, tables only: four locations, two of them with two roads."""
+    from nuparquet.synth import synthesize
+
+    root = tmp_path_factory.mktemp("map-synth") / "data"
+    synthesize(root, scenes=6, samples_per_scene=4, seed=5, version=SYNTH_VERSION, with_can_bus=False)
+    return root
+
+
+@pytest.fixture(scope="session")
+def map_out(map_root, tmp_path_factory) -> Path:
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp("map-out") / "out"
+    convert(map_root, SYNTH_VERSION, out)
+    return out
+
+
+@pytest.fixture(scope="session")
+def devkit_maps(map_root) -> dict:
+    """{location: NuScenesMap} for every synthetic map (the reference)."""
+    from nuscenes.map_expansion.map_api import NuScenesMap
+
+    return {p.stem: NuScenesMap(str(map_root), p.stem) for p in sorted((map_root / "maps" / "expansion").glob("*.json"))}

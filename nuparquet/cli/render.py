@@ -18,12 +18,16 @@ examples:
   nuparquet render OUT --scene scene-0061 --out scene-0061.mp4
   nuparquet render OUT --scene scene-0061 --channel all --all-frames --out scene-0061-cams.mp4
   nuparquet render OUT --scene scene-0061 --lidar --scale 1 --frames-dir frames/ --frame-format png
+  nuparquet render OUT --scene scene-0061 --channel bev --out scene-0061-bev.mp4
+  nuparquet render OUT --scene scene-0061 --channel all --bev --out scene-0061-cams-bev.mp4
 
 Channel names come from the dataset (`nuparquet info OUT`); --channel all tiles every camera, front row over
-back row. The MP4 is H.264 (yuv420p, index at the front), so web browsers play it. Images are read from the
-dataroot the dataset was converted from (manifest.json, source.dataroot) unless --dataroot says otherwise.
-Missing or unreadable image files are named; by default those frames are skipped (a placeholder tile in the
-mosaic) and counted in a warning at the end. Exit codes: 0 done, 1 input problem (--on-missing error,
+back row; --channel bev is the bird's-eye view (map layers when map/ was converted, reference-lidar points
+coloured by height, boxes with their heading, the ego vehicle; --bev-up north|ego, --bev-range-m), and --bev
+adds it beside the cameras of --channel all. The MP4 is H.264 (yuv420p, index at the front), so web browsers
+play it. Images are read from the dataroot the dataset was converted from (manifest.json, source.dataroot)
+unless --dataroot says otherwise. Missing or unreadable image files are named; by default those frames are
+skipped (a placeholder tile in the mosaic) and counted in a warning at the end. Exit codes: 0 done, 1 input problem (--on-missing error,
 nothing renderable), 2 bad arguments (unknown scene or channel: the valid names are listed).
 """
 

@@ -21,6 +21,7 @@ class ConvertOptions:
     scenes_per_batch: int = option(
         SCENES_PER_BATCH, metavar="N",
         help=f"scenes built together (default {SCENES_PER_BATCH}); fewer lowers peak memory, more lowers overhead")
+    no_map: bool = option(False, help="do not convert the map expansion (maps/expansion/*.json) into map/ datasets")
 
     def __post_init__(self) -> None:
         if not self.version or not self.version.strip():

@@ -107,10 +107,10 @@ def needs_folder(relative: str) -> Callable[[BuildContext], str | None]:
 
 
 def _builders() -> tuple[Builder, ...]:
-    from nuparquet.convert.builders import annotations, can_bus, frames, instances, sample_can_bus, scenes
+    from nuparquet.convert.builders import annotations, can_bus, frames, instances, map_expansion, sample_can_bus, scenes
 
     return (frames.BUILDER, annotations.BUILDER, scenes.BUILDER, instances.BUILDER, can_bus.BUILDER,
-            sample_can_bus.BUILDER)
+            sample_can_bus.BUILDER, map_expansion.BUILDER)
 
 
 BUILDERS: tuple[Builder, ...] = _builders()

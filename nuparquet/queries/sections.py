@@ -22,6 +22,7 @@ from nuparquet.queries.annotations import (
 )
 from nuparquet.queries.can_bus import brake_throttle, can_speed, speed_over_time, steering_over_time
 from nuparquet.queries.frames import channel_rates, ego_motion, ego_speed_summary
+from nuparquet.queries.map import ego_time_on_surfaces, surfaces_by_category
 from nuparquet.queries.scenes import scene_summary, track_stats
 
 if TYPE_CHECKING:
@@ -67,6 +68,10 @@ SECTIONS: tuple[Section, ...] = (
             lambda ds, scene, o: can_speed(ds, scene=scene), requires=("can_bus/vehicle_monitor", "can_bus/pose")),
     Section("brake_throttle", "CAN bus pedals per scene (vehicle_monitor: share of messages pressed, mean, max)",
             lambda ds, scene, o: brake_throttle(ds, scene=scene), requires=("can_bus/vehicle_monitor",)),
+    Section("map_surfaces", "Where the boxes are on the map, by category (annotation counts per surface)",
+            lambda ds, scene, o: surfaces_by_category(ds, scene=scene), requires=("map/lane", "map/road_segment")),
+    Section("ego_on_map", "Ego keyframes per scene on each map surface (shares; intersection = ego time there)",
+            lambda ds, scene, o: ego_time_on_surfaces(ds, scene=scene), requires=("map/lane", "map/road_segment")),
     Section("class_distribution_by_scene", "Categories per scene",
             lambda ds, scene, o: class_distribution(ds, by_scene=True, scene=scene), default=False),
     Section("channel_rates_by_scene", "Frames per channel and scene",

@@ -16,6 +16,7 @@ from nuparquet.errors import UsageError
 from nuparquet.options import option
 
 ALL_CHANNELS = "all"
+BEV_CHANNEL = "bev"  # the bird's-eye view (map, lidar points, boxes, ego), a channel of its own
 LABEL_MODES = ("category", "track", "none")
 FRAME_FORMATS = ("jpg", "png")
 ON_MISSING = ("skip", "error")
@@ -39,8 +40,10 @@ class RenderOptions:
     scene: str = option(help="scene name, e.g. scene-0061 (`nuparquet info OUT` lists them)")
     channel: str | None = option(
         None, metavar="CHANNEL",
-        help=f"camera to render, or '{ALL_CHANNELS}' for every camera of the dataset tiled in rows (front row over "
-        "back row, each left to right, as seen in the data: channel names, else camera yaw). Default: "
+        help=f"camera to render, '{ALL_CHANNELS}' for every camera of the dataset tiled in rows (front row over "
+        "back row, each left to right, as seen in the data: channel names, else camera yaw), or "
+        f"'{BEV_CHANNEL}' for the bird's-eye view (map layers, reference lidar points coloured by height, boxes, "
+        "ego; keyframes, or every lidar frame with --all-frames). Default: "
         f"{DEFAULT_CAMERA} when the dataset has it, else the first front camera")
     out: str | Path | None = option(None, metavar="FILE.mp4", help="the video to write")
     frames_dir: str | Path | None = option(
@@ -66,6 +69,13 @@ class RenderOptions:
     on_missing: Literal["skip", "error"] = option(
         "skip", help="a missing or unreadable image file: skip the frame and warn at the end (default), or stop "
         "with exit 1")
+    bev: bool = option(
+        False, help="with --channel all: add the bird's-eye view as a tile beside the cameras (front row)")
+    bev_range_m: float = option(
+        50.0, metavar="M", help="bird's-eye view: metres from the ego vehicle to the top edge (default 50: ±50 m)")
+    bev_up: Literal["ego", "north"] = option(
+        "ego", help="bird's-eye view orientation: the ego's heading up (default) or north up")
+    bev_size: int = option(800, metavar="PX", help="--channel bev: the picture's side in pixels (default 800)")
     dataroot: str | Path | None = option(
         None, metavar="PATH", help="where the images are, if not at the dataroot recorded at conversion")
     preset: str = option(DEFAULT_PRESET, cli=False, help="x264 preset (encoding speed vs file size)")
@@ -93,9 +103,17 @@ class RenderOptions:
             raise UsageError(f"--scale must be in (0, 4], got {self.scale}")
         if self.fps is not None and not self.fps > 0:
             raise UsageError(f"--fps must be positive, got {self.fps}")
+        if not self.bev_range_m > 0:
+            raise UsageError(f"--bev-range-m must be positive, got {self.bev_range_m}")
+        if not 16 <= self.bev_size <= 4096:
+            raise UsageError(f"--bev-size must be in 16..4096 pixels, got {self.bev_size}")
+        if self.bev and self.channel != ALL_CHANNELS:
+            raise UsageError("--bev adds the bird's-eye view beside the cameras of --channel all; for the view alone "
+                             f"use --channel {BEV_CHANNEL}")
         if not 0 <= self.crf <= 51:
             raise UsageError(f"--crf must be in 0..51, got {self.crf}")
         for name, value, valid in (
+            ("--bev-up", self.bev_up, ("ego", "north")),
             ("--labels", self.labels, LABEL_MODES),
             ("--frame-format", self.frame_format, FRAME_FORMATS),
             ("--on-missing", self.on_missing, ON_MISSING),

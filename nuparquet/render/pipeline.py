@@ -29,7 +29,7 @@ from nuparquet.progress import OnProgress, Reporter
 from nuparquet.projection.frames import cameras_from_frames
 from nuparquet.render.camera_tile import CameraTile
 from nuparquet.render.loop import render_frames
-from nuparquet.render.options import RenderOptions
+from nuparquet.render.options import BEV_CHANNEL, RenderOptions
 from nuparquet.render.overlay import DrawStyle, build_overlay
 from nuparquet.render.plan import TilePlan, camera_rows_per_output, tile_size
 from nuparquet.render.scene import SceneRows, cameras_to_render, load_scene, reference_lidar
@@ -108,6 +108,35 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
     return TilePlan(times_us, tuple(tuple(next(tiles) for _ in row) for row in layout), size)
 
 
+def _bev_view(options: RenderOptions, size: tuple[int, int]):
+    from nuparquet.render.bev import View
+
+    return View(size, options.bev_range_m, ego_up=options.bev_up == "ego")
+
+
+def bev_plan(dataset, options: RenderOptions, dataroot: Path) -> tuple[TilePlan, float]:
+    """`--channel bev`: one square tile per reference-lidar keyframe (or frame), and the video's frame rate (the
+    lidar's own with --all-frames unless --fps says otherwise)."""
+    from nuparquet.render.bev_scene import bev_source
+
+    size = (options.bev_size, options.bev_size)
+    tile, times_us = bev_source(dataset, options.scene, dataroot, _bev_view(options, size), all_frames=options.all_frames)
+    fps = options.frame_rate
+    if options.fps is None and options.all_frames and len(times_us) > 1:
+        fps = float(round(1e6 / float(np.median(np.diff(times_us)))))
+    return TilePlan(times_us, ((tile,),), size), fps
+
+
+def with_bev_tile(plan: TilePlan, dataset, options: RenderOptions, dataroot: Path) -> TilePlan:
+    """The camera plan with the bird's-eye view appended to its first row, at the camera tile size."""
+    from nuparquet.render.bev_scene import bev_source
+
+    tile, _ = bev_source(dataset, options.scene, dataroot, _bev_view(options, plan.tile_size),
+                         all_frames=options.all_frames, times_us=plan.times_us)
+    layout = (plan.layout[0] + (tile,),) + plan.layout[1:]
+    return TilePlan(plan.times_us, layout, plan.tile_size)
+
+
 def render(dataset_or_path, options: RenderOptions, *, on_progress: OnProgress | None = None) -> RenderResult:
     """Render one scene as described by `options`; see the module docstring. Progress goes to `on_progress`
     (one "frame" unit per output picture).
@@ -126,18 +155,25 @@ def render(dataset_or_path, options: RenderOptions, *, on_progress: OnProgress |
             if target is not None:
                 check_apart(target, dataset.root, what="the converted dataset")
     dataroot = _dataroot(dataset, options.dataroot)
-    channel, layout = cameras_to_render(dataset, options.channel)
-    rows = load_scene(dataset, options.scene, [c for row in layout for c in row], all_frames=options.all_frames,
-                      lidar_channel=reference_lidar(dataset) if options.lidar else None, channel_label=channel)
-    plan = camera_plan(rows, layout, dataroot, scale=options.scale, mosaic=options.mosaic,
-                       all_frames=options.all_frames, fps=options.frame_rate, clip=options.clip,
-                       labels=options.labels)
+    fps = options.frame_rate
+    if options.channel == BEV_CHANNEL:
+        channel = BEV_CHANNEL
+        plan, fps = bev_plan(dataset, options, dataroot)
+    else:
+        channel, layout = cameras_to_render(dataset, options.channel)
+        rows = load_scene(dataset, options.scene, [c for row in layout for c in row], all_frames=options.all_frames,
+                          lidar_channel=reference_lidar(dataset) if options.lidar else None, channel_label=channel)
+        plan = camera_plan(rows, layout, dataroot, scale=options.scale, mosaic=options.mosaic,
+                           all_frames=options.all_frames, fps=fps, clip=options.clip,
+                           labels=options.labels)
+        if options.bev:
+            plan = with_bev_tile(plan, dataset, options, dataroot)
 
     out = Path(options.out) if options.out is not None else None
     frames_dir = Path(options.frames_dir) if options.frames_dir is not None else None
 
     def make_sink(executor) -> FrameSink:
-        return FrameSink(executor, size=plan.size, fps=options.frame_rate, video=out, crf=options.crf,
+        return FrameSink(executor, size=plan.size, fps=fps, video=out, crf=options.crf,
                          preset=options.preset, frames_dir=frames_dir, frame_format=options.frame_format)
 
     with Reporter(on_progress, f"render {options.scene} {channel}", total=len(plan), unit="frame") as reporter:
@@ -151,5 +187,5 @@ def render(dataset_or_path, options: RenderOptions, *, on_progress: OnProgress |
         )
     width, height = even_size(*plan.size) if out is not None else plan.size
     return RenderResult(scene=options.scene, channel=channel, frames_written=result.written,
-                        frames_skipped=result.skipped, width=width, height=height, fps=options.frame_rate,
+                        frames_skipped=result.skipped, width=width, height=height, fps=fps,
                         out=out, frames_dir=frames_dir, missing=result.missing)

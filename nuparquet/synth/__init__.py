@@ -4,6 +4,7 @@
 
     out_dir/<version>/{attribute,calibrated_sensor,...,visibility}.json   the 13 tables
     out_dir/maps/<map token>.png                                         tiny placeholder semantic maps
+    out_dir/maps/expansion/<location>.json                               map expansion v1.3 along the roads
     out_dir/samples/<CHANNEL>/..., out_dir/sweeps/<CHANNEL>/...          with images and/or lidar
 
 It is a producer of nuScenes JSON like any real dataset: nothing else in nuparquet depends on its internals.
@@ -29,6 +30,7 @@ from nuparquet.synth.plan import plan_logs
 from nuparquet.synth.sensors import SceneSensors
 from nuparquet.progress import OnProgress, Reporter
 from nuparquet.synth.can_bus import write_scene_can_bus, yaw_of
+from nuparquet.synth.map_expansion import write_map_expansions
 from nuparquet.synth.tables import (
     TABLES, SceneTokens, TableWriter, frame_filenames, global_records, map_token, scene_records,
 )
@@ -73,14 +75,17 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
 
     scene_duration_s = (samples_per_scene - 1) * KEYFRAME_INTERVAL_US / 1e6
     logs = plan_logs(seed, scenes, scene_duration_s, RIGS[rig])
+    roads: dict[str, list] = {}  # location -> the roads of its scenes (for the map expansion)
     try:
         _write_tables_and_files(dataroot, partial_dir, logs, seed, scenes, samples_per_scene,
                                 images=with_images, point_clouds=with_lidar, can_bus=with_can_bus,
-                                on_progress=on_progress)
+                                on_progress=on_progress, roads=roads)
     except BaseException:  # interrupted or failed: leave nothing that could pass for a complete version folder
         shutil.rmtree(partial_dir, ignore_errors=True)
         raise
     _write_maps(dataroot, sorted({log.location.name for log in logs}))
+    write_map_expansions(dataroot, seed, roads, {log.location.name: log.location.drives_on_right for log in logs},
+                         sorted({log.location.name for log in logs}))
     if table_dir.exists():
         shutil.rmtree(table_dir)
     os.replace(partial_dir, table_dir)
@@ -88,7 +93,8 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
 
 
 def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, scenes: int, samples_per_scene: int,
-                            *, images: bool, point_clouds: bool, can_bus: bool, on_progress: OnProgress | None) -> None:
+                            *, images: bool, point_clouds: bool, can_bus: bool, on_progress: OnProgress | None,
+                            roads: dict[str, list]) -> None:
     """Generate the scenes one by one (one scene in memory at a time) and stream them into the tables."""
     writers = {name: TableWriter(table_dir / f"{name}.json") for name in TABLES}
     task = "synth" + (" (with sensor files)" if images or point_clouds else "")
@@ -103,6 +109,7 @@ def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, sc
                 world = build_scene(rng, make_timeline(rng, start_us, samples_per_scene, log.rig.channels),
                                     log.location.drives_on_right)
                 tokens = SceneTokens.draw(rng, world, len(log.rig.channels))
+                roads.setdefault(log.location.name, []).append(world.road)
                 filenames = frame_filenames(world, log.logfile, log.rig.channels)
                 for name, records in scene_records(world, tokens, log, _scene_name(scene_index, scenes),
                                                    filenames).items():

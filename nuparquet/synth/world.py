@@ -100,6 +100,7 @@ class SceneWorld:
     annotation_num_lidar_pts: np.ndarray  # (A,)
     annotation_num_radar_pts: np.ndarray  # (A,)
     description: str
+    road: Road | None = None  # the scene's road (the map expansion is drawn along it)
 
     @property
     def annotation_has_prev(self) -> np.ndarray:
@@ -360,4 +361,5 @@ def build_scene(rng: np.random.Generator, timeline: Timeline, drives_on_right: b
         annotation_num_lidar_pts=num_lidar,
         annotation_num_radar_pts=num_radar,
         description=_describe(style, turns, objects.category, present),
+        road=road,
     )

@@ -127,9 +127,12 @@ def test_every_subcommand_has_help(run, command):
 # --- stats --------------------------------------------------------------------------------------------------------
 
 def expected_sections(folder) -> list[str]:
-    """The core sections, then the CAN bus ones when the dataroot has the CAN bus expansion."""
+    """The core sections, then the CAN bus ones when the dataroot has the CAN bus expansion, then the map ones when
+    it has the map expansion."""
     has_can_bus = any((folder.parent / "can_bus").glob("*_vehicle_monitor.json"))
-    return list(queries.SECTIONS) + (["can_speed", "brake_throttle"] if has_can_bus else [])
+    has_map = any((folder.parent / "maps" / "expansion").glob("*.json"))
+    return (list(queries.SECTIONS) + (["can_speed", "brake_throttle"] if has_can_bus else [])
+            + (["map_surfaces", "ego_on_map"] if has_map else []))
 
 
 def test_stats_json_equals_the_library_queries(run, case):

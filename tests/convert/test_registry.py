@@ -98,7 +98,9 @@ def test_manifest_records_channels_and_the_files_read(synth_root, synth_out):
     assert tables == {f"{SYNTH_VERSION}/{p.name}" for p in (synth_root / SYNTH_VERSION).glob("*.json")}
     can_bus = {f["path"] for f in manifest["files"] if f["kind"].startswith("can_bus")}
     assert can_bus == {f"can_bus/{p.name}" for p in (synth_root / "can_bus").glob("*.json")}
-    assert len(manifest["files"]) == len(tables) + len(can_bus)
+    maps = {f["path"] for f in manifest["files"] if f["kind"] == "map_expansion"}
+    assert maps == {f"maps/expansion/{p.name}" for p in (synth_root / "maps" / "expansion").glob("*.json")}
+    assert len(manifest["files"]) == len(tables) + len(can_bus) + len(maps)
     assert manifest["skipped"] == {}
 
 

@@ -1,0 +1,318 @@
+"""Map queries over the converted map (`map/<layer>/`), vectorised, with the devkit's answers.
+
+`MapLayers.open(OUT, location)` reads one location's layers (WKB -> shapely 2 arrays; an STRtree per layer,
+built on first use). Every query takes arrays and answers for all of them at once; none loops over records:
+
+- `layers_on_point(x, y)`: = `NuScenesMap.layers_on_point` for each point: per polygon layer, the first record
+  (file order) whose polygon strictly contains the point (the devkit's `point.within`), '' where none.
+- `records_in_patch(box, mode)`: = `get_records_in_patch`. Polygon layers use the geometry (`intersects` /
+  `within`, drivable_area as the MultiPolygon of its polygons); line layers keep the devkit's quirk: a line
+  "intersects" a patch when one of its *nodes* lies strictly inside it and is "within" when all do (a line
+  crossing the patch with no node inside is not reported; lines without nodes never are).
+- `closest_lane(x, y, radius_m)`: = `get_closest_lane`: among lanes and lane connectors whose polygon
+  intersects the square of half-side `radius_m`, the one with the nearest 0.5 m centreline pose; ties go to the
+  later candidate (lanes before connectors, file order), as the devkit's `<=` does; '' where none.
+- `map_mask(patch_box, patch_angle_deg, layers, canvas_size)`: = `get_map_mask` pixel for pixel: the same clip,
+  rotation, translation and scaling arithmetic (shapely's affine formulas applied to all coordinates at once),
+  then the same OpenCV calls per clipped geometry in file order (a geometry's holes cleared right after it, so
+  overlaps paint as the devkit's do). Deviation: where a line layer's clip is a MultiLineString the devkit
+  (shapely 2) raises TypeError iterating it; here each part is drawn. traffic_light yields no mask, as in the
+  devkit (so the stack has one channel fewer).
+- `discretize_lanes(tokens, resolution_m)`: = `discretize_lanes` (`map.centerlines`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pyarrow.compute as pc
+import pyarrow.dataset as ds
+import shapely
+from shapely import STRtree
+
+from nuparquet.map.centerlines import discretize_lanes as _discretize
+
+POLYGON_LAYERS = ("drivable_area", "road_segment", "road_block", "lane", "ped_crossing", "walkway", "stop_line",
+                  "carpark_area")  # the devkit's non_geometric_polygon_layers
+LOOKUP_POLYGON_LAYERS = POLYGON_LAYERS + ("lane_connector",)
+LINE_LAYERS = ("road_divider", "lane_divider", "traffic_light")
+NON_GEOMETRIC_LAYERS = POLYGON_LAYERS + LINE_LAYERS
+LANE_LAYERS = ("lane", "lane_connector")
+
+
+def _read(dataset_dir: Path, layer: str, location: str, columns: list[str]):
+    dataset = ds.dataset(str(Path(dataset_dir) / "map" / layer), format="parquet")
+    return dataset.to_table(columns=columns, filter=pc.field("location") == location)
+
+
+@dataclass
+class _Layer:
+    tokens: np.ndarray  # (R,) str
+    geometry: np.ndarray  # (R,) shapely (None: no geometry)
+    _tree: STRtree | None = None
+
+    @property
+    def tree(self) -> STRtree:
+        if self._tree is None:
+            self._tree = STRtree(self.geometry)
+        return self._tree
+
+
+@dataclass
+class _Parts:
+    """Polygons of a layer as the devkit walks them one by one (drivable_area: each polygon of each record)."""
+
+    owner: np.ndarray  # (K,) record index
+    geometry: np.ndarray  # (K,)
+    _tree: STRtree | None = None
+
+    @property
+    def tree(self) -> STRtree:
+        if self._tree is None:
+            self._tree = STRtree(self.geometry)
+        return self._tree
+
+
+@dataclass
+class MapLayers:
+    location: str
+    layers: dict[str, _Layer]
+    parts: dict[str, _Parts]
+    line_nodes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]  # layer -> (N, 2) node xy, (N,) owner, (R,) counts
+    arcline_path_3: dict[str, list[dict]]
+    _centerlines: dict[float, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    _lane_tree: STRtree | None = None
+
+    @classmethod
+    def open(cls, dataset_dir: Path | str, location: str) -> MapLayers:
+        """One location's map from a conversion's `map/` datasets.
+
+        Raises:
+            UsageError: the output has no map datasets, or no map of `location` (the message lists those it has).
+        """
+        from nuparquet.errors import UsageError
+
+        dataset_dir = Path(dataset_dir)
+        if not (dataset_dir / "map" / "lane").is_dir():
+            raise UsageError(f"{dataset_dir} has no map/ datasets: convert a dataroot holding maps/expansion/*.json "
+                             "(without --no-map)")
+        held = ds.dataset(str(dataset_dir / "map" / "lane"), format="parquet").to_table(columns=["location"])
+        locations = sorted(set(held.column("location").to_pylist()))
+        if location not in locations:
+            raise UsageError(f"no map of {location!r} in {dataset_dir}; maps: {', '.join(locations) or '(none)'}")
+        layers, parts, line_nodes = {}, {}, {}
+        for layer in LOOKUP_POLYGON_LAYERS + LINE_LAYERS:
+            table = _read(dataset_dir, layer, location, ["token", "geometry"])
+            layers[layer] = _Layer(np.asarray(table.column("token").to_pylist(), dtype=object),
+                                   shapely.from_wkb(table.column("geometry").to_numpy(zero_copy_only=False)))
+        polygons = _read(dataset_dir, "polygon", location, ["token", "geometry"])
+        polygon_geometry = dict(zip(polygons.column("token").to_pylist(),
+                                    shapely.from_wkb(polygons.column("geometry").to_numpy(zero_copy_only=False))))
+        for layer in POLYGON_LAYERS + ("lane_connector",):
+            if layer == "drivable_area":
+                lists = _read(dataset_dir, layer, location, ["polygon_tokens"]).column("polygon_tokens").to_pylist()
+                owner = np.repeat(np.arange(len(lists)), [len(t) for t in lists])
+                geometry = np.array([polygon_geometry[t] for tokens in lists for t in tokens], dtype=object)
+                parts[layer] = _Parts(owner, geometry)
+            else:
+                parts[layer] = _Parts(np.arange(len(layers[layer].tokens)), layers[layer].geometry)
+        nodes = _read(dataset_dir, "node", location, ["token", "x", "y"])
+        node_index = {t: i for i, t in enumerate(nodes.column("token").to_pylist())}
+        node_xy = np.c_[nodes.column("x").to_numpy(), nodes.column("y").to_numpy()]
+        lines = _read(dataset_dir, "line", location, ["token", "node_tokens"])
+        line_tokens = dict(zip(lines.column("token").to_pylist(), lines.column("node_tokens").to_pylist()))
+        for layer in LINE_LAYERS:
+            refs = _read(dataset_dir, layer, location, ["line_token"]).column("line_token").to_pylist()
+            lists = [line_tokens[t] for t in refs]
+            counts = np.array([len(t) for t in lists], dtype=np.int64)
+            flat = np.fromiter((node_index[t] for tokens in lists for t in tokens), np.int64, int(counts.sum()))
+            line_nodes[layer] = (node_xy[flat].reshape(-1, 2), np.repeat(np.arange(len(lists)), counts), counts)
+        paths = _read(dataset_dir, "arcline_path_3", location, ["lane_token", "paths"])
+        values = paths.column("paths").to_pylist()
+        if values and isinstance(values[0], str):  # kept as JSON text
+            import json
+            values = [json.loads(v) for v in values]
+        arcline = dict(zip(paths.column("lane_token").to_pylist(), values))
+        return cls(location, layers, parts, line_nodes, arcline)
+
+    # -- point queries ----------------------------------------------------------------------------------------
+
+    def layers_on_point(self, x, y, layer_names: tuple[str, ...] | list[str] | None = None) -> dict[str, np.ndarray]:
+        """{layer: (N,) token of the first record containing each point, '' where none}."""
+        x, y = np.atleast_1d(np.asarray(x, np.float64)), np.atleast_1d(np.asarray(y, np.float64))
+        points = shapely.points(x, y)
+        out = {}
+        for layer in layer_names or POLYGON_LAYERS:
+            if layer not in LOOKUP_POLYGON_LAYERS:  # lane_connector: an extension (the devkit refuses it)
+                raise ValueError(f"{layer} is not a polygon layer")  # lane_connector: an extension (the devkit refuses it)
+            parts = self.parts[layer]
+            found = np.full(len(points), np.iinfo(np.int64).max)
+            if len(parts.geometry):
+                point_i, part_i = parts.tree.query(points, predicate="within")
+                np.minimum.at(found, point_i, parts.owner[part_i])
+            tokens = np.full(len(points), "", dtype=object)
+            hit = found < np.iinfo(np.int64).max
+            tokens[hit] = self.layers[layer].tokens[found[hit]]
+            out[layer] = tokens
+        return out
+
+    def records_in_patch(self, box_coords: tuple[float, float, float, float],
+                         layer_names: tuple[str, ...] | list[str] | None = None,
+                         mode: str = "intersect") -> dict[str, list[str]]:
+        """{layer: tokens of the records intersecting / within the patch (x_min, y_min, x_max, y_max)}."""
+        if mode not in ("intersect", "within"):
+            raise ValueError(f"Mode {mode} is not valid, choice=('intersect', 'within')")
+        x_min, y_min, x_max, y_max = box_coords
+        patch = shapely.box(x_min, y_min, x_max, y_max)
+        out = {}
+        for layer in layer_names or NON_GEOMETRIC_LAYERS:
+            if layer in LOOKUP_POLYGON_LAYERS:
+                records = self.layers[layer]
+                index = records.tree.query(patch, predicate="intersects" if mode == "intersect" else "contains") \
+                    if len(records.geometry) else np.zeros(0, np.int64)
+                out[layer] = records.tokens[np.sort(index)].tolist()
+            elif layer in LINE_LAYERS:
+                xy, owner, counts = self.line_nodes[layer]
+                inside = (xy[:, 0] < x_max) & (xy[:, 0] > x_min) & (xy[:, 1] < y_max) & (xy[:, 1] > y_min)
+                n_inside = np.bincount(owner, weights=inside, minlength=len(counts))
+                keep = n_inside > 0 if mode == "intersect" else (n_inside == counts) & (counts > 0)
+                out[layer] = self.layers[layer].tokens[keep].tolist()
+            else:
+                raise ValueError(f"{layer} is not a valid layer")
+        return out
+
+    def centerlines(self, resolution_m: float = 0.5) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) poses of every lane then every lane connector (file order) and (L,) pose counts, cached."""
+        if resolution_m not in self._centerlines:
+            tokens = np.concatenate([self.layers[layer].tokens for layer in LANE_LAYERS])
+            self._centerlines[resolution_m] = _discretize([self.arcline_path_3.get(t, []) for t in tokens], resolution_m)
+        return self._centerlines[resolution_m]
+
+    def discretize_lanes(self, tokens: list[str], resolution_m: float) -> dict[str, list[tuple[float, float, float]]]:
+        poses, counts = _discretize([self.arcline_path_3.get(t, []) for t in tokens], resolution_m)
+        starts = np.r_[0, np.cumsum(counts)]
+        return {t: [tuple(p) for p in poses[starts[i]:starts[i + 1]].tolist()] for i, t in enumerate(tokens)}
+
+    def closest_lane(self, x, y, radius_m: float = 5.0, *, chunk: int = 4096) -> np.ndarray:
+        """(N,) token of the closest lane or lane connector to each point within `radius_m` ('' where none)."""
+        x, y = np.atleast_1d(np.asarray(x, np.float64)), np.atleast_1d(np.asarray(y, np.float64))
+        lanes = np.concatenate([self.layers[layer].geometry for layer in LANE_LAYERS])
+        tokens = np.concatenate([self.layers[layer].tokens for layer in LANE_LAYERS])
+        poses, counts = self.centerlines(0.5)
+        starts = np.r_[0, np.cumsum(counts)[:-1]]
+        if self._lane_tree is None:
+            self._lane_tree = STRtree(lanes)
+        tree = self._lane_tree
+        out = np.full(len(x), "", dtype=object)
+        for lo in range(0, len(x), chunk):
+            xs, ys = x[lo:lo + chunk], y[lo:lo + chunk]
+            boxes = shapely.box(xs - radius_m, ys - radius_m, xs + radius_m, ys + radius_m)
+            point_i, lane_i = tree.query(boxes, predicate="intersects")
+            has = counts[lane_i] > 0
+            point_i, lane_i = point_i[has], lane_i[has]
+            if not len(point_i):
+                continue
+            n = counts[lane_i]
+            pair = np.repeat(np.arange(len(lane_i)), n)
+            pose = np.repeat(starts[lane_i] - np.r_[0, np.cumsum(n)[:-1]], n) + np.arange(n.sum())
+            d = poses[pose, :2] - np.c_[xs[point_i], ys[point_i]][pair]
+            distance = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+            pair_min = np.minimum.reduceat(distance, np.r_[0, np.cumsum(n)[:-1]])
+            # per point: the smallest distance, ties to the latest candidate (the devkit's `<=` scan)
+            order = np.lexsort((-lane_i, pair_min, point_i))
+            first = np.r_[True, point_i[order][1:] != point_i[order][:-1]]
+            best = order[first]
+            out[lo + point_i[best]] = tokens[lane_i[best]]
+        return out
+
+    # -- raster -----------------------------------------------------------------------------------------------
+
+    def map_mask(self, patch_box: tuple[float, float, float, float], patch_angle_deg: float,
+                 layer_names: tuple[str, ...] | list[str] | None = None,
+                 canvas_size: tuple[int, int] = (100, 100)) -> np.ndarray:
+        """(C, H, W) uint8 masks of the patch [x_center, y_center, height, width] rotated by `patch_angle_deg`."""
+        layer_names = list(layer_names or NON_GEOMETRIC_LAYERS)
+        if canvas_size is None:
+            canvas_size = tuple(np.round(np.array((patch_box[2], patch_box[3])) * 10).astype(np.int32))
+        px, py, ph, pw = patch_box
+        patch = _patch(patch_box, patch_angle_deg)
+        local = _patch((0.0, 0.0, ph, pw), 0.0)
+        h, w = canvas_size
+        scale_x, scale_y = w / pw, h / ph
+        trans_x, trans_y = -0.0 + pw / 2.0, -0.0 + ph / 2.0
+        masks = []
+        for layer in layer_names:
+            if layer == "traffic_light":
+                continue
+            mask = np.zeros(canvas_size, np.uint8)
+            if layer in POLYGON_LAYERS:
+                parts = self.parts[layer]
+                geoms = parts.geometry
+                candidates = np.sort(parts.tree.query(patch, predicate="intersects"))
+                if layer != "drivable_area":  # the devkit skips invalid polygons of the other layers
+                    candidates = candidates[shapely.is_valid(geoms[candidates])]
+                clipped = _to_local(shapely.intersection(geoms[candidates], patch), patch_angle_deg, px, py)
+                clipped = shapely.intersection(clipped[~shapely.is_empty(clipped)], local)
+                clipped = clipped[~shapely.is_empty(clipped)]
+                clipped = _affine(_affine(clipped, 1.0, 0.0, 0.0, 1.0, trans_x, trans_y),
+                                  scale_x, 0.0, 0.0, scale_y, 0.0 - 0.0 * scale_x, 0.0 - 0.0 * scale_y)
+                for geom in clipped:  # per geometry, as the devkit paints: its holes are cleared before the next
+                    polygons = shapely.get_parts(geom)
+                    exteriors = [np.asarray(p.exterior.coords).round().astype(np.int32) for p in polygons]
+                    interiors = [np.asarray(r.coords).round().astype(np.int32) for p in polygons for r in p.interiors]
+                    cv2.fillPoly(mask, exteriors, 1)
+                    cv2.fillPoly(mask, interiors, 0)
+            elif layer in LINE_LAYERS:
+                records = self.layers[layer]
+                geoms = records.geometry
+                ok = ~shapely.is_missing(geoms)
+                ok[ok] = ~shapely.is_empty(geoms[ok])
+                candidates = np.sort(records.tree.query(patch, predicate="intersects"))
+                candidates = candidates[ok[candidates]]
+                clipped = _to_local(shapely.intersection(geoms[candidates], patch), patch_angle_deg, px, py)
+                clipped = shapely.intersection(clipped[~shapely.is_empty(clipped)], local)
+                clipped = clipped[~shapely.is_empty(clipped)]
+                clipped = _affine(_affine(clipped, 1.0, 0.0, 0.0, 1.0, trans_x, trans_y),
+                                  scale_x, 0.0, 0.0, scale_y, 0.0 - 0.0 * scale_x, 0.0 - 0.0 * scale_y)
+                for geom in clipped:
+                    for part in shapely.get_parts(geom):
+                        cv2.polylines(mask, [np.asarray(part.coords, np.int32).reshape(-1, 2)], False, 1, 2)
+            else:
+                raise ValueError(f"{layer} is not a valid layer")
+            masks.append(mask)
+        return np.array(masks)
+
+
+def _patch(patch_box, patch_angle_deg: float):
+    """The devkit's get_patch_coord."""
+    from shapely import affinity
+
+    px, py, ph, pw = patch_box
+    patch = shapely.box(px - pw / 2.0, py - ph / 2.0, px + pw / 2.0, py + ph / 2.0)
+    return affinity.rotate(patch, patch_angle_deg, origin=(px, py), use_radians=False)
+
+
+def _affine(geoms: np.ndarray, a: float, b: float, d: float, e: float, xoff: float, yoff: float) -> np.ndarray:
+    """shapely.affinity.affine_transform's 2D arithmetic, applied to every coordinate of every geometry at once."""
+    if not len(geoms):
+        return geoms
+
+    def transform(coords: np.ndarray) -> np.ndarray:
+        x, y = coords.T
+        return np.stack([a * x + b * y + xoff, d * x + e * y + yoff]).T
+
+    return shapely.transform(geoms, transform)
+
+
+def _to_local(geoms: np.ndarray, patch_angle_deg: float, px: float, py: float) -> np.ndarray:
+    """Rotate by -angle about the patch centre (shapely.affinity.rotate's matrix), then move the centre to 0."""
+    angle = -patch_angle_deg * math.pi / 180.0
+    cosp, sinp = math.cos(angle), math.sin(angle)
+    cosp = 0.0 if abs(cosp) < 2.5e-16 else cosp
+    sinp = 0.0 if abs(sinp) < 2.5e-16 else sinp
+    rotated = _affine(geoms, cosp, -sinp, sinp, cosp, px - px * cosp + py * sinp, py - px * sinp - py * cosp)
+    return _affine(rotated, 1.0, 0.0, 0.0, 1.0, -px, -py)
