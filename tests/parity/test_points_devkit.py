@@ -93,6 +93,15 @@ def test_one_lidar_frame_lies_in_one_row_group_and_radar_frames_never_span_two(p
                     assert len(tokens) == 1  # ~35k points: each frame alone, so a one-frame read reads only it
 
 
+def test_ds_points_reads_exactly_one_row_group_per_real_lidar_frame(points_out):
+    import nuparquet
+
+    ds = nuparquet.open(points_out)
+    index = ds._points_index("lidar_points")
+    tokens = _frames(points_out, "lidar")["token"].to_list()
+    assert all(index.groups_for_tokens([t]).sum() == 1 for t in tokens)
+
+
 def test_manifest_lists_points_datasets_and_no_missing_keyframe_files(points_out):
     import json
 
