@@ -34,6 +34,16 @@ def extract_out(extract_root, tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
+def extract_points_out(extract_root, tmp_path_factory) -> Path:
+    """The real extract converted with its sensor points (lidar_points/, radar_points/), one process."""
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp("extract-points") / "out"
+    convert(extract_root, EXTRACT_VERSION, out, sensors=("lidar", "radar"), jobs=1)
+    return out
+
+
+@pytest.fixture(scope="session")
 def synth_root(tmp_path_factory) -> Path:
     """A small synthetic dataset with images and lidar: 2 scenes x 6 samples."""
     from nuparquet.synth import synthesize

@@ -8,16 +8,11 @@ import polars as pl
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import EXTRACT_VERSION
 
 
 @pytest.fixture(scope="module")
-def points_out(extract_root, tmp_path_factory):
-    from nuparquet.convert import convert
-
-    out = tmp_path_factory.mktemp("points") / "out"
-    convert(extract_root, EXTRACT_VERSION, out, sensors=("lidar", "radar"), jobs=1)
-    return out
+def points_out(extract_points_out):
+    return extract_points_out
 
 
 def _frames(out, modality: str) -> pl.DataFrame:
