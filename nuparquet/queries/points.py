@@ -34,6 +34,12 @@ def semantic_label(source: LabelSource = "lidarseg") -> pl.Expr:
     raise ValueError(f"source must be 'lidarseg' or 'panoptic', got {source!r}")
 
 
+def has_labels(ds: Dataset, source: LabelSource = "lidarseg") -> bool:
+    """Whether `lidar_points/` holds labels of `source` (from the manifest: frames converted with a label file)."""
+    entry = ds.manifest.get("datasets", {}).get("lidar_points", {})
+    return bool(entry.get("labelled_frames", {}).get(source))
+
+
 def _categories(ds: Dataset) -> pl.LazyFrame:
     return ds.scan("tables/category").select("index", "name").filter(pl.col("index").is_not_null())
 

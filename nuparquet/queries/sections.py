@@ -22,6 +22,7 @@ from nuparquet.queries.annotations import (
 )
 from nuparquet.queries.can_bus import brake_throttle, can_speed, speed_over_time, steering_over_time
 from nuparquet.queries.frames import channel_rates, ego_motion, ego_speed_summary
+from nuparquet.queries.points import has_labels, lidarseg_class_counts, panoptic_instance_stats
 from nuparquet.queries.scenes import scene_summary, track_stats
 
 if TYPE_CHECKING:
@@ -43,6 +44,7 @@ class Section:
     query: Callable[[Dataset, Scene, SectionOptions], pl.LazyFrame]
     default: bool = True  # printed by a plain `nuparquet stats`; else only on request (--only)
     requires: tuple[str, ...] = ()  # datasets the query reads beyond the core four; absent -> not in the default run
+    when: Callable[[Dataset], bool] | None = None  # and in the default run only if this holds (labels converted)
 
 
 SECTIONS: tuple[Section, ...] = (
@@ -67,6 +69,12 @@ SECTIONS: tuple[Section, ...] = (
             lambda ds, scene, o: can_speed(ds, scene=scene), requires=("can_bus/vehicle_monitor", "can_bus/pose")),
     Section("brake_throttle", "CAN bus pedals per scene (vehicle_monitor: share of messages pressed, mean, max)",
             lambda ds, scene, o: brake_throttle(ds, scene=scene), requires=("can_bus/vehicle_monitor",)),
+    Section("lidarseg", "nuScenes-lidarseg: labelled lidar points per class (like NuScenes.list_lidarseg_categories)",
+            lambda ds, scene, o: lidarseg_class_counts(ds, scene=scene), requires=("lidar_points",),
+            when=lambda ds: has_labels(ds, "lidarseg")),
+    Section("panoptic", "Panoptic nuScenes: instances per class (like NuScenes.list_panoptic_instances, ddof=0)",
+            lambda ds, scene, o: panoptic_instance_stats(ds, scene=scene), requires=("lidar_points",),
+            when=lambda ds: has_labels(ds, "panoptic")),
     Section("class_distribution_by_scene", "Categories per scene",
             lambda ds, scene, o: class_distribution(ds, by_scene=True, scene=scene), default=False),
     Section("channel_rates_by_scene", "Frames per channel and scene",
@@ -86,7 +94,8 @@ BY_NAME = {s.name: s for s in SECTIONS}
 def default_sections(ds: Dataset | None = None) -> tuple[str, ...]:
     """The sections a plain `nuparquet stats` prints: every default one whose datasets `ds` holds."""
     held = None if ds is None else set(ds.datasets)
-    return tuple(s.name for s in SECTIONS if s.default and (held is None or held.issuperset(s.requires)))
+    return tuple(s.name for s in SECTIONS if s.default and (held is None or (
+        held.issuperset(s.requires) and (s.when is None or s.when(ds)))))
 
 
 def summary(ds: Dataset, *, scene: Scene = None, sections: Sequence[str] | None = None,

@@ -197,3 +197,23 @@ def test_missing_sensor_files_are_listed_and_warned_once_or_an_error_with_strict
     assert len(warnings) == 1 and "2 sensor file(s) missing" in warnings[0]
     message = _problems(small_root, tmp_path, strict=True)
     assert all(name in message for name in gone)
+
+
+def test_stats_gains_lidarseg_sections_and_a_chart_when_labels_were_converted(labelled_out, tmp_path):
+    import nuparquet
+    from nuparquet.plots import write_plots
+    from nuparquet.queries.sections import default_sections
+
+    labelled = nuparquet.open(labelled_out)
+    assert {"lidarseg", "panoptic"} <= set(default_sections(labelled))
+    paths = write_plots(labelled, tmp_path / "plots")
+    chart = tmp_path / "plots" / "lidarseg_points_per_class.png"
+    assert chart in paths and chart.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_stats_has_no_lidarseg_sections_for_points_without_labels(extract_points_out):
+    import nuparquet
+    from nuparquet.queries.sections import default_sections
+
+    unlabelled = nuparquet.open(extract_points_out)  # real lidar points, no label files
+    assert "lidar_points" in unlabelled.datasets and not {"lidarseg", "panoptic"} & set(default_sections(unlabelled))

@@ -61,6 +61,7 @@ class SceneSummary:
     problems: list[Problem] = field(default_factory=list)
     pcd_layout: tuple[tuple[str, str], ...] | None = None  # radar: (field, numpy type) of the header
     pcd_file: str | None = None  # the radar file the layout was read from
+    labelled: dict[str, int] = field(default_factory=dict)  # frames with a lidarseg / panoptic label file
 
 
 def convert_scene(task: SceneTask) -> SceneSummary:
@@ -96,6 +97,8 @@ def convert_scene(task: SceneTask) -> SceneSummary:
                     if frames[table][i] is not None:
                         labels[column] = _read_labels(root, frames[table][i], filename, len(frame["points"]), reader, table)
                 frame["labels"] = labels
+                for table, column, _reader in LABELS:
+                    summary.labelled[table] = summary.labelled.get(table, 0) + (column in labels)
             else:
                 frame["points"] = source.read_radar_pcd(root / filename)
                 layout = tuple((n, frame["points"].dtype[n].str) for n in frame["points"].dtype.names)
@@ -284,6 +287,7 @@ def build_points(ctx: BuildContext, modality: str, name: str) -> dict[str, Writt
     extra = {"missing_files": missing, "frames": frames.height - len(missing)}
     if modality == "lidar":
         extra["point_columns"] = ctx.options.lidar_columns
+        extra["labelled_frames"] = {table: sum(s.labelled.get(table, 0) for s in summaries) for table, _c, _r in LABELS}
     size = sum(p.stat().st_size for p in directory.glob("*.parquet"))
     return {name: WrittenParts(schema, sum(s.rows for s in summaries), size, max(len(written), 1), extra)}
 
