@@ -227,9 +227,9 @@ class Dataset:
         DataFrame of those columns (e.g. ``["x", "y", "z", "lidarseg_label", "panoptic_label"]``)."""
         from nuparquet import frame_points
 
-        frame = frame_points.select_points(self._points_index("lidar_points"), tokens, scene=scene, channel=channel,
+        table = frame_points.select_points(self._points_index("lidar_points"), tokens, scene=scene, channel=channel,
                                            columns=columns or list(frame_points.LIDAR_ARRAY_COLUMNS))
-        return frame if columns else frame_points.lidar_array(frame)
+        return pl.from_arrow(table) if columns else frame_points.lidar_array(table)
 
     def radar_points(self, tokens: str | list[str] | None = None, *, scene: str | None = None,
                      channel: str | None = None, columns: list[str] | None = None, filtered: bool = False):
@@ -243,12 +243,12 @@ class Dataset:
         index = self._points_index("radar_points")
         fields = frame_points.radar_fields(index)
         wanted = list(columns or fields) + (["passes_default_filters"] if filtered else [])
-        frame = frame_points.select_points(index, tokens, scene=scene, channel=channel, columns=list(dict.fromkeys(wanted)))
+        table = frame_points.select_points(index, tokens, scene=scene, channel=channel, columns=list(dict.fromkeys(wanted)))
         if filtered:
-            frame = frame.filter(pl.col("passes_default_filters").fill_null(False))
+            table = table.filter(table.column("passes_default_filters").fill_null(False))
             if not columns or "passes_default_filters" not in columns:
-                frame = frame.drop("passes_default_filters")
-        return frame if columns else frame_points.radar_array(frame, fields)
+                table = table.drop_columns(["passes_default_filters"])
+        return pl.from_arrow(table) if columns else frame_points.radar_array(table, fields)
 
     def _points_index(self, name: str):
         from nuparquet.frame_points import RowGroupIndex

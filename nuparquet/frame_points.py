@@ -16,11 +16,11 @@ radar = ds.radar_points(token)                # (N, F) float64, the PCD fields a
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-import polars as pl
 import pyarrow as pa
+import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from nuparquet.errors import UsageError
@@ -41,15 +41,17 @@ class RowGroupIndex:
     token_max: np.ndarray
     scene_min: np.ndarray
     scene_max: np.ndarray
-    fields: tuple[str, ...]  # the dataset's columns
+    schema: pa.Schema  # the dataset's columns
+    _files: dict = field(default_factory=dict, compare=False, repr=False)  # open pq.ParquetFile by path
 
     @classmethod
     def read(cls, paths: list[str]) -> RowGroupIndex:
         rows: list[tuple] = []
-        fields: tuple[str, ...] = ()
+        schema = pa.schema([])
         for i, path in enumerate(paths):
             meta = pq.read_metadata(path)
-            fields = tuple(meta.schema.to_arrow_schema().names)
+            schema = meta.schema.to_arrow_schema()
+            fields = schema.names
             token_col, scene_col = fields.index("sample_data_token"), fields.index("scene_name")
             for g in range(meta.num_row_groups):
                 group = meta.row_group(g)
@@ -59,7 +61,11 @@ class RowGroupIndex:
                 rows.append((i, g, _text(token.min), _text(token.max), _text(scene.min), _text(scene.max)))
         columns = list(zip(*rows)) if rows else [[]] * 6
         return cls(paths, np.array(columns[0], dtype=np.int64), np.array(columns[1], dtype=np.int64),
-                   *(np.array(c, dtype=str) for c in columns[2:]), fields)
+                   *(np.array(c, dtype=str) for c in columns[2:]), schema)
+
+    @property
+    def fields(self) -> tuple[str, ...]:
+        return tuple(self.schema.names)
 
     def groups_for_tokens(self, tokens: Sequence[str]) -> np.ndarray:
         """(G,) bool: row groups whose token range holds any of `tokens`."""
@@ -71,13 +77,54 @@ class RowGroupIndex:
     def groups_for_scene(self, scene: str) -> np.ndarray:
         return (self.scene_min <= scene) & (scene <= self.scene_max)
 
-    def read_groups(self, wanted: np.ndarray, columns: Sequence[str]) -> pa.Table:
+    def read_group(self, g: int, columns: Sequence[str]) -> pa.Table:
+        """Row group `g` (an index into this table of groups)."""
+        path = self.paths[int(self.file[g])]
+        if path not in self._files:
+            self._files[path] = pq.ParquetFile(path)
+        return self._files[path].read_row_group(int(self.group[g]), columns=list(columns))
+
+    def read_groups(self, wanted: np.ndarray, columns: Sequence[str]) -> pa.Table | None:
         """The rows of the wanted row groups (files in order, groups in order)."""
-        tables = []
-        for i in np.unique(self.file[wanted]):
-            groups = self.group[wanted & (self.file == i)].tolist()
-            tables.append(pq.ParquetFile(self.paths[i]).read_row_groups(groups, columns=list(columns)))
+        tables = [self.read_group(g, columns) for g in np.flatnonzero(wanted)]
         return pa.concat_tables(tables) if tables else None
+
+    def read_frames(self, tokens: Sequence[str], columns: Sequence[str]) -> pa.Table:
+        """The rows of frames `tokens`, in that order (each frame's rows as stored). A row group that holds one
+        frame only (min token = max token: every nuScenes lidar frame) is taken whole, without a filter."""
+        read = list(dict.fromkeys([*columns, "sample_data_token"]))
+        groups: dict[int, pa.Table] = {}
+        pieces, missing = [], []
+        for token in tokens:
+            candidates = np.flatnonzero((self.token_min <= token) & (token <= self.token_max))
+            found = False
+            for g in candidates.tolist():
+                if g not in groups:
+                    groups[g] = self.read_group(g, read)
+                table = groups[g]
+                if self.token_min[g] != self.token_max[g]:
+                    table = table.filter(_token_mask(table.column("sample_data_token"), token))
+                if table.num_rows:
+                    pieces.append(table.select(list(columns)))
+                    found = True
+            if not found:
+                missing.append(token)
+        if missing:
+            raise UsageError(f"no points for sample_data {', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} "
+                             "(not converted, or not a frame of this sensor type)")
+        return pa.concat_tables(pieces)
+
+
+def _token_mask(column: pa.ChunkedArray, token: str) -> pa.ChunkedArray:
+    """Rows of a (dictionary-encoded) token column equal to `token`, compared on the dictionary indices."""
+    masks = []
+    for chunk in column.chunks:
+        if pa.types.is_dictionary(chunk.type):
+            position = chunk.dictionary.index(token).as_py()
+            masks.append(pc.equal(chunk.indices, position) if position >= 0 else pa.array(np.zeros(len(chunk), bool)))
+        else:
+            masks.append(pc.equal(chunk, token))
+    return pa.chunked_array(masks, pa.bool_())
 
 
 def _text(value) -> str:
@@ -85,47 +132,34 @@ def _text(value) -> str:
 
 
 def select_points(index: RowGroupIndex, tokens: str | Sequence[str] | None = None, *, scene: str | None = None,
-                  channel: str | None = None, columns: Sequence[str] | None = None) -> pl.DataFrame:
+                  channel: str | None = None, columns: Sequence[str] | None = None) -> pa.Table:
     """The points of the frames `tokens` (in the order given, each frame in file order) or of `scene` (optionally
-    one `channel`; frames in dataset order), reading only the row groups that can hold them. `columns`: those
-    columns (default all)."""
+    one `channel`; frames in dataset order), reading only the row groups that can hold them, as an Arrow table
+    of `columns` (default all)."""
     if (tokens is None) == (scene is None):
         raise UsageError("give sample_data token(s) or scene=..., not both or neither")
     columns = list(columns) if columns is not None else list(index.fields)
     unknown = [c for c in columns if c not in index.fields]
     if unknown:
         raise UsageError(f"no column {', '.join(map(repr, unknown))} (columns: {', '.join(index.fields)})")
-    read = list(dict.fromkeys([*columns, "sample_data_token", "scene_name", "channel", "point_index"]))
     if tokens is not None:
-        token_list = [tokens] if isinstance(tokens, str) else list(tokens)
-        table = index.read_groups(index.groups_for_tokens(token_list), read)
-        frame = _frame(table, read).with_columns(pl.col("sample_data_token").cast(pl.String))
-        order = pl.DataFrame({"sample_data_token": token_list, "_order": np.arange(len(token_list))})
-        frame = frame.join(order, on="sample_data_token", how="inner").sort("_order", "point_index", maintain_order=True)
-        found = set(frame["sample_data_token"].unique().to_list())
-        missing = [t for t in token_list if t not in found]
-        if missing:
-            raise UsageError(f"no points for sample_data {', '.join(missing[:5])}"
-                             f"{' ...' if len(missing) > 5 else ''} (not converted, or not a frame of this sensor type)")
-    else:
-        table = index.read_groups(index.groups_for_scene(scene), read)
-        frame = _frame(table, read).filter(pl.col("scene_name").cast(pl.String) == scene)
-        if channel is not None:
-            frame = frame.filter(pl.col("channel").cast(pl.String) == channel)
-    return frame.select(columns)
-
-
-def _frame(table: pa.Table | None, columns: list[str]) -> pl.DataFrame:
+        return index.read_frames([tokens] if isinstance(tokens, str) else list(tokens), columns)
+    read = list(dict.fromkeys([*columns, "scene_name", "channel"]))
+    table = index.read_groups(index.groups_for_scene(scene), read)
     if table is None:
-        return pl.DataFrame({c: [] for c in columns}).with_columns(pl.all().cast(pl.String))
-    return pl.from_arrow(table)
+        return pa.table({c: pa.array([], index.schema.field(c).type) for c in columns})
+    keep = pc.equal(table.column("scene_name").cast(pa.string()), scene)
+    if channel is not None:
+        keep = pc.and_(keep, pc.equal(table.column("channel").cast(pa.string()), channel))
+    return table.filter(keep).select(columns)
 
 
-def lidar_array(frame: pl.DataFrame) -> np.ndarray:
+def lidar_array(table: pa.Table) -> np.ndarray:
     """(N, 5) float32 [x, y, z, intensity, ring] from lidar_points rows (ring NaN where the files had none)."""
-    out = np.empty((frame.height, len(LIDAR_ARRAY_COLUMNS)), dtype=np.float32)
+    out = np.empty((table.num_rows, len(LIDAR_ARRAY_COLUMNS)), dtype=np.float32)
     for j, name in enumerate(LIDAR_ARRAY_COLUMNS):
-        out[:, j] = frame[name].cast(pl.Float32).fill_null(np.nan).to_numpy() if frame.height else []
+        column = table.column(name)
+        out[:, j] = column.to_numpy() if not column.null_count else column.cast(pa.float32()).fill_null(np.nan).to_numpy()
     return out
 
 
@@ -134,9 +168,9 @@ def radar_fields(index: RowGroupIndex) -> list[str]:
     return [f for f in index.fields if f not in FRAME_COLUMNS and f != "passes_default_filters"]
 
 
-def radar_array(frame: pl.DataFrame, fields: list[str]) -> np.ndarray:
+def radar_array(table: pa.Table, fields: list[str]) -> np.ndarray:
     """(N, F) float64 of the PCD fields (the devkit's `RadarPointCloud.points` is this transposed)."""
-    out = np.empty((frame.height, len(fields)), dtype=np.float64)
+    out = np.empty((table.num_rows, len(fields)), dtype=np.float64)
     for j, name in enumerate(fields):
-        out[:, j] = frame[name].cast(pl.Float64).to_numpy() if frame.height else []
+        out[:, j] = table.column(name).to_numpy()
     return out
