@@ -11,6 +11,7 @@ is larger (a nuScenes lidar frame: ~35k points, ~1.5 MB of columns) — plus the
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,6 +28,12 @@ from nuparquet.sources import points as source
 ROW_GROUP_ROWS = 32768
 LABELS = (("lidarseg", "lidarseg_label", source.read_lidarseg_bin), ("panoptic", "panoptic_label", source.read_panoptic_npz))
 _DICTIONARY_COLUMNS = ["sample_data_token", "scene_name", "channel"]
+# Statistics where they prune (frame lookups, scene/time filters); per-frame min/max of x, y, z span the whole
+# cloud and would cost ~10% of the write for nothing.
+_STATISTICS_COLUMNS = [*_DICTIONARY_COLUMNS, "timestamp", "is_key_frame", "point_index"]
+# LZ4 (raw): on nuScenes lidar ~40% faster to write and ~2x faster to read than zstd, ~15% larger (measured on
+# the extract: 13.9 vs 12.1 MB per 1.4M points; the .pcd.bin files are 27.8 MB).
+COMPRESSION = "lz4"
 
 
 @dataclass(frozen=True)
@@ -70,8 +77,8 @@ def convert_scene(task: SceneTask) -> SceneSummary:
             return
         table = _lidar_table(group) if task.modality == "lidar" else _radar_table(group)
         if writer is None:
-            writer = pq.ParquetWriter(path, table.schema, compression="zstd", write_statistics=True,
-                                      use_dictionary=_DICTIONARY_COLUMNS, column_encoding=_float_encoding(table.schema))
+            writer = pq.ParquetWriter(path, table.schema, compression=COMPRESSION, write_statistics=_STATISTICS_COLUMNS,
+                                      use_dictionary=_DICTIONARY_COLUMNS, column_encoding=_encodings(table.schema))
         writer.write_table(table, row_group_size=max(table.num_rows, 1))
         summary.rows += table.num_rows
         group, group_rows = [], 0
@@ -117,10 +124,11 @@ def convert_scene(task: SceneTask) -> SceneSummary:
     return summary
 
 
-def _float_encoding(schema: pa.Schema) -> dict[str, str]:
-    """BYTE_STREAM_SPLIT for float columns: zstd then packs nuScenes lidar floats ~20% smaller, and they decode
-    about twice as fast as plain floats under zstd (measured on the extract's clouds)."""
-    return {f.name: "BYTE_STREAM_SPLIT" for f in schema if pa.types.is_floating(f.type)}
+def _encodings(schema: pa.Schema) -> dict[str, str]:
+    """BYTE_STREAM_SPLIT for float columns (the codec then packs lidar floats ~20% smaller, and they decode
+    faster) and DELTA_BINARY_PACKED for `point_index` (0, 1, 2, ...: 3 MB per 1.4M points plain, ~0 delta)."""
+    encodings = {f.name: "BYTE_STREAM_SPLIT" for f in schema if pa.types.is_floating(f.type)}
+    return encodings | {"point_index": "DELTA_BINARY_PACKED"}
 
 
 def _read_lidar(root: Path, filename: str, columns: int) -> np.ndarray:
@@ -198,10 +206,12 @@ def _radar_table(group: list[dict]) -> pa.Table:
     return pa.table(columns, schema=radar_schema(tuple((n, points.dtype[n].str) for n in points.dtype.names)))
 
 
+@functools.cache
 def lidar_schema() -> pa.Schema:
     return dataset_schemas()["lidar_points"].arrow_schema()
 
 
+@functools.cache
 def radar_schema(layout: tuple[tuple[str, str], ...] | None) -> pa.Schema:
     """The fixed columns of schemas/radar_points.json, the PCD fields in header order, `passes_default_filters`."""
     fixed = dataset_schemas()["radar_points"].arrow_schema()
