@@ -217,3 +217,14 @@ def test_stats_has_no_lidarseg_sections_for_points_without_labels(extract_points
 
     unlabelled = nuparquet.open(extract_points_out)  # real lidar points, no label files
     assert "lidar_points" in unlabelled.datasets and not {"lidarseg", "panoptic"} & set(default_sections(unlabelled))
+
+
+def test_bad_sensor_options_are_usage_errors(labelled_root, tmp_path, capsys):
+    from nuparquet.cli.main import main
+
+    for flags, message in ((["--sensors", "lidar,camera"], "--sensors takes lidar, radar"),
+                           (["--sensors", "lidar", "--jobs", "-1"], "--jobs must be"),
+                           (["--sensors", "lidar", "--lidar-columns", "7"], "--lidar-columns must be 4 or 5")):
+        code = main(["convert", str(labelled_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "o"), *flags])
+        assert code == 2 and message in capsys.readouterr().err
+        assert not (tmp_path / "o").exists()
