@@ -18,15 +18,6 @@ from nuparquet.problems import ProblemsFound
 
 
 @pytest.fixture(scope="module")
-def labelled_root(tmp_path_factory):
-    """2 scenes x 3 samples, lidar/radar keyframes and sweeps, lidarseg and panoptic labels."""
-    from nuparquet.synth import synthesize
-
-    return synthesize(tmp_path_factory.mktemp("labelled") / "data", scenes=2, samples_per_scene=3, with_lidar=True,
-                      seed=11, version=SYNTH_VERSION, with_can_bus=False)
-
-
-@pytest.fixture(scope="module")
 def labelled_out(labelled_root, tmp_path_factory):
     out = tmp_path_factory.mktemp("labelled-out") / "out"
     convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar", "radar"), sweeps=True, jobs=1)

@@ -14,15 +14,12 @@ from conftest import EXTRACT_VERSION, SYNTH_VERSION
 
 
 @pytest.fixture(scope="module")
-def labelled(tmp_path_factory):
+def labelled(labelled_root, tmp_path_factory):
     from nuparquet.convert import convert
-    from nuparquet.synth import synthesize
 
-    root = synthesize(tmp_path_factory.mktemp("labelled-q") / "data", scenes=2, samples_per_scene=4, with_lidar=True,
-                      seed=5, version=SYNTH_VERSION, with_can_bus=False)
     out = tmp_path_factory.mktemp("labelled-q-out") / "out"
-    convert(root, SYNTH_VERSION, out, sensors=("lidar",), jobs=1)
-    return root, out
+    convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar",), jobs=1)
+    return labelled_root, out
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +58,7 @@ def test_sample_counts_equal_devkit_get_sample_lidarseg_stats(nusc, ds, capsys):
     from nuparquet.queries.points import sample_lidarseg_counts
 
     ours = sample_lidarseg_counts(ds).collect()
-    assert ours["sample_token"].n_unique() == len(nusc.sample) == 8
+    assert ours["sample_token"].n_unique() == len(nusc.sample) == 6
     for sample in nusc.sample:
         capsys.readouterr()
         nusc.get_sample_lidarseg_stats(sample["token"], sort_by="index")
@@ -99,13 +96,27 @@ def test_panoptic_instance_stats_equal_devkit(nusc, ds, labelled):
     assert per_frame == pytest.approx(expected["per_frame_panoptic_stats"]["per_frame_num_instances"], rel=1e-12)
 
 
-def test_points_in_boxes_equal_num_lidar_pts_on_synthetic_data(ds, nusc):
+def test_points_in_boxes_equal_devkit_and_num_lidar_pts_on_synthetic_data(ds, nusc, labelled):
+    from nuscenes.utils.data_classes import LidarPointCloud
+    from nuscenes.utils.geometry_utils import points_in_box
+
     from nuparquet.queries.points import points_in_boxes
 
-    counts = points_in_boxes(ds)
-    assert counts.height == len(nusc.sample_annotation)
-    assert counts["points_in_box"].to_list() == counts["num_lidar_pts"].to_list()
-    assert counts["points_in_box"].sum() > 0
+    ours = points_in_boxes(ds)
+    ours = dict(zip(ours["annotation_token"], ours["points_in_box"]))
+    assert len(ours) == len(nusc.sample_annotation)
+    alone = 0
+    for sample in nusc.sample:
+        path, boxes, _ = nusc.get_sample_data(sample["data"]["LIDAR_TOP"])
+        cloud = LidarPointCloud.from_file(path).points[:3]
+        inside = np.array([points_in_box(box, cloud) for box in boxes]).reshape(len(boxes), -1)
+        shared = inside.sum(axis=0) > 1  # points inside two boxes (overlapping boxes)
+        for box, mask in zip(boxes, inside):
+            assert ours[box.token] == int(mask.sum()), box.token  # the devkit's count
+            if not (mask & shared).any():  # the generator put num_lidar_pts points in each box
+                assert ours[box.token] == nusc.get("sample_annotation", box.token)["num_lidar_pts"], box.token
+                alone += 1
+    assert alone > 0.9 * len(ours) and sum(ours.values()) > 0
 
 
 def test_points_in_boxes_equal_devkit_points_in_box_on_the_real_extract(extract_root, extract_points_out):
@@ -128,3 +139,36 @@ def test_points_in_boxes_equal_devkit_points_in_box_on_the_real_extract(extract_
         token = sample["next"]
     assert dict(zip(ours["annotation_token"], ours["points_in_box"])) == expected
     assert len(expected) == 2424 and sum(expected.values()) > 0
+
+
+def test_synthetic_panoptic_labels_equal_devkit_generate_panoptic_labels(nusc, labelled, tmp_path):
+    from nuscenes.panoptic.generate_panoptic_labels import generate_panoptic_labels
+
+    generate_panoptic_labels(nusc, str(tmp_path))  # from our lidarseg labels and the boxes, as Panoptic nuScenes was made
+    compared = 0
+    for record in nusc.panoptic:
+        ours = np.load(labelled[0] / record["filename"])["data"]
+        theirs = np.load(tmp_path / record["filename"])["data"]
+        assert ours.dtype == theirs.dtype == np.uint16 and np.array_equal(ours, theirs), record["filename"]
+        compared += ours.size
+    assert compared > 0 and len(nusc.panoptic) == len(nusc.sample)
+
+
+def test_synthetic_lidarseg_labels_are_the_category_index_of_the_box_a_point_is_in(nusc, labelled):
+    from nuscenes.utils.data_classes import LidarPointCloud
+    from nuscenes.utils.geometry_utils import points_in_box
+
+    in_boxes = 0
+    for sample in nusc.sample:
+        token = sample["data"]["LIDAR_TOP"]
+        path, boxes, _ = nusc.get_sample_data(token)
+        cloud = LidarPointCloud.from_file(path).points[:3]
+        labels = np.fromfile(labelled[0] / nusc.get("lidarseg", token)["filename"], dtype=np.uint8)
+        inside = np.array([points_in_box(box, cloud) for box in boxes]).reshape(len(boxes), -1)
+        for box, mask in zip(boxes, inside):
+            alone = mask & (inside.sum(axis=0) == 1)
+            assert (labels[alone] == nusc.lidarseg_name2idx_mapping[box.name]).all(), box.token
+            in_boxes += int(alone.sum())
+        outside = ~inside.any(axis=0)
+        assert (labels[outside] == nusc.lidarseg_name2idx_mapping["flat.driveable_surface"]).all()
+    assert in_boxes > 0
