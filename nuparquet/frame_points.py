@@ -92,13 +92,17 @@ class RowGroupIndex:
     def read_frames(self, tokens: Sequence[str], columns: Sequence[str]) -> pa.Table:
         """The rows of frames `tokens`, in that order (each frame's rows as stored). A row group that holds one
         frame only (min token = max token: every nuScenes lidar frame) is taken whole, without a filter."""
+        candidates = [np.flatnonzero((self.token_min <= t) & (t <= self.token_max)) for t in tokens]
+        single = [c[0] for c, t in zip(candidates, tokens)
+                  if len(c) == 1 and self.token_min[c[0]] == self.token_max[c[0]] == t]
+        if len(single) == len(tokens):  # every frame alone in its row group (nuScenes lidar): one read per file run
+            return self._read_whole_groups(np.array(single, dtype=np.int64), columns)
         read = list(dict.fromkeys([*columns, "sample_data_token"]))
         groups: dict[int, pa.Table] = {}
         pieces, missing = [], []
-        for token in tokens:
-            candidates = np.flatnonzero((self.token_min <= token) & (token <= self.token_max))
+        for token, token_groups in zip(tokens, candidates):
             found = False
-            for g in candidates.tolist():
+            for g in token_groups.tolist():
                 if g not in groups:
                     groups[g] = self.read_group(g, read)
                 table = groups[g]
@@ -113,6 +117,21 @@ class RowGroupIndex:
             raise UsageError(f"no points for sample_data {', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} "
                              "(not converted, or not a frame of this sensor type)")
         return pa.concat_tables(pieces)
+
+
+    def _read_whole_groups(self, groups: np.ndarray, columns: Sequence[str]) -> pa.Table:
+        """Row groups `groups` (indices into this table, in the order wanted), one read per run of one file."""
+        tables, start = [], 0
+        while start < len(groups):
+            stop = start
+            while stop < len(groups) and self.file[groups[stop]] == self.file[groups[start]]:
+                stop += 1
+            path = self.paths[int(self.file[groups[start]])]
+            if path not in self._files:
+                self._files[path] = pq.ParquetFile(path)
+            tables.append(self._files[path].read_row_groups(self.group[groups[start:stop]].tolist(), columns=list(columns)))
+            start = stop
+        return pa.concat_tables(tables)
 
 
 def _token_mask(column: pa.ChunkedArray, token: str) -> pa.ChunkedArray:
@@ -156,11 +175,16 @@ def select_points(index: RowGroupIndex, tokens: str | Sequence[str] | None = Non
 
 def lidar_array(table: pa.Table) -> np.ndarray:
     """(N, 5) float32 [x, y, z, intensity, ring] from lidar_points rows (ring NaN where the files had none)."""
-    out = np.empty((table.num_rows, len(LIDAR_ARRAY_COLUMNS)), dtype=np.float32)
+    by_column = np.empty((len(LIDAR_ARRAY_COLUMNS), table.num_rows), dtype=np.float32)  # rows filled by memcpy
     for j, name in enumerate(LIDAR_ARRAY_COLUMNS):
         column = table.column(name)
-        out[:, j] = column.to_numpy() if not column.null_count else column.cast(pa.float32()).fill_null(np.nan).to_numpy()
-    return out
+        if column.null_count:
+            column = column.cast(pa.float32()).fill_null(np.nan)
+        offset = 0
+        for chunk in column.chunks:
+            by_column[j, offset:offset + len(chunk)] = chunk.to_numpy(zero_copy_only=False)
+            offset += len(chunk)
+    return np.ascontiguousarray(by_column.T)
 
 
 def radar_fields(index: RowGroupIndex) -> list[str]:
