@@ -176,7 +176,8 @@ def _frame_columns(group: list[dict]) -> tuple[dict[str, pa.Array], np.ndarray]:
         columns[name] = pa.DictionaryArray.from_arrays(pa.array(code[frame_of_point]), pa.array(unique, pa.string()))
     columns["timestamp"] = pa.array(np.repeat(np.array([f["timestamp"] for f in group], dtype=np.int64), counts))
     columns["is_key_frame"] = pa.array(np.repeat(np.array([f["is_key_frame"] for f in group], dtype=bool), counts))
-    columns["point_index"] = pa.array(np.concatenate([np.arange(c, dtype=np.uint32) for c in counts]))
+    starts = np.repeat(np.cumsum(counts) - counts, counts)
+    columns["point_index"] = pa.array((np.arange(counts.sum(), dtype=np.int64) - starts).astype(np.uint32))
     return columns, counts
 
 
@@ -189,6 +190,9 @@ def _lidar_table(group: list[dict]) -> pa.Table:
                        else pa.nulls(len(points), pa.uint8()))
     for _table, column, _reader in LABELS:
         dtype = np.uint8 if column == "lidarseg_label" else np.uint16
+        if not any(column in f["labels"] for f in group):  # sweeps, unlabelled datasets: all null, nothing to build
+            columns[column] = pa.nulls(len(points), pa.from_numpy_dtype(dtype))
+            continue
         has = np.repeat(np.array([column in f["labels"] for f in group]), counts)
         values = np.concatenate([f["labels"].get(column, np.zeros(len(f["points"]), dtype)) for f in group]).astype(dtype)
         columns[column] = pa.array(values, mask=~has) if not has.all() else pa.array(values)
