@@ -175,16 +175,15 @@ def select_points(index: RowGroupIndex, tokens: str | Sequence[str] | None = Non
 
 def lidar_array(table: pa.Table) -> np.ndarray:
     """(N, 5) float32 [x, y, z, intensity, ring] from lidar_points rows (ring NaN where the files had none)."""
-    by_column = np.empty((len(LIDAR_ARRAY_COLUMNS), table.num_rows), dtype=np.float32)  # rows filled by memcpy
-    for j, name in enumerate(LIDAR_ARRAY_COLUMNS):
+    columns = []
+    for name in LIDAR_ARRAY_COLUMNS:
         column = table.column(name)
         if column.null_count:
             column = column.cast(pa.float32()).fill_null(np.nan)
-        offset = 0
-        for chunk in column.chunks:
-            by_column[j, offset:offset + len(chunk)] = chunk.to_numpy(zero_copy_only=False)
-            offset += len(chunk)
-    return np.ascontiguousarray(by_column.T)
+        columns.append(column.combine_chunks().to_numpy(zero_copy_only=False))
+    if not table.num_rows:
+        return np.empty((0, len(LIDAR_ARRAY_COLUMNS)), dtype=np.float32)
+    return np.column_stack(columns).astype(np.float32, copy=False)  # ring uint8 -> float32 with the rest
 
 
 def radar_fields(index: RowGroupIndex) -> list[str]:
