@@ -16,7 +16,8 @@ Scopes:
   file (`parts="one"`) or one `part-{i:05d}.parquet` per batch (`parts="per_batch"`, for point clouds).
 - "whole": `build(ctx)` once, after every "scenes" builder; it may read what they wrote (`ctx.dataset(name)`).
 A build function returns a polars DataFrame or Arrow table, or a mapping {dataset name: frame} when the
-datasets are only known from the input (one per CAN bus message type, one per map layer). Build functions are
+datasets are only known from the input (one per CAN bus message type, one per map layer), or `WrittenParts` for a
+dataset whose part files it wrote itself into `ctx.out / name` (point clouds, written by worker processes). Build functions are
 top-level functions of their explicit inputs so a process pool (or Ray) can run them.
 
 `wanted(ctx)` returns None to build, or the reason it is skipped ("not requested", "no can_bus/ folder");

@@ -30,6 +30,10 @@ from nuparquet.scene_points import (
 )
 
 
+# Missing files listed by name in the manifest (all are counted); beyond this the manifest would grow by MBs.
+MAX_LISTED_MISSING = 10_000
+
+
 def run_scene_tasks(tasks: list[SceneTask], jobs: int, on_done: Callable[[SceneSummary], None]) -> list[SceneSummary]:
     """`convert_scene` over `tasks` (in-process for one job, else on a process pool); summaries in task order.
     The one place that chooses how scenes run in parallel (a scale-out engine can take its place)."""
@@ -43,9 +47,13 @@ def run_scene_tasks(tasks: list[SceneTask], jobs: int, on_done: Callable[[SceneS
     with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=multiprocessing.get_context("spawn")) as pool:
         futures = [pool.submit(convert_scene, task) for task in tasks]
         summaries = []
-        for future in futures:
-            summaries.append(future.result())
-            on_done(summaries[-1])
+        try:
+            for future in futures:
+                summaries.append(future.result())
+                on_done(summaries[-1])
+        except BaseException:  # a worker failed or Ctrl-C: do not convert the remaining scenes first
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
         return summaries
 
 
@@ -98,9 +106,13 @@ def build_points(ctx: BuildContext, modality: str, name: str) -> dict[str, Writt
     if not written:  # every file missing (or no frames): an empty, scannable dataset
         pq.write_table(schema.empty_table(), directory / part_name(0))
     if missing:
+        listed = f", the first {MAX_LISTED_MISSING:,}" if len(missing) > MAX_LISTED_MISSING else ""
         ctx.warnings.append(f"{name}: {len(missing)} sensor file(s) missing, not converted (listed in manifest.json "
-                            f"datasets.{name}.missing_files; --strict makes this an error)")
-    extra = {"missing_files": missing, "frames": frames.height - len(missing)}
+                            f"datasets.{name}.missing_files{listed}; --strict makes this an error)")
+    extra = {"frames": frames.height - len(missing), "missing_count": len(missing),
+             "missing_files": missing[:MAX_LISTED_MISSING]}  # a partial trainval download misses ~10^5 sweeps
+    if len(missing) > MAX_LISTED_MISSING:
+        extra["missing_files_truncated"] = True
     if modality == "lidar":
         extra["point_columns"] = ctx.options.lidar_columns
         extra["labelled_frames"] = {table: sum(s.labelled.get(table, 0) for s in summaries) for table, _c, _r in LABELS}
