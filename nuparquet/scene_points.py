@@ -34,6 +34,7 @@ _STATISTICS_COLUMNS = [*_DICTIONARY_COLUMNS, "timestamp", "is_key_frame", "point
 # LZ4 (raw): on nuScenes lidar ~40% faster to write and ~2x faster to read than zstd, ~15% larger (measured on
 # the extract: 13.9 vs 12.1 MB per 1.4M points; the .pcd.bin files are 27.8 MB).
 COMPRESSION = "lz4"
+WRITE_BATCH_ROWS = 65536  # values encoded per batch (pyarrow's default 1024): ~15% less CPU per write
 
 
 @dataclass(frozen=True)
@@ -78,7 +79,8 @@ def convert_scene(task: SceneTask) -> SceneSummary:
         table = _lidar_table(group) if task.modality == "lidar" else _radar_table(group)
         if writer is None:
             writer = pq.ParquetWriter(path, table.schema, compression=COMPRESSION, write_statistics=_STATISTICS_COLUMNS,
-                                      use_dictionary=_DICTIONARY_COLUMNS, column_encoding=_encodings(table.schema))
+                                      use_dictionary=_DICTIONARY_COLUMNS, column_encoding=_encodings(table.schema),
+                                      write_batch_size=WRITE_BATCH_ROWS)
         writer.write_table(table, row_group_size=max(table.num_rows, 1))
         summary.rows += table.num_rows
         group, group_rows = [], 0
@@ -167,17 +169,28 @@ def layout_text(layout) -> str:
 def _frame_columns(group: list[dict]) -> tuple[dict[str, pa.Array], np.ndarray]:
     """The per-frame columns repeated over each frame's points (dictionary-encoded), and (F,) point counts."""
     counts = np.array([len(f["points"]) for f in group], dtype=np.int64)
-    frame_of_point = np.repeat(np.arange(len(group), dtype=np.int32), counts)
+    n = int(counts.sum())
+    # A group of one frame (every nuScenes lidar frame) needs no per-point gather: all indices 0.
+    frame_of_point = np.zeros(n, np.int32) if len(group) == 1 else np.repeat(np.arange(len(group), dtype=np.int32), counts)
     columns = {}
     for name, key in (("sample_data_token", "token"), ("scene_name", "scene_name"), ("channel", "channel")):
         values = [f[key] for f in group]
         unique = sorted(set(values))
-        code = np.array([unique.index(v) for v in values], dtype=np.int32)
-        columns[name] = pa.DictionaryArray.from_arrays(pa.array(code[frame_of_point]), pa.array(unique, pa.string()))
-    columns["timestamp"] = pa.array(np.repeat(np.array([f["timestamp"] for f in group], dtype=np.int64), counts))
-    columns["is_key_frame"] = pa.array(np.repeat(np.array([f["is_key_frame"] for f in group], dtype=bool), counts))
+        if values == unique:  # distinct and in order (one frame; tokens of a group in order): code = frame
+            indices = frame_of_point
+        else:
+            indices = np.array([unique.index(v) for v in values], dtype=np.int32)[frame_of_point]
+        columns[name] = pa.DictionaryArray.from_arrays(pa.array(indices), pa.array(unique, pa.string()))
+    per_frame = [(f["timestamp"], f["is_key_frame"]) for f in group]
+    if len(group) == 1:
+        columns["timestamp"] = pa.array(np.full(n, per_frame[0][0], dtype=np.int64))
+        columns["is_key_frame"] = pa.array(np.full(n, per_frame[0][1], dtype=bool))
+        columns["point_index"] = pa.array(np.arange(n, dtype=np.uint32))
+        return columns, counts
+    columns["timestamp"] = pa.array(np.repeat(np.array([p[0] for p in per_frame], dtype=np.int64), counts))
+    columns["is_key_frame"] = pa.array(np.repeat(np.array([p[1] for p in per_frame], dtype=bool), counts))
     starts = np.repeat(np.cumsum(counts) - counts, counts)
-    columns["point_index"] = pa.array((np.arange(counts.sum(), dtype=np.int64) - starts).astype(np.uint32))
+    columns["point_index"] = pa.array((np.arange(n, dtype=np.int64) - starts).astype(np.uint32))
     return columns, counts
 
 
