@@ -175,15 +175,16 @@ def select_points(index: RowGroupIndex, tokens: str | Sequence[str] | None = Non
 
 def lidar_array(table: pa.Table) -> np.ndarray:
     """(N, 5) float32 [x, y, z, intensity, ring] from lidar_points rows (ring NaN where the files had none)."""
-    columns = []
-    for name in LIDAR_ARRAY_COLUMNS:
+    out = np.empty((table.num_rows, len(LIDAR_ARRAY_COLUMNS)), dtype=np.float32)
+    for j, name in enumerate(LIDAR_ARRAY_COLUMNS):
         column = table.column(name)
         if column.null_count:
             column = column.cast(pa.float32()).fill_null(np.nan)
-        columns.append(column.combine_chunks().to_numpy(zero_copy_only=False))
-    if not table.num_rows:
-        return np.empty((0, len(LIDAR_ARRAY_COLUMNS)), dtype=np.float32)
-    return np.column_stack(columns).astype(np.float32, copy=False)  # ring uint8 -> float32 with the rest
+        offset = 0
+        for chunk in column.chunks:  # one chunk per frame: written in place, no combined temporary
+            out[offset:offset + len(chunk), j] = chunk.to_numpy(zero_copy_only=False)
+            offset += len(chunk)
+    return out
 
 
 def radar_fields(index: RowGroupIndex) -> list[str]:
