@@ -43,8 +43,11 @@ def run_scene_tasks(tasks: list[SceneTask], jobs: int, on_done: Callable[[SceneS
             summaries.append(convert_scene(task))
             on_done(summaries[-1])
         return summaries
-    # spawn: forked children of a process running polars/Arrow thread pools can deadlock
-    with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=multiprocessing.get_context("spawn")) as pool:
+    # forkserver: workers fork from a clean server process that imported the task module once (a plain fork of
+    # this process, which runs polars/Arrow thread pools, can deadlock; spawn re-imports in every worker).
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(["nuparquet.scene_points"])
+    with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=context) as pool:
         futures = [pool.submit(convert_scene, task) for task in tasks]
         summaries = []
         try:
