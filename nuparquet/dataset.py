@@ -70,6 +70,7 @@ class Dataset:
         self.storage_options = dict(storage_options) if storage_options else None
         self._entries: dict[str, dict] = dict(manifest["datasets"])
         self._channels: dict | None = None
+        self._row_groups: dict[str, Any] = {}  # points dataset -> frame_points.RowGroupIndex (footers, read once)
 
     def __repr__(self) -> str:
         return f"<nuparquet.Dataset {self.root!r} {self.version} datasets={len(self.datasets)}>"
@@ -215,6 +216,49 @@ class Dataset:
                 hint = (f" (datasets: {', '.join(derived)}; source tables: {', '.join(tables)}, "
                         'each also as "tables/<name>" and tables_<name>)')
             raise QueryError(f"SQL failed: {message}{hint}") from exc
+
+    def points(self, tokens: str | list[str] | None = None, *, scene: str | None = None, channel: str | None = None,
+               columns: list[str] | None = None):
+        """Lidar points from `lidar_points/` (convert --sensors lidar) of sample_data `tokens` (one or a list, in
+        that order) or of a `scene` (optionally one `channel`), reading only their row groups.
+
+        Returns (N, 5) float32 [x, y, z, intensity, ring] in the sensor frame, exactly as stored (the devkit's
+        `LidarPointCloud.from_file(...).points` is the first 4 columns transposed); with `columns`, a polars
+        DataFrame of those columns (e.g. ``["x", "y", "z", "lidarseg_label", "panoptic_label"]``)."""
+        from nuparquet import frame_points
+
+        table = frame_points.select_points(self._points_index("lidar_points"), tokens, scene=scene, channel=channel,
+                                           columns=columns or list(frame_points.LIDAR_ARRAY_COLUMNS))
+        return pl.from_arrow(table) if columns else frame_points.lidar_array(table)
+
+    def radar_points(self, tokens: str | list[str] | None = None, *, scene: str | None = None,
+                     channel: str | None = None, columns: list[str] | None = None, filtered: bool = False):
+        """Radar points from `radar_points/` (convert --sensors radar), selected as `points` selects lidar.
+
+        Returns (N, F) float64 of the PCD fields in header order (the devkit's `RadarPointCloud.points`
+        transposed); `filtered=True` keeps only the points the devkit's default filters keep. With `columns`,
+        a polars DataFrame of those columns."""
+        from nuparquet import frame_points
+
+        index = self._points_index("radar_points")
+        fields = frame_points.radar_fields(index)
+        wanted = list(columns or fields) + (["passes_default_filters"] if filtered else [])
+        table = frame_points.select_points(index, tokens, scene=scene, channel=channel, columns=list(dict.fromkeys(wanted)))
+        if filtered:
+            table = table.filter(table.column("passes_default_filters").fill_null(False))
+            if not columns or "passes_default_filters" not in columns:
+                table = table.drop_columns(["passes_default_filters"])
+        return pl.from_arrow(table) if columns else frame_points.radar_array(table, fields)
+
+    def _points_index(self, name: str):
+        from nuparquet.frame_points import RowGroupIndex
+
+        if name not in self._entries:
+            modality = name.split("_")[0]
+            raise UsageError(f"{self.root} has no {name}/: convert with --sensors {modality} to read points")
+        if name not in self._row_groups:
+            self._row_groups[name] = RowGroupIndex.read([path for path, _ in self.files(name)])
+        return self._row_groups[name]
 
     def row_count(self, name: str) -> int:
         """Rows of dataset `name`, from the Parquet footers (no data pages read)."""

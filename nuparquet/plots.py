@@ -190,6 +190,30 @@ def plot_steering(steering: pl.DataFrame, path: Path, *, scene: str) -> Path:
     return _save(fig, path)
 
 
+def plot_lidarseg_counts(counts: pl.DataFrame, path: Path, *, title: str = "Lidar points per class") -> Path:
+    """Horizontal bars of labelled lidar points per class (log scale, classes without points left out), from
+    `queries.points.lidarseg_class_counts`; bars in the category colours."""
+    from nuparquet.palette import category_rgb
+
+    data = counts.filter(pl.col("points") > 0).sort("points")
+    fig, ax = plt.subplots(figsize=(9, 1.2 + 0.32 * max(data.height, 1)), layout="constrained")
+    if data.is_empty():
+        _empty(ax, "labelled points")
+        return _save(fig, path)
+    y = np.arange(data.height)
+    colours = [tuple(c / 255 for c in category_rgb(name)) for name in data["name"].to_list()]
+    ax.barh(y, data["points"], color=colours, edgecolor="0.3", linewidth=0.4)
+    total = int(data["points"].sum())
+    for yi, n in zip(y, data["points"]):
+        ax.text(n, yi, f" {n:,} ({100 * n / total:.1f}%)", va="center", fontsize=7)
+    ax.set_yticks(y, [f"{i:>2} {n}" for i, n in zip(data["index"], data["name"])], fontsize=8)
+    ax.set_xscale("log")
+    ax.set_xlim(0.7, float(data["points"].max()) * 6)
+    ax.set_xlabel("points (log scale)")
+    ax.set_title(title)
+    return _save(fig, path)
+
+
 def write_plots(ds, out_dir: Path, *, scene: str | Sequence[str] | None = None,
                 results: dict[str, pl.DataFrame] | None = None) -> list[Path]:
     """Write the charts of `nuparquet stats --plots` into `out_dir` (four, and two more from the CAN bus when it
@@ -214,7 +238,20 @@ def write_plots(ds, out_dir: Path, *, scene: str | Sequence[str] | None = None,
         plot_points_per_box(results["points_per_box"], out_dir / "lidar_points_per_box.png"),
         plot_ego_speed(results["ego_motion"], out_dir / "ego_speed.png"),
         *_can_bus_plots(ds, out_dir, scene),
+        *_lidarseg_plots(ds, out_dir, scene),
     ]
+
+
+def _lidarseg_plots(ds, out_dir: Path, scene) -> list[Path]:
+    """lidarseg_points_per_class.png when lidar_points/ holds lidarseg labels."""
+    from nuparquet.queries import points
+
+    if "lidar_points" not in ds.datasets or not points.has_labels(ds, "lidarseg"):
+        return []
+    where = f" — {scene}" if isinstance(scene, str) else ""
+    counts = points.lidarseg_class_counts(ds, scene=scene).collect()
+    return [plot_lidarseg_counts(counts, out_dir / "lidarseg_points_per_class.png",
+                                 title=f"nuScenes-lidarseg: labelled lidar points per class{where}")]
 
 
 def _can_bus_plots(ds, out_dir: Path, scene) -> list[Path]:

@@ -34,6 +34,25 @@ def extract_out(extract_root, tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
+def extract_points_out(extract_root, tmp_path_factory) -> Path:
+    """The real extract converted with its sensor points (lidar_points/, radar_points/), one process."""
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp("extract-points") / "out"
+    convert(extract_root, EXTRACT_VERSION, out, sensors=("lidar", "radar"), jobs=1)
+    return out
+
+
+@pytest.fixture(scope="session")
+def labelled_root(tmp_path_factory) -> Path:
+    """2 scenes x 3 samples with lidar/radar keyframes and sweeps and lidarseg/panoptic labels, no CAN bus."""
+    from nuparquet.synth import synthesize
+
+    return synthesize(tmp_path_factory.mktemp("labelled") / "data", scenes=2, samples_per_scene=3, with_lidar=True,
+                      seed=11, version=SYNTH_VERSION, with_can_bus=False)
+
+
+@pytest.fixture(scope="session")
 def synth_root(tmp_path_factory) -> Path:
     """A small synthetic dataset with images and lidar: 2 scenes x 6 samples."""
     from nuparquet.synth import synthesize

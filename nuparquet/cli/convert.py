@@ -17,8 +17,11 @@ def register(sub) -> None:
         "table, typed, lossless), frames/, annotations/, scenes/, instances/ (denormalised) and manifest.json "
         "(which also lists the datasets skipped and why, and the sensor channels). "
         "Output is written to a hidden sibling and renamed into place only when complete. Sensor files "
-        "are not needed (partial downloads are fine). Exit 1 if the input has problems (all are listed).",
-        epilog="example: nuparquet convert /data/nuscenes --version v1.0-mini --out nusc-mini",
+        "are not needed (partial downloads are fine) unless --sensors asks for the point clouds: then "
+        "lidar_points/ and radar_points/ (one row per point, with lidarseg/panoptic labels when present; see "
+        "docs/points.md) are converted scene by scene on --jobs processes. Exit 1 if the input has problems "
+        "(all are listed).",
+        epilog="example: nuparquet convert /data/nuscenes --version v1.0-mini --out nusc-mini --sensors lidar,radar",
     )
     p.add_argument("dataroot", help="dataset root holding the version folder (e.g. /data/nuscenes)")
     add_options(p, ConvertOptions)

@@ -17,7 +17,9 @@ def register(sub) -> None:
         "sweeps at ~12/20/13 Hz, a smoothly driving ego car, moving and parked objects of the nuScenes "
         "categories with per-instance tracks) and OUT/maps/*.png. With --with-images every camera frame is a "
         "1600x900 JPEG showing each box as a filled cuboid in its category's colour; with --with-lidar every "
-        "LIDAR_TOP frame is a .pcd.bin (points on the boxes and the ground) and every radar frame a .pcd. "
+        "LIDAR_TOP frame is a .pcd.bin (points on the boxes and the ground) and every radar frame a .pcd, and "
+        "every LIDAR_TOP keyframe has nuScenes-lidarseg and Panoptic nuScenes labels (lidarseg/, panoptic/, "
+        "VERSION/lidarseg.json, panoptic.json; category.json gains the lidarseg classes). "
         "The same arguments always give byte-identical tables. The result loads in nuscenes-devkit and in "
         "`nuparquet convert OUT --version VERSION`.",
     )
@@ -28,7 +30,8 @@ def register(sub) -> None:
     p.add_argument("--with-images", action="store_true",
                    help="write the camera JPEGs of all keyframes and sweeps (slow: ~36 JPEGs per sample)")
     p.add_argument("--with-lidar", action="store_true",
-                   help="write the lidar .pcd.bin and radar .pcd files of all keyframes and sweeps")
+                   help="write the lidar .pcd.bin and radar .pcd files of all keyframes and sweeps, and lidarseg/panoptic "
+                   "labels of the lidar keyframes")
     p.add_argument("--no-can-bus", dest="can_bus", action="store_false",
                    help="leave out the CAN bus expansion (by default can_bus/ holds every scene's files but the last's)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0); same seed, same dataset")

@@ -100,7 +100,7 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
             "datasets": datasets | built,
             "skipped": skipped,
             "channels": channels,
-            "warnings": [str(w) for w in warnings],
+            "warnings": [str(w) for w in warnings] + ctx.warnings,
             "files": files + ctx.files,
             "tables": {name: {"key_order": s.key_order, "float_fields": s.float_fields, "json_fields": s.json_fields,
                               **({"layouts": s.layouts} if s.layouts else {})}

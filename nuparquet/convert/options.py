@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 from nuparquet.errors import UsageError
@@ -11,6 +12,8 @@ from nuparquet.options import option
 # Scenes per batch when building frames/annotations: ~30k frames each at nuScenes rates (~3k per scene),
 # small enough to keep trainval's peak memory low, large enough that per-batch overhead is negligible.
 SCENES_PER_BATCH = 10
+SENSOR_MODALITIES = ("lidar", "radar")
+NUSCENES_LIDAR_COLUMNS = 5  # x, y, z, intensity, ring (devkit LidarPointCloud.from_file)
 
 
 @dataclass
@@ -23,8 +26,38 @@ class ConvertOptions:
         help=f"scenes built together (default {SCENES_PER_BATCH}); fewer lowers peak memory, more lowers overhead")
     no_map: bool = option(False, help="do not convert the map expansion (maps/expansion/*.json) into map/ datasets")
 
+    sensors: tuple[str, ...] = option(
+        (), metavar="LIST",
+        help="also convert these sensors' point files into lidar_points/ and radar_points/ (comma-separated: "
+             "lidar,radar; default none). Keyframes only unless --sweeps")
+    sweeps: bool = option(False, help="with --sensors: convert the sweeps' point files too, not only keyframes'")
+    strict: bool = option(False, help="with --sensors: a missing sensor file is an error (default: the files "
+                                      "are listed in manifest.json and counted in one warning)")
+    jobs: int = option(0, metavar="N", help="with --sensors: processes converting scenes in parallel (default 0: "
+                                            "one per core); the output is the same whatever N")
+    lidar_columns: int = option(
+        NUSCENES_LIDAR_COLUMNS, metavar="N",
+        help=f"float32 values per lidar point in the .pcd.bin files (default {NUSCENES_LIDAR_COLUMNS}, nuScenes: x y z "
+             "intensity ring; 4: no ring)")
+
     def __post_init__(self) -> None:
+        sensors = self.sensors.split(",") if isinstance(self.sensors, str) else self.sensors  # "lidar,radar" too
+        self.sensors = tuple(s.strip().lower() for s in sensors if s.strip())
+        unknown = [s for s in self.sensors if s not in SENSOR_MODALITIES]
+        if unknown:
+            raise UsageError(f"--sensors takes {', '.join(SENSOR_MODALITIES)} (got {', '.join(unknown)})")
+        if self.jobs < 0:
+            raise UsageError(f"--jobs must be 0 (one per core) or more (got {self.jobs})")
+        if self.lidar_columns not in (4, 5):
+            raise UsageError(f"--lidar-columns must be 4 or 5 (got {self.lidar_columns})")
         if not self.version or not self.version.strip():
             raise UsageError("--version must name the version folder (e.g. v1.0-mini)")
         if self.scenes_per_batch < 1:
             raise UsageError(f"--scenes-per-batch must be at least 1 (got {self.scenes_per_batch})")
+
+    @property
+    def workers(self) -> int:
+        """Processes for the point conversion: --jobs, or the cores this process may use."""
+        if self.jobs:
+            return self.jobs
+        return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)

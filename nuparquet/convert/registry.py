@@ -16,7 +16,8 @@ Scopes:
   file (`parts="one"`) or one `part-{i:05d}.parquet` per batch (`parts="per_batch"`, for point clouds).
 - "whole": `build(ctx)` once, after every "scenes" builder; it may read what they wrote (`ctx.dataset(name)`).
 A build function returns a polars DataFrame or Arrow table, or a mapping {dataset name: frame} when the
-datasets are only known from the input (one per CAN bus message type, one per map layer). Build functions are
+datasets are only known from the input (one per CAN bus message type, one per map layer), or `WrittenParts` for a
+dataset whose part files it wrote itself into `ctx.out / name` (point clouds, written by worker processes). Build functions are
 top-level functions of their explicit inputs so a process pool (or Ray) can run them.
 
 `wanted(ctx)` returns None to build, or the reason it is skipped ("not requested", "no can_bus/ folder");
@@ -37,7 +38,22 @@ if TYPE_CHECKING:
     from nuparquet.convert.options import ConvertOptions
     from nuparquet.progress import Reporter
 
-Frame = Union[pl.DataFrame, pa.Table]
+
+
+@dataclass(frozen=True)
+class WrittenParts:
+    """A build result for datasets whose part files the builder wrote itself (point clouds, written scene by
+    scene by worker processes straight into `ctx.out / name`): what the manifest records. `extra` is merged
+    into the dataset's manifest entry (e.g. the files that were missing)."""
+
+    schema: pa.Schema
+    rows: int
+    bytes: int
+    parts: int
+    extra: dict = field(default_factory=dict)
+
+
+Frame = Union[pl.DataFrame, pa.Table, WrittenParts]
 BuildResult = Union[Frame, Mapping[str, Frame]]
 
 
@@ -63,6 +79,7 @@ class BuildContext:
     out: Path  # the temporary output root being written
     reporter: Reporter | None = None
     files: list[dict] = field(default_factory=list)  # JSON files read beyond the tables (manifest "files")
+    warnings: list[str] = field(default_factory=list)  # added to the manifest's "warnings"
     _shared: dict[str, Any] = field(default_factory=dict)
     _written: dict[str, str] = field(default_factory=dict)  # dataset name -> its directory under `out`
 
@@ -107,10 +124,12 @@ def needs_folder(relative: str) -> Callable[[BuildContext], str | None]:
 
 
 def _builders() -> tuple[Builder, ...]:
-    from nuparquet.convert.builders import annotations, can_bus, frames, instances, map_expansion, sample_can_bus, scenes
+    from nuparquet.convert.builders import (
+        annotations, can_bus, frames, instances, map_expansion, points, sample_can_bus, scenes,
+    )
 
     return (frames.BUILDER, annotations.BUILDER, scenes.BUILDER, instances.BUILDER, can_bus.BUILDER,
-            sample_can_bus.BUILDER, map_expansion.BUILDER)
+            sample_can_bus.BUILDER, map_expansion.BUILDER, points.LIDAR_BUILDER, points.RADAR_BUILDER)
 
 
 BUILDERS: tuple[Builder, ...] = _builders()

@@ -17,7 +17,7 @@ import pyarrow as pa
 
 from nuparquet.convert import lookups
 from nuparquet.convert.builders.common import reference_poses, samples
-from nuparquet.convert.registry import BuildContext, Builder, BuildResult, SceneBatch
+from nuparquet.convert.registry import BuildContext, Builder, BuildResult, SceneBatch, WrittenParts
 from nuparquet.convert.write import DatasetWriter
 from nuparquet.schemas import Schema, dataset_schemas, fingerprint
 
@@ -109,7 +109,12 @@ class _Writers:
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="nuparquet-write")
         self.pending: Future | None = None
 
-    def write(self, builder: Builder, name: str, frame: pl.DataFrame | pa.Table, batch: int) -> None:
+    def write(self, builder: Builder, name: str, frame: pl.DataFrame | pa.Table | WrittenParts, batch: int) -> None:
+        if isinstance(frame, WrittenParts):  # the builder wrote its part files itself
+            self.entries[name] = {"path": name, "rows": frame.rows, "schema_fingerprint": fingerprint(frame.schema),
+                                  "bytes": frame.bytes, "parts": frame.parts, **frame.extra}
+            self.ctx._written[name] = name
+            return
         schema = dataset_schemas()[builder.schema] if builder.schema else None
         table = to_schema(frame, schema) if schema else _to_arrow(frame)
         part = batch if builder.parts == "per_batch" else 0

@@ -23,6 +23,7 @@ from nuparquet.queries.annotations import (
 from nuparquet.queries.can_bus import brake_throttle, can_speed, speed_over_time, steering_over_time
 from nuparquet.queries.frames import channel_rates, ego_motion, ego_speed_summary
 from nuparquet.queries.map import ego_time_on_surfaces, surfaces_by_category
+from nuparquet.queries.points import has_labels, lidarseg_class_counts, panoptic_instance_stats
 from nuparquet.queries.scenes import scene_summary, track_stats
 
 if TYPE_CHECKING:
@@ -44,6 +45,7 @@ class Section:
     query: Callable[[Dataset, Scene, SectionOptions], pl.LazyFrame]
     default: bool = True  # printed by a plain `nuparquet stats`; else only on request (--only)
     requires: tuple[str, ...] = ()  # datasets the query reads beyond the core four; absent -> not in the default run
+    when: Callable[[Dataset], bool] | None = None  # and in the default run only if this holds (labels converted)
 
 
 SECTIONS: tuple[Section, ...] = (
@@ -72,6 +74,12 @@ SECTIONS: tuple[Section, ...] = (
             lambda ds, scene, o: surfaces_by_category(ds, scene=scene), requires=("map/lane", "map/road_segment")),
     Section("ego_on_map", "Ego keyframes per scene on each map surface (shares; intersection = ego time there)",
             lambda ds, scene, o: ego_time_on_surfaces(ds, scene=scene), requires=("map/lane", "map/road_segment")),
+    Section("lidarseg", "nuScenes-lidarseg: labelled lidar points per class (like NuScenes.list_lidarseg_categories)",
+            lambda ds, scene, o: lidarseg_class_counts(ds, scene=scene), requires=("lidar_points",),
+            when=lambda ds: has_labels(ds, "lidarseg")),
+    Section("panoptic", "Panoptic nuScenes: instances per class (like NuScenes.list_panoptic_instances, ddof=0)",
+            lambda ds, scene, o: panoptic_instance_stats(ds, scene=scene), requires=("lidar_points",),
+            when=lambda ds: has_labels(ds, "panoptic")),
     Section("class_distribution_by_scene", "Categories per scene",
             lambda ds, scene, o: class_distribution(ds, by_scene=True, scene=scene), default=False),
     Section("channel_rates_by_scene", "Frames per channel and scene",
@@ -91,7 +99,8 @@ BY_NAME = {s.name: s for s in SECTIONS}
 def default_sections(ds: Dataset | None = None) -> tuple[str, ...]:
     """The sections a plain `nuparquet stats` prints: every default one whose datasets `ds` holds."""
     held = None if ds is None else set(ds.datasets)
-    return tuple(s.name for s in SECTIONS if s.default and (held is None or held.issuperset(s.requires)))
+    return tuple(s.name for s in SECTIONS if s.default and (held is None or (
+        held.issuperset(s.requires) and (s.when is None or s.when(ds)))))
 
 
 def summary(ds: Dataset, *, scene: Scene = None, sections: Sequence[str] | None = None,

@@ -57,5 +57,5 @@ class CameraTile:
         image, points = loaded.data
         if points is not None:
             draw.draw_points(image, points[0], points[1], max_depth_m=LIDAR_MAX_DEPTH_M,
-                             size_px=self.style.point_size_px)
+                             size_px=self.style.point_size_px, colors_bgr=points[2])
         return self.overlay.draw(image, int(self.rows[t]), self.style)

@@ -170,8 +170,10 @@ def draw_points(
     max_depth_m: float = 60.0,
     size_px: int = 2,
     colormap: int = cv2.COLORMAP_TURBO,
+    colors_bgr=None,
 ) -> np.ndarray:
-    """Draw projected points as small squares coloured by depth (near red, far blue), far to near, in place.
+    """Draw projected points as small squares coloured by depth (near red, far blue), or by `colors_bgr` ((N, 3)
+    uint8, e.g. lidarseg classes) when given, far to near, in place.
 
     Args:
         image_bgr: (H, W, 3) uint8.
@@ -186,8 +188,11 @@ def draw_points(
     height, width = image_bgr.shape[:2]
     order = np.argsort(-depths_m, kind="stable")  # far first, so near points are written last
     points_px, depths_m = points_px[order], depths_m[order]
-    levels = np.rint(255.0 * (1.0 - np.clip(depths_m / max_depth_m, 0.0, 1.0))).astype(np.uint8)
-    colors_bgr = cv2.applyColorMap(levels.reshape(-1, 1), colormap).reshape(-1, 3)
+    if colors_bgr is None:
+        levels = np.rint(255.0 * (1.0 - np.clip(depths_m / max_depth_m, 0.0, 1.0))).astype(np.uint8)
+        colors_bgr = cv2.applyColorMap(levels.reshape(-1, 1), colormap).reshape(-1, 3)
+    else:
+        colors_bgr = np.asarray(colors_bgr, dtype=np.uint8).reshape(-1, 3)[order]
     offsets = np.arange(size_px) - (size_px - 1) // 2
     u = np.rint(points_px[:, 0]).astype(np.int64)[:, None, None] + offsets[None, None, :]
     v = np.rint(points_px[:, 1]).astype(np.int64)[:, None, None] + offsets[None, :, None]

@@ -20,6 +20,7 @@ BEV_CHANNEL = "bev"  # the bird's-eye view (map, lidar points, boxes, ego), a ch
 LABEL_MODES = ("category", "track", "none")
 FRAME_FORMATS = ("jpg", "png")
 ON_MISSING = ("skip", "error")
+LIDAR_COLORS = ("depth", "intensity", "lidarseg", "panoptic")
 KEYFRAME_FPS = 2.0  # nuScenes keyframes are 2 Hz
 ALL_FRAMES_FPS = 12.0  # cameras run at ~12 Hz
 DEFAULT_CRF = 23  # x264 quality: visually clean at a modest size
@@ -61,6 +62,10 @@ class RenderOptions:
     lidar: bool = option(
         False, help=f"draw the keyframe points of the reference lidar ({DEFAULT_REFERENCE_LIDAR} when the dataset has it, "
         "else its first lidar), coloured by depth, into keyframe images")
+    lidar_color: Literal["depth", "intensity", "lidarseg", "panoptic"] = option(
+        "depth", help="colour the --lidar points by depth (default), intensity, lidarseg class or panoptic "
+        "instance (labels need `convert --sensors lidar` of a dataset with lidarseg/panoptic files). Points come "
+        "from lidar_points/ when converted, else from the .pcd.bin files; a colour other than depth implies --lidar")
     labels: Literal["category", "track", "none"] = option(
         "category", help="box labels: category name, track (short instance token) or none (default category)")
     clip: bool = option(
@@ -80,6 +85,11 @@ class RenderOptions:
         None, metavar="PATH", help="where the images are, if not at the dataroot recorded at conversion")
     preset: str = option(DEFAULT_PRESET, cli=False, help="x264 preset (encoding speed vs file size)")
     threads: int = option(2, cli=False, help="image decode threads")
+
+    @property
+    def draws_lidar(self) -> bool:
+        """--lidar, or a --lidar-color other than depth (which implies it)."""
+        return self.lidar or self.lidar_color != "depth"
 
     @property
     def mosaic(self) -> bool:
@@ -117,6 +127,7 @@ class RenderOptions:
             ("--labels", self.labels, LABEL_MODES),
             ("--frame-format", self.frame_format, FRAME_FORMATS),
             ("--on-missing", self.on_missing, ON_MISSING),
+            ("--lidar-color", self.lidar_color, LIDAR_COLORS),
         ):
             if value not in valid:
                 raise UsageError(f"{name} must be one of {', '.join(valid)}, got {value!r}")

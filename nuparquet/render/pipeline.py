@@ -82,10 +82,11 @@ def _image_path(dataroot: Path, filename: str) -> str:
 
 
 def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic: bool, all_frames: bool,
-                fps: float, clip: bool = False, labels: str = "category") -> TilePlan:
+                fps: float, clip: bool = False, labels: str = "category", dataset=None,
+                lidar_color: str = "depth") -> TilePlan:
     """The tile plan of a camera render: the cameras built and every box projected once, one `CameraTile` per
     camera of `layout` (rows of channel names). `scale`: output size / image size; the other arguments as in
-    `RenderOptions`."""
+    `RenderOptions`; `dataset` (a Dataset) lets lidar points come from its lidar_points/."""
     cameras = rows.cameras
     size = tile_size(cameras, scale)
     tile_cameras = cameras_from_frames(cameras).resized_to(size)
@@ -95,7 +96,7 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
     if rows.lidar.height:
         from nuparquet.render.points import LidarPoints  # the point cloud path loads only when points are drawn
 
-        lidar = LidarPoints.build(tile_cameras, cameras, rows.lidar, dataroot)
+        lidar = LidarPoints.build(tile_cameras, cameras, rows.lidar, dataroot, dataset=dataset, color=lidar_color)
     channels = [channel for row in layout for channel in row]
     times_us, plan_rows = camera_rows_per_output(cameras, rows.samples, channels, mosaic=mosaic,
                                                  all_frames=all_frames, fps=fps)
@@ -162,10 +163,10 @@ def render(dataset_or_path, options: RenderOptions, *, on_progress: OnProgress |
     else:
         channel, layout = cameras_to_render(dataset, options.channel)
         rows = load_scene(dataset, options.scene, [c for row in layout for c in row], all_frames=options.all_frames,
-                          lidar_channel=reference_lidar(dataset) if options.lidar else None, channel_label=channel)
+                          lidar_channel=reference_lidar(dataset) if options.draws_lidar else None, channel_label=channel)
         plan = camera_plan(rows, layout, dataroot, scale=options.scale, mosaic=options.mosaic,
                            all_frames=options.all_frames, fps=fps, clip=options.clip,
-                           labels=options.labels)
+                           labels=options.labels, dataset=dataset, lidar_color=options.lidar_color)
         if options.bev:
             plan = with_bev_tile(plan, dataset, options, dataroot)
 

@@ -34,13 +34,15 @@ from nuparquet.synth.map_expansion import write_map_expansions
 from nuparquet.synth.tables import (
     TABLES, SceneTokens, TableWriter, frame_filenames, global_records, map_token, scene_records,
 )
-from nuparquet.synth.taxonomy import KEYFRAME_INTERVAL_US, RIGS
+from nuparquet.synth import lidarseg
+from nuparquet.synth.taxonomy import CATEGORIES, KEYFRAME_INTERVAL_US, RIGS
 from nuparquet.synth.timeline import make_timeline
 from nuparquet.synth.world import build_scene
 
 __all__ = ["synthesize"]
 
 MAP_SIZE_PX = 64
+CATEGORY_LABEL_INDEX = np.array([c.index for c in CATEGORIES])  # position in CATEGORIES -> category.json index
 
 
 def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images: bool = False,
@@ -79,7 +81,7 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     try:
         _write_tables_and_files(dataroot, partial_dir, logs, seed, scenes, samples_per_scene,
                                 images=with_images, point_clouds=with_lidar, can_bus=with_can_bus,
-                                on_progress=on_progress, roads=roads)
+                                on_progress=on_progress, roads=roads, version=version)
     except BaseException:  # interrupted or failed: leave nothing that could pass for a complete version folder
         shutil.rmtree(partial_dir, ignore_errors=True)
         raise
@@ -94,13 +96,18 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
 
 def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, scenes: int, samples_per_scene: int,
                             *, images: bool, point_clouds: bool, can_bus: bool, on_progress: OnProgress | None,
-                            roads: dict[str, list]) -> None:
+                            roads: dict[str, list], version: str = "v1.0-synth") -> None:
     """Generate the scenes one by one (one scene in memory at a time) and stream them into the tables."""
     writers = {name: TableWriter(table_dir / f"{name}.json") for name in TABLES}
     task = "synth" + (" (with sensor files)" if images or point_clouds else "")
     reporter = Reporter(on_progress, task, total=scenes, unit="scene")
     try:
-        for name, records in global_records(logs).items():
+        shared = global_records(logs)
+        labels = None
+        if point_clouds:  # lidarseg/panoptic labels of the lidar keyframes (synth.lidarseg)
+            shared["category"] = lidarseg.with_lidarseg_categories(shared["category"])
+            labels = lidarseg.LabelWriter(dataroot, table_dir, version, shared["category"])
+        for name, records in shared.items():
             writers[name].write_dicts(records)
         for log in logs:
             for scene_index, start_us in zip(log.scene_indices, log.scene_start_us):
@@ -119,9 +126,13 @@ def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, sc
                                         world.timeline.sample_timestamp_us, world.timeline.frame_timestamp_us,
                                         world.ego_translation_m, yaw_of(world.ego_rotation))
                 if images or point_clouds:
-                    SceneSensors(world, log.rig, seed, scene_index).write(
-                        dataroot, filenames, images=images, point_clouds=point_clouds)
+                    sensors = SceneSensors(world, log.rig, seed, scene_index)
+                    sensors.write(dataroot, filenames, images=images, point_clouds=point_clouds)
+                    if labels is not None:
+                        labels.write_scene(sensors, tokens.frame, tokens.instance, CATEGORY_LABEL_INDEX[world.instance_category])
                 reporter.advance()
+        if labels is not None:
+            labels.close()
     finally:
         reporter.close()
         for writer in writers.values():

@@ -117,6 +117,8 @@ def test_a_dataroot_without_can_bus_converts_as_before(root, tmp_path):
     shutil.rmtree(root / "can_bus")
     manifest = convert(root, V, tmp_path / "out")
     assert manifest["skipped"] == {"can_bus": "no can_bus/ folder in the dataroot",
-                                   "sample_can_bus": "needs can_bus, not built"}
+                                   "sample_can_bus": "needs can_bus, not built",
+                                   "lidar_points": "not requested (--sensors lidar)",
+                                   "radar_points": "not requested (--sensors radar)"}
     assert not any(name.startswith(("can_bus", "sample_can_bus")) for name in manifest["datasets"])
     assert not (tmp_path / "out" / "sample_can_bus").exists()

@@ -19,7 +19,8 @@ from nuparquet.export import export_json
 V = SYNTH_VERSION
 TOKEN_FIELDS = {"token", "sample_token", "ego_pose_token", "calibrated_sensor_token", "sensor_token", "scene_token",
                 "log_token", "first_sample_token", "last_sample_token", "instance_token", "category_token",
-                "first_annotation_token", "last_annotation_token", "prev", "next"}
+                "first_annotation_token", "last_annotation_token", "prev", "next",
+                "sample_data_token"}  # lidarseg.json / panoptic.json (synth --with-lidar writes them)
 
 
 def lyftify(src: Path, dst: Path) -> None:

@@ -16,6 +16,9 @@ from conftest import SYNTH_VERSION
 from nuparquet.convert import convert, registry
 from nuparquet.convert.registry import Builder
 
+# The opt-in sensor datasets, skipped unless --sensors asks for them.
+NOT_REQUESTED = {"lidar_points": "not requested (--sensors lidar)", "radar_points": "not requested (--sensors radar)"}
+
 
 def _per_scene_counts(ctx, batch):
     """Two datasets whose names come from the data: per batch, the sample count of each scene, and a copy."""
@@ -59,7 +62,7 @@ def test_builders_write_part_files_per_batch_and_manifest_lists_built_and_skippe
     # a whole builder reads what a scenes builder wrote
     assert pl.read_parquet(out / "summary")["len"].to_list() == [len(samples)]
     # skipped, with the reason, and what needs it skipped too
-    assert manifest["skipped"] == {"optional": "not requested", "after-optional": "needs optional, not built"}
+    assert manifest["skipped"] == {"optional": "not requested", "after-optional": "needs optional, not built", **NOT_REQUESTED}
     assert not (out / "optional").exists() and not (out / "after-optional").exists()
     assert json.loads((out / "manifest.json").read_text())["skipped"] == manifest["skipped"]
 
@@ -101,7 +104,7 @@ def test_manifest_records_channels_and_the_files_read(synth_root, synth_out):
     maps = {f["path"] for f in manifest["files"] if f["kind"] == "map_expansion"}
     assert maps == {f"maps/expansion/{p.name}" for p in (synth_root / "maps" / "expansion").glob("*.json")}
     assert len(manifest["files"]) == len(tables) + len(can_bus) + len(maps)
-    assert manifest["skipped"] == {}
+    assert manifest["skipped"] == NOT_REQUESTED  # sensor points are opt-in (--sensors)
 
 
 def test_manifest_channels_of_a_seven_camera_rig(lyft_rig_out):
