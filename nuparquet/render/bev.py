@@ -1,4 +1,5 @@
-"""The bird's-eye view (a `render.plan.TileSource`): map layers, reference-lidar points coloured by height,
+"""The bird's-eye view (a `render.plan.TileSource`): map layers, reference-lidar points coloured by height (or
+by class, instance or intensity with `--lidar-color`),
 boxes as oriented rectangles with a heading line in their category colours, the ego vehicle and a legend,
 centred on the ego vehicle, north-up or ego-up.
 
@@ -23,8 +24,8 @@ import shapely
 
 from nuparquet.frame_boxes import FrameBoxes
 from nuparquet.palette import category_rgb
-from nuparquet.pointcloud import load_lidar_bin
 from nuparquet.render.plan import TileLoad
+from nuparquet.render.points import CloudReader
 
 BACKGROUND_BGR = (32, 32, 32)
 # Draw order, bottom to top: (layer, BGR, how). Lines are drawn with the given thickness (pixels).
@@ -167,8 +168,9 @@ def footprints(translation_m: np.ndarray, size_wlh_m: np.ndarray, rotation_wxyz:
 class BevTile:
     """The bird's-eye view of each output: lidar frame `rows[t]` (-1: none) of the reference lidar's frames.
 
-    global_from_ego, ego_from_sensor: (L, 4, 4) per lidar frame; paths: (L,) point cloud files (None: no points);
-    boxes: the boxes of every lidar frame (`frame_boxes`, `frame_index` = lidar row).
+    global_from_ego, ego_from_sensor: (L, 4, 4) per lidar frame; clouds: their points (from lidar_points/ or the
+    files, with labels for a label colouring; None: no points); boxes: the boxes of every lidar frame
+    (`frame_boxes`, `frame_index` = lidar row).
     """
 
     rows: np.ndarray
@@ -176,7 +178,7 @@ class BevTile:
     raster: MapRaster
     global_from_ego: np.ndarray
     ego_from_sensor: np.ndarray
-    paths: list[str] | None
+    clouds: CloudReader | None
     boxes: FrameBoxes
     label: str = "BEV"
 
@@ -188,39 +190,42 @@ class BevTile:
         row = self.key(t)
         if row is None:
             return TileLoad()
-        if self.paths is None:
+        if self.clouds is None:
             return TileLoad((row, None))
         try:
-            points = load_lidar_bin(self.paths[row])
+            cloud = self.clouds.cloud(row)
         except (OSError, ValueError):
-            return TileLoad((row, None), (self.paths[row],))
-        return TileLoad((row, points))
+            return TileLoad((row, None), (self.clouds.paths[row],))
+        return TileLoad((row, cloud))
 
     def draw(self, t: int, loaded: TileLoad) -> np.ndarray | None:
         if loaded.data is None:
             return None
-        row, points = loaded.data
+        row, cloud = loaded.data
         ego = self.global_from_ego[row]
         ego_yaw = float(np.arctan2(ego[1, 0], ego[0, 0]))
         to_pixel = self.view.world_to_pixel(ego[:2, 3], ego_yaw)
         image = self.raster.warp(self.view, to_pixel)
-        if points is not None and len(points):
-            self._draw_points(image, points, row, to_pixel)
+        if cloud is not None and len(cloud[0]):
+            self._draw_points(image, *cloud, row, to_pixel)
         self._draw_boxes(image, row, to_pixel)
         self._draw_ego(image, ego[:2, 3], ego_yaw, to_pixel)
-        draw_legend(image)
+        draw_legend(image, points="height" if self.clouds is None or self.clouds.color == "depth" else self.clouds.color)
         return image
 
-    def _draw_points(self, image: np.ndarray, points: np.ndarray, row: int, to_pixel: np.ndarray) -> None:
+    def _draw_points(self, image: np.ndarray, points: np.ndarray, labels: np.ndarray | None, row: int,
+                     to_pixel: np.ndarray) -> None:
         sensor_xyz = points[:, :3].astype(np.float64)
         ego_xyz = sensor_xyz @ self.ego_from_sensor[row][:3, :3].T + self.ego_from_sensor[row][:3, 3]
         global_xyz = ego_xyz @ self.global_from_ego[row][:3, :3].T + self.global_from_ego[row][:3, 3]
         uv = np.round(_apply(to_pixel, global_xyz[:, :2])).astype(np.int64)
         h, w = image.shape[:2]
         inside = (uv[:, 0] >= 0) & (uv[:, 0] < w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] < h - 1)
-        lo, hi = POINT_HEIGHT_RANGE_M
-        level = np.clip((ego_xyz[inside, 2] - lo) / (hi - lo) * 255, 0, 255).astype(np.uint8)
-        u, v, color = uv[inside, 0], uv[inside, 1], _HEIGHT_LUT[level]
+        color = self.clouds.colors_bgr(points, labels, np.flatnonzero(inside))  # lidarseg, panoptic, intensity
+        if color is None:  # height (the depth of a top-down view)
+            lo, hi = POINT_HEIGHT_RANGE_M
+            color = _HEIGHT_LUT[np.clip((ego_xyz[inside, 2] - lo) / (hi - lo) * 255, 0, 255).astype(np.uint8)]
+        u, v = uv[inside, 0], uv[inside, 1]
         for du, dv in ((0, 0), (1, 0), (0, 1), (1, 1)):  # 2 x 2 px dots
             image[v + dv, u + du] = color
 
@@ -257,8 +262,9 @@ def _quaternion_from_yaw(yaw: np.ndarray) -> np.ndarray:
 LEGEND = tuple((layer.replace("_", " "), color) for layer, color, _ in MAP_STYLE)
 
 
-def draw_legend(image: np.ndarray) -> None:
-    """Layer swatches and the point height scale in the top-left corner."""
+def draw_legend(image: np.ndarray, points: str = "height") -> None:
+    """Layer swatches and the point colouring (the height scale, or the name of the colouring) in the top-left
+    corner."""
     h = image.shape[0]
     font = max(0.3, h / 1800)
     step = max(10, int(22 * font * 2))
@@ -272,11 +278,14 @@ def draw_legend(image: np.ndarray) -> None:
         cv2.putText(image, name, (x + step + 6, top + step - 5), cv2.FONT_HERSHEY_SIMPLEX, font, (255, 255, 255), 1,
                     cv2.LINE_AA)
     top = y + 4 + len(LEGEND) * step
-    bar = _HEIGHT_LUT[np.linspace(0, 255, panel_w - 12).astype(np.uint8)]
-    image[top + 2:top + step - 4, x + 4:x + 4 + len(bar)] = bar[None]
     lo, hi = POINT_HEIGHT_RANGE_M
-    cv2.putText(image, f"points: height {lo:g}..{hi:g} m", (x + 4, top + 2 * step - 5), cv2.FONT_HERSHEY_SIMPLEX,
-                font, (255, 255, 255), 1, cv2.LINE_AA)
+    text = f"points: {points}"
+    if points == "height":
+        bar = _HEIGHT_LUT[np.linspace(0, 255, panel_w - 12).astype(np.uint8)]
+        image[top + 2:top + step - 4, x + 4:x + 4 + len(bar)] = bar[None]
+        text += f" {lo:g}..{hi:g} m"
+    cv2.putText(image, text, (x + 4, top + 2 * step - 5), cv2.FONT_HERSHEY_SIMPLEX, font, (255, 255, 255), 1,
+                cv2.LINE_AA)
 
 
 def scene_extent(ego_xy: np.ndarray, view: View) -> tuple[float, float, float, float]:
@@ -286,5 +295,3 @@ def scene_extent(ego_xy: np.ndarray, view: View) -> tuple[float, float, float, f
     return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
 
 
-def lidar_paths(dataroot: Path, filenames: list[str]) -> list[str]:
-    return [str(dataroot / name) for name in filenames]

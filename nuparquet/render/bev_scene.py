@@ -15,7 +15,8 @@ import polars as pl
 from nuparquet.errors import UsageError
 from nuparquet.frame_boxes import ANNOTATION_COLUMNS, frame_boxes
 from nuparquet.projection.frames import MATRIX_COLUMNS, sensor_poses
-from nuparquet.render.bev import BevTile, MapRaster, View, lidar_paths, scene_extent
+from nuparquet.render.bev import BevTile, MapRaster, View, scene_extent
+from nuparquet.render.points import CloudReader
 from nuparquet.render.scene import SAMPLE_COLUMNS, reference_lidar
 
 LIDAR_COLUMNS = ("token", "sample_token", "scene_token", "channel", "timestamp", "is_key_frame", "filename",
@@ -53,9 +54,10 @@ def _map_layers(dataset, location: str | None):
 
 
 def bev_source(dataset, scene: str, dataroot: Path, view: View, *, all_frames: bool,
-               times_us: np.ndarray | None = None) -> tuple[BevTile, np.ndarray]:
+               times_us: np.ndarray | None = None, lidar_color: str = "depth") -> tuple[BevTile, np.ndarray]:
     """The BEV tile and its output times: the lidar frames' own times, or `times_us` (each output then shows the
-    lidar frame nearest in time)."""
+    lidar frame nearest in time). Points are coloured by height, or as `lidar_color` says (lidarseg, panoptic,
+    intensity; labels need `lidar_points/` with them)."""
     lidar, annotations, samples, location = load_bev_rows(dataset, scene, all_frames=all_frames)
     stamps = lidar["timestamp"].to_numpy()
     if times_us is None:
@@ -69,5 +71,5 @@ def bev_source(dataset, scene: str, dataroot: Path, view: View, *, all_frames: b
     raster = MapRaster.build(_map_layers(dataset, location), scene_extent(global_from_ego[rows][:, :2, 3], view),
                              view.px_per_m)
     tile = BevTile(rows.astype(np.int64), view, raster, global_from_ego, ego_from_sensor,
-                   lidar_paths(dataroot, lidar["filename"].to_list()), boxes)
+                   CloudReader.build(lidar, dataroot, dataset=dataset, color=lidar_color), boxes)
     return tile, np.asarray(times_us, dtype=np.float64)

@@ -65,7 +65,8 @@ class RenderOptions:
     lidar_color: Literal["depth", "intensity", "lidarseg", "panoptic"] = option(
         "depth", help="colour the --lidar points by depth (default), intensity, lidarseg class or panoptic "
         "instance (labels need `convert --sensors lidar` of a dataset with lidarseg/panoptic files). Points come "
-        "from lidar_points/ when converted, else from the .pcd.bin files; a colour other than depth implies --lidar")
+        "from lidar_points/ when converted, else from the .pcd.bin files; a colour other than depth implies --lidar. "
+        "In the bird's-eye view (--channel bev, --bev) depth means height")
     labels: Literal["category", "track", "none"] = option(
         "category", help="box labels: category name, track (short instance token) or none (default category)")
     clip: bool = option(

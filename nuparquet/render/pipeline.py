@@ -121,7 +121,8 @@ def bev_plan(dataset, options: RenderOptions, dataroot: Path) -> tuple[TilePlan,
     from nuparquet.render.bev_scene import bev_source
 
     size = (options.bev_size, options.bev_size)
-    tile, times_us = bev_source(dataset, options.scene, dataroot, _bev_view(options, size), all_frames=options.all_frames)
+    tile, times_us = bev_source(dataset, options.scene, dataroot, _bev_view(options, size), all_frames=options.all_frames,
+                                lidar_color=options.lidar_color)
     fps = options.frame_rate
     if options.fps is None and options.all_frames and len(times_us) > 1:
         fps = float(round(1e6 / float(np.median(np.diff(times_us)))))
@@ -133,7 +134,7 @@ def with_bev_tile(plan: TilePlan, dataset, options: RenderOptions, dataroot: Pat
     from nuparquet.render.bev_scene import bev_source
 
     tile, _ = bev_source(dataset, options.scene, dataroot, _bev_view(options, plan.tile_size),
-                         all_frames=options.all_frames, times_us=plan.times_us)
+                         all_frames=options.all_frames, times_us=plan.times_us, lidar_color=options.lidar_color)
     layout = (plan.layout[0] + (tile,),) + plan.layout[1:]
     return TilePlan(plan.times_us, layout, plan.tile_size)
 

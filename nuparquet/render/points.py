@@ -56,22 +56,20 @@ def label_colors_rgb(labels: np.ndarray, mode: str, names_by_index: dict[int, st
 
 
 @dataclass(frozen=True)
-class LidarPoints:
-    """The lidar keyframes of a render and, per camera row, which one it shows."""
+class CloudReader:
+    """The reference-lidar clouds of a render, by lidar row: read from `lidar_points/` when the output has them,
+    else from their files, with the labels the colour mode needs; and their colours. Shared by the camera tiles and
+    the bird's-eye view."""
 
-    tile_cameras: Cameras  # (F,) the cameras of the camera rows, resized to the tile
-    lidar_of_camera: np.ndarray  # (F,) row of the lidar keyframe each camera row shows, -1 for none
     paths: list[str]  # (L,) point cloud files
-    global_from_ego: np.ndarray  # (L, 4, 4)
-    ego_from_sensor: np.ndarray  # (L, 4, 4)
     tokens: list[str] = field(default_factory=list)  # (L,) sample_data tokens (to read lidar_points/)
     dataset: object | None = None  # a nuparquet Dataset holding lidar_points/, else None: read the files
     color: str = "depth"
     names_by_index: dict[int, str] = field(default_factory=dict)  # category index -> name (label colours)
 
     @classmethod
-    def build(cls, tile_cameras: Cameras, cameras: pl.DataFrame, lidar: pl.DataFrame, dataroot: Path, *,
-              dataset=None, color: str = "depth") -> LidarPoints:
+    def build(cls, lidar: pl.DataFrame, dataroot: Path, *, dataset=None, color: str = "depth") -> CloudReader:
+        """For the lidar rows `lidar` (`filename`, `token`); UsageError if `color` needs labels the output lacks."""
         if color not in LIDAR_COLORS:
             raise UsageError(f"--lidar-color must be one of {', '.join(LIDAR_COLORS)}, got {color!r}")
         has_points = dataset is not None and "lidar_points" in getattr(dataset, "datasets", ())
@@ -84,14 +82,12 @@ class LidarPoints:
                                  "dataroot with --sensors lidar; its lidarseg/panoptic files must be present)")
             categories = dataset.scan("tables/category").select("index", "name").drop_nulls("index").collect()
             names = dict(zip(categories["index"].to_list(), categories["name"].to_list()))
-        global_from_ego, ego_from_sensor = sensor_poses(lidar)
-        return cls(tile_cameras, lidar_for_cameras(cameras, lidar),
-                   [str(dataroot / name) for name in lidar["filename"].to_list()], global_from_ego, ego_from_sensor,
+        return cls([str(dataroot / name) for name in lidar["filename"].to_list()],
                    lidar["token"].to_list() if "token" in lidar.columns else [], dataset if has_points else None,
                    color, names)
 
     def cloud(self, lidar: int) -> tuple[np.ndarray, np.ndarray | None]:
-        """(P, 4) x, y, z, intensity of lidar keyframe `lidar` and its (P,) labels for the colour mode (or None):
+        """(P, 4) x, y, z, intensity of lidar row `lidar` and its (P,) labels for the colour mode (or None):
         from lidar_points/ when the frame was converted, else from its file."""
         label = _LABEL_COLUMN.get(self.color)
         if self.dataset is not None and self.tokens:
@@ -106,20 +102,6 @@ class LidarPoints:
             raise FileNotFoundError(self.paths[lidar])
         return load_lidar_bin(self.paths[lidar])[:, :4], None
 
-    def load(self, row: int) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray | None] | None, str | None]:
-        """(uv (K, 2) tile pixels, depth (K,), colours (K, 3) BGR uint8 or None for the depth colours) of camera
-        row `row`'s lidar points, or None; and the path of a missing or unreadable point cloud (else None)."""
-        lidar = int(self.lidar_of_camera[row])
-        if lidar < 0:
-            return None, None
-        try:
-            points, labels = self.cloud(lidar)
-        except (OSError, ValueError):
-            return None, self.paths[lidar]
-        uv, depth, index = project_points(points, self.global_from_ego[lidar], self.ego_from_sensor[lidar],
-                                          self.tile_cameras.take([row]))
-        return (uv, depth, self.colors_bgr(points, labels, index)), None
-
     def colors_bgr(self, points: np.ndarray, labels: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
         """(K, 3) BGR uint8 colours of the kept points `index`, or None for the depth colouring."""
         if self.color == "depth":
@@ -128,3 +110,39 @@ class LidarPoints:
             levels = np.rint(255.0 * 2.0 * intensity_levels(points[:, 3])[index]).astype(np.uint8)  # [0, .5] -> [0, 255]
             return cv2.applyColorMap(levels.reshape(-1, 1), cv2.COLORMAP_VIRIDIS).reshape(-1, 3)
         return label_colors_rgb(labels[index], self.color, self.names_by_index)[:, ::-1].copy()
+
+
+@dataclass(frozen=True)
+class LidarPoints:
+    """The lidar keyframes of a render and, per camera row, which one it shows."""
+
+    tile_cameras: Cameras  # (F,) the cameras of the camera rows, resized to the tile
+    lidar_of_camera: np.ndarray  # (F,) row of the lidar keyframe each camera row shows, -1 for none
+    global_from_ego: np.ndarray  # (L, 4, 4)
+    ego_from_sensor: np.ndarray  # (L, 4, 4)
+    reader: CloudReader
+
+    @classmethod
+    def build(cls, tile_cameras: Cameras, cameras: pl.DataFrame, lidar: pl.DataFrame, dataroot: Path, *,
+              dataset=None, color: str = "depth") -> LidarPoints:
+        reader = CloudReader.build(lidar, dataroot, dataset=dataset, color=color)
+        global_from_ego, ego_from_sensor = sensor_poses(lidar)
+        return cls(tile_cameras, lidar_for_cameras(cameras, lidar), global_from_ego, ego_from_sensor, reader)
+
+    @property
+    def paths(self) -> list[str]:
+        return self.reader.paths
+
+    def load(self, row: int) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray | None] | None, str | None]:
+        """(uv (K, 2) tile pixels, depth (K,), colours (K, 3) BGR uint8 or None for the depth colours) of camera
+        row `row`'s lidar points, or None; and the path of a missing or unreadable point cloud (else None)."""
+        lidar = int(self.lidar_of_camera[row])
+        if lidar < 0:
+            return None, None
+        try:
+            points, labels = self.reader.cloud(lidar)
+        except (OSError, ValueError):
+            return None, self.reader.paths[lidar]
+        uv, depth, index = project_points(points, self.global_from_ego[lidar], self.ego_from_sensor[lidar],
+                                          self.tile_cameras.take([row]))
+        return (uv, depth, self.reader.colors_bgr(points, labels, index)), None

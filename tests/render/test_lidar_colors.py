@@ -66,7 +66,7 @@ def test_points_from_lidar_points_equal_points_from_the_files(labelled_images):
     root, out = labelled_images
     from_dataset, cameras, _ = _lidar_points(out, root, "depth")
     from_files, _, _ = _lidar_points(out, root, "depth", from_dataset=False)
-    assert from_dataset.dataset is not None and from_files.dataset is None
+    assert from_dataset.reader.dataset is not None and from_files.reader.dataset is None
     for row in range(cameras.height):
         (uv_a, depth_a, _), _ = from_dataset.load(row)
         (uv_b, depth_b, _), _ = from_files.load(row)
@@ -96,3 +96,55 @@ def test_label_colours_need_converted_labels(labelled_images, tmp_path, capsys):
     code = main(["render", str(out), "--scene", "scene-0001", "--frames-dir", str(tmp_path / "f"),
                  "--lidar-color", "lidarseg", "--quiet"])
     assert code == 2 and "--sensors lidar" in capsys.readouterr().err
+
+
+def test_bev_points_take_their_lidarseg_class_colour(labelled_images, tmp_path):
+    """`--channel bev --lidar-color lidarseg`: each LIDAR_TOP keyframe point, moved to the global frame with the
+    devkit's poses (pyquaternion), lies at the north-up view pixel of its x, y and shows the devkit colormap's
+    colour of its lidarseg class (read with numpy from the label file)."""
+    import cv2
+    from nuscenes.nuscenes import NuScenes
+    from nuscenes.utils.color_map import get_colormap
+    from nuscenes.utils.data_classes import LidarPointCloud
+    from pyquaternion import Quaternion
+
+    root, out = labelled_images
+    assert main(["render", str(out), "--scene", "scene-0001", "--channel", "bev", "--bev-up", "north",
+                 "--lidar-color", "lidarseg", "--frames-dir", str(tmp_path / "frames"), "--frame-format", "png",
+                 "--quiet"]) == 0
+    nusc = NuScenes(SYNTH_VERSION, str(root), verbose=False)
+    colormap, names = get_colormap(), {c["index"]: c["name"] for c in nusc.category if "index" in c}
+    scene = nusc.get("scene", nusc.field2token("scene", "name", "scene-0001")[0])
+    sample_token, k, checked, equal = scene["first_sample_token"], 0, 0, 0
+    while sample_token:
+        sample = nusc.get("sample", sample_token)
+        lidar = nusc.get("sample_data", sample["data"]["LIDAR_TOP"])
+        cloud = LidarPointCloud.from_file(str(root / lidar["filename"]))
+        labels = np.fromfile(root / nusc.get("lidarseg", lidar["token"])["filename"], dtype=np.uint8)
+        calibration = nusc.get("calibrated_sensor", lidar["calibrated_sensor_token"])
+        pose = nusc.get("ego_pose", lidar["ego_pose_token"])
+        cloud.rotate(Quaternion(calibration["rotation"]).rotation_matrix)
+        cloud.translate(np.array(calibration["translation"]))
+        cloud.rotate(Quaternion(pose["rotation"]).rotation_matrix)
+        cloud.translate(np.array(pose["translation"]))
+        image = cv2.imread(str(tmp_path / "frames" / f"{k:05d}.png"))
+        h, w = image.shape[:2]
+        s = h / 100.0  # default range +-50 m
+        u = np.round((w - 1) / 2 + (cloud.points[0] - pose["translation"][0]) * s).astype(int)
+        v = np.round((h - 1) / 2 - (cloud.points[1] - pose["translation"][1]) * s).astype(int)
+        inside = (u >= 0) & (u < w) & (v >= 0) & (v < h) & ~((u < 0.3 * w) & (v < 0.35 * h))  # not the legend
+        pixel = v[inside] * w + u[inside]
+        # pixels that points of one class only fall on (a later point of another class would paint over)
+        unique_pixels, first = np.unique(pixel, return_index=True)
+        classes = {p: set() for p in unique_pixels.tolist()}
+        for p, label in zip(pixel.tolist(), labels[inside].tolist()):
+            classes[p].add(label)
+        for p, label_set in classes.items():
+            if len(label_set) != 1:
+                continue
+            expected = tuple(int(c) for c in colormap[names[label_set.pop()]][::-1])  # RGB -> BGR
+            checked += 1
+            equal += tuple(int(c) for c in image[p // w, p % w]) == expected
+        k, sample_token = k + 1, sample["next"]
+    assert checked > 500
+    assert equal / checked > 0.9, (equal, checked)  # the rest: under boxes and the ego, drawn on top
