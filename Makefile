@@ -10,7 +10,7 @@ DEVKIT_STAMP := $(VENV)/.devkit
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test]'
+	$(BIN)/pip install --quiet -e '.[test,ray]'
 	touch $@
 
 # nuscenes-devkit pins numpy<2; we install it without its pins (test-only reference implementation).
