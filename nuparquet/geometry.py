@@ -105,6 +105,26 @@ def transform_points(X_from_Y, points_Y) -> np.ndarray:
     return rotated + translation
 
 
+def box_half_axes(size_wlh_m, rotation_wxyz) -> np.ndarray:
+    """(N, 3, 3) the half-axes of boxes in their frame: row j is the box's axis j (x length, y width,
+    z height) times half the box's extent along it, from sizes (N, 3) [w, l, h] m and orientations (N, 4)
+    quaternions [w, x, y, z] or (N, 3, 3) rotation matrices. `corners_from_half_axes` makes the corners."""
+    size_wlh_m = _as_float_array(size_wlh_m, (3,), "size_wlh_m")
+    rotation = np.asarray(rotation_wxyz, dtype=np.float64)
+    F_from_box_rotation = rotation if rotation.shape[-2:] == (3, 3) else rotation_matrices(rotation)
+    half_lwh = size_wlh_m[..., [1, 0, 2]] / 2.0  # box x is length, y is width, z is height
+    return np.swapaxes(F_from_box_rotation, -1, -2) * half_lwh[..., :, None]
+
+
+def corners_from_half_axes(half_axes) -> np.ndarray:
+    """(N, 3, 3) half-axes (`box_half_axes`) -> (N, 8, 3) corners about the box centre, in `box_corners`
+    order: each corner is a signed sum of the three half-axes, one (8, 3) @ (3, 3N) matrix product."""
+    half_axes = np.asarray(half_axes, dtype=np.float64)
+    batch = half_axes.shape[:-2]
+    by_axis = np.moveaxis(half_axes.reshape(-1, 3, 3), 1, 0).reshape(3, -1)  # (3, N * 3)
+    return np.moveaxis((_CORNER_SIGNS_XYZ @ by_axis).reshape(8, -1, 3), 0, 1).reshape(batch + (8, 3))
+
+
 def box_corners(translation_m, size_wlh_m, rotation_wxyz) -> np.ndarray:
     """The 8 corners of boxes, in the order of devkit `Box.corners()` (transposed).
 
