@@ -80,13 +80,14 @@ def run(repeats: int = 1) -> dict:
     same_bytes = all(v == videos["1 process"] for v in videos.values())
     base = figures["1 process"]["scenes_per_s"]
     rows = []
-    for index, (label, _, _) in enumerate(ENGINES):
+    for index, (label, engine, _) in enumerate(ENGINES):
         f = figures[label]
         rows.append(Row(
             id=f"9{'abc'[index]}",
             benchmark=f"render all {f['scenes']:.0f} scenes ({f['frames']:.0f} CAM_FRONT frames, --all-frames, "
             f"800x450) of the 10-scene set: {label}",
             ours=f"{f['scenes_per_s']:.2f} scenes/s ({seconds(f['total_s'])}"
+            f"{'; process CPU ' + seconds(f['cpu_s']) + ' = ' + format(f['cpu_s'] / f['wall_s'], '.2f') + ' cores busy' if engine == 'serial' else ''}"
             f"{'; + Ray start ' + seconds(f['engine_start_s']) if f['engine_start_s'] else ''}; worker peak "
             f"{megabytes(f['worker_peak_rss_mb'])}, process {megabytes(f['max_rss_mb'])})",
             reference=f"1 process: {base:.2f} scenes/s",

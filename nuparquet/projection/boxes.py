@@ -84,15 +84,16 @@ def _transposed(matrices: np.ndarray) -> np.ndarray:
 def _half_axes_global(boxes: FrameBoxes) -> np.ndarray:
     """(M, 3, 3) each box's half-axes in the global frame (`geometry.box_half_axes`), built once per annotation
     (a keyframe annotation is seen by up to six cameras) and once per interpolated sweep box."""
-    fixed = ~boxes.interpolated
-    half_axes = np.empty((len(boxes), 3, 3))
-    annotations, first, inverse = np.unique(boxes.annotation_index[fixed], return_index=True, return_inverse=True)
-    rows = np.flatnonzero(fixed)
-    once = rows[first]
-    half_axes[rows] = geometry.box_half_axes(boxes.size_wlh_m[once], boxes.rotation_wxyz[once])[inverse]
     moved = np.flatnonzero(boxes.interpolated)
-    if len(moved):
-        half_axes[moved] = geometry.box_half_axes(boxes.size_wlh_m[moved], boxes.rotation_wxyz[moved])
+    fixed = np.flatnonzero(~boxes.interpolated) if len(moved) else slice(None)
+    _, first, inverse = np.unique(boxes.annotation_index[fixed], return_index=True, return_inverse=True)
+    once = np.arange(len(boxes))[fixed][first]
+    per_annotation = geometry.box_half_axes(boxes.size_wlh_m[once], boxes.rotation_wxyz[once])
+    if not len(moved):  # keyframes only: every box is its annotation's
+        return per_annotation[inverse]
+    half_axes = np.empty((len(boxes), 3, 3))
+    half_axes[fixed] = per_annotation[inverse]
+    half_axes[moved] = geometry.box_half_axes(boxes.size_wlh_m[moved], boxes.rotation_wxyz[moved])
     return half_axes
 
 
