@@ -45,7 +45,7 @@ def child(out: str, scenes_per_batch: int) -> None:
     from nuparquet.projection.boxes import project_boxes
 
     import_s = time.perf_counter() - start
-    start = time.perf_counter()
+    start, start_cpu = time.perf_counter(), time.process_time()
     ds = nuparquet.open(out)
     scene_names = ds.scan("scenes").select("name").sort("name").collect()["name"].to_list()
     frames_n = pairs = visible = 0
@@ -67,8 +67,8 @@ def child(out: str, scenes_per_batch: int) -> None:
         pairs += len(projected)
         visible += int(projected.visible.sum())
         del projected
-    total_s = time.perf_counter() - start
-    print(json.dumps({"import_s": import_s, "total_s": total_s, "read_s": read_s, "project_s": project_s,
+    total_s, cpu_s = time.perf_counter() - start, time.process_time() - start_cpu
+    print(json.dumps({"import_s": import_s, "total_s": total_s, "cpu_s": cpu_s, "pairs_per_cpu_s": pairs / cpu_s, "read_s": read_s, "project_s": project_s,
                       "frames": frames_n, "pairs": pairs, "visible": visible, "scenes": len(scene_names),
                       "pairs_per_s": pairs / total_s, "visible_per_s": visible / total_s}))
 
@@ -82,9 +82,9 @@ def devkit_child(dataroot: str, version: str, scene: str) -> None:
 
     nusc = NuScenes(version, dataroot, verbose=False)
     tokens = [token for channel in CAMERAS for token in scene_keyframe_tokens(nusc, scene, channel)]
-    loops = []
+    loops, cpu_loops = [], []
     for _ in range(DEVKIT_LOOPS):
-        start, pairs = time.perf_counter(), 0
+        start, start_cpu, pairs = time.perf_counter(), time.process_time(), 0
         for token in tokens:
             _, boxes, intrinsic = nusc.get_sample_data(token, box_vis_level=BoxVisibility.NONE)
             for box in boxes:
@@ -92,8 +92,10 @@ def devkit_child(dataroot: str, version: str, scene: str) -> None:
                 view_points(corners_camera_m, intrinsic, normalize=True)
                 pairs += 1
         loops.append(time.perf_counter() - start)
-    loop_s = statistics.median(loops)
-    print(json.dumps({"frames": len(tokens), "pairs": pairs, "loop_s": loop_s, "pairs_per_s": pairs / loop_s}))
+        cpu_loops.append(time.process_time() - start_cpu)
+    loop_s, cpu_s = statistics.median(loops), statistics.median(cpu_loops)
+    print(json.dumps({"frames": len(tokens), "pairs": pairs, "loop_s": loop_s, "pairs_per_s": pairs / loop_s,
+                      "cpu_s": cpu_s, "pairs_per_cpu_s": pairs / cpu_s}))
     sys.stdout.flush()
     os._exit(0)  # freeing the devkit's dicts is not part of the figure
 
@@ -108,12 +110,14 @@ def run(repeats: int = 3, scenes_per_batch: int = SCENES_PER_BATCH, scenes: int 
     cmd = python_child(__file__, "--child", out, "--scenes-per-batch", scenes_per_batch)
     ours = summarize(repeat(cmd, repeats, label="nuparquet project all"), total_s="total_s", read_s="read_s",
                      project_s="project_s", frames="frames", pairs="pairs", visible="visible",
-                     pairs_per_s="pairs_per_s", visible_per_s="visible_per_s")
+                     pairs_per_s="pairs_per_s", visible_per_s="visible_per_s", cpu_s="cpu_s",
+                     pairs_per_cpu_s="pairs_per_cpu_s")
     devkit_cmd = python_child(__file__, "--devkit-child", root, datasets.TRAINVAL_VERSION, "--scene", DEVKIT_SCENE)
     devkit_run = run_child(devkit_cmd)
     devkit = devkit_run.report
     log(f"  devkit per-pair loop: {devkit['pairs']} pairs in {devkit['loop_s']:.2f} s")
     ratio = ours["pairs_per_s"] / devkit["pairs_per_s"]
+    cpu_ratio = ours["pairs_per_cpu_s"] / devkit["pairs_per_cpu_s"]  # less sensitive to a loaded machine
     rss_ok = ours["max_rss_mb"] <= TARGET_RSS_MB
     row = Row(
         id="4",
@@ -121,17 +125,18 @@ def run(repeats: int = 3, scenes_per_batch: int = SCENES_PER_BATCH, scenes: int 
         f"per call ({ours['frames']:,.0f} frames, {ours['pairs']:,.0f} (frame, box) pairs, "
         f"{ours['visible']:,.0f} visible)",
         ours=f"{ours['pairs_per_s'] / 1e6:.2f} M pairs/s ({seconds(ours['total_s'])}: read {seconds(ours['read_s'])}"
-        f" + project {seconds(ours['project_s'])}; process {seconds(ours['wall_s'])}, "
+        f" + project {seconds(ours['project_s'])}, CPU {seconds(ours['cpu_s'])}; process {seconds(ours['wall_s'])}, "
         f"{megabytes(ours['max_rss_mb'])} peak)",
-        reference=f"devkit get_sample_data + view_points: {devkit['pairs_per_s'] / 1e6:.4f} M pairs/s "
+        reference=f"devkit get_sample_data + view_points: {devkit['pairs_per_s'] / 1e6:.4f} M pairs/s, "
+        f"{devkit['pairs_per_cpu_s'] / 1e6:.4f} M per CPU second "
         f"({devkit['pairs']:,} pairs of {DEVKIT_SCENE}'s {devkit['frames']} keyframe camera frames)",
-        ratio=f"{ratio:.0f}×",
+        ratio=f"{ratio:.0f}× (per CPU second {cpu_ratio:.0f}×)",
         target=f"≥ {TARGET_RATIO:.0f}× per pair, ≤ {TARGET_RSS_MB / 1024:.0f} GB",
         met=ratio >= TARGET_RATIO and rss_ok,
     )
     return {"name": "project_all", "command": " ".join(map(str, cmd)), "nuparquet": ours,
             "devkit": {"command": " ".join(map(str, devkit_cmd)), **devkit, "max_rss_mb": devkit_run.max_rss_mb},
-            "ratio": ratio, "rows": [row]}
+            "ratio": ratio, "cpu_ratio": cpu_ratio, "rows": [row]}
 
 
 def main() -> None:
