@@ -26,8 +26,9 @@ from pathlib import Path
 
 import polars as pl
 
-from nuparquet.engine import EngineOptions, UnitOutcome, check_engine, WorkUnit, part_name, raise_failures, run_units
-from nuparquet.engine.units import forget
+from nuparquet.engine import (
+    EngineOptions, UnitOutcome, WorkUnit, check_engine, move_parts, part_name, raise_failures, run_units,
+)
 from nuparquet.errors import QueryError, UsageError
 from nuparquet.progress import OnProgress
 from nuparquet.render.options import ALL_CHANNELS, SUMMARY_NAME, RenderOptions, SceneSelection
@@ -164,11 +165,8 @@ def render_scenes(dataset_or_path, options: RenderOptions, selection: SceneSelec
                          on_progress=on_progress, label=f"render {len(scenes)} scene(s)")
 
     # Commit: finished videos into place (renames within DIR), then the summary that lists them.
-    for outcome in outcomes:
-        if outcome.ok and not (outcome.resumed and outcome.name in committed):
-            source = parts_dir / part_name(outcome.name) / outcome.value["video"]
-            os.replace(source, out_dir / outcome.value["video"])
-            forget(parts_dir, outcome.name)
+    move_parts(outcomes, parts_dir, out_dir, name=lambda index, scene, filename: filename,
+               skip=lambda outcome: outcome.resumed and outcome.name in committed)
     entries = dict(committed)  # videos of earlier runs still in DIR stay listed
     entries.update({o.name: o.value for o in outcomes if o.ok})
     failed = {o.name: o.error for o in outcomes if not o.ok}

@@ -8,7 +8,7 @@ import sys
 import pytest
 
 from nuparquet.cli.main import main
-from nuparquet.engine import EngineOptions, UnitsFailed, WorkUnit, run_units
+from nuparquet.engine import EngineOptions, UnitsFailed, WorkUnit, move_parts, raise_failures, run_units
 from nuparquet.errors import UsageError
 
 from tasks import square_into_part
@@ -94,3 +94,26 @@ def test_ray_address_without_the_ray_engine_is_a_usage_error(tmp_path):
     with pytest.raises(UsageError, match="--ray-address needs --engine ray"):
         run_units(square_into_part, [WorkUnit("a", 1)], parts_dir=tmp_path,
                   options=EngineOptions(engine="process", ray_address="auto"))
+
+
+@pytest.mark.parametrize("engine", ["serial", "process"])
+def test_parts_are_committed_in_unit_order_whatever_order_units_finished(engine, tmp_path):
+    # Units of decreasing size finish in another order on the pool; the commit follows the unit list.
+    values = [9, 4, 7, 1, 8]
+    units = [WorkUnit(f"scene-{v}", v) for v in values]
+    outcomes = run_units(square_into_part, units, parts_dir=tmp_path / "parts",
+                         options=EngineOptions(engine=engine, workers=2))
+    committed = move_parts(outcomes, tmp_path / "parts", tmp_path / "dataset")
+    assert [p.name for p in committed] == [f"{i:05d}-value.txt" for i in range(len(values))]
+    assert [p.read_text() for p in committed] == [str(v * v) for v in values]
+    assert not any((tmp_path / "parts").iterdir())  # part folders and markers gone
+
+
+def test_a_failed_unit_leaves_no_part_in_the_commit(tmp_path):
+    units = [WorkUnit("a", 2), WorkUnit("bad", -1), WorkUnit("c", 3)]
+    outcomes = run_units(square_into_part, units, parts_dir=tmp_path / "parts",
+                         options=EngineOptions(engine="serial", keep_going=True))
+    committed = move_parts(outcomes, tmp_path / "parts", tmp_path / "dataset")
+    assert [(p.name, p.read_text()) for p in committed] == [("00000-value.txt", "4"), ("00002-value.txt", "9")]
+    with pytest.raises(UnitsFailed, match="bad: ValueError"):
+        raise_failures(outcomes)

@@ -18,6 +18,8 @@ import ray
 from nuparquet.cli.main import main
 from nuparquet.render.options import SUMMARY_NAME
 
+pytestmark = pytest.mark.xdist_group("ray")  # one worker, one Ray session (make test: --dist loadgroup)
+
 VERSION = "v1.0-synth"
 SCENES = ["scene-0001", "scene-0002", "scene-0003"]
 SMALL = ["--scale", "0.1", "--quiet"]
