@@ -208,15 +208,24 @@ def _annotations_of(frame_samples: pl.DataFrame, annotations: pl.LazyFrame) -> p
 
 def _pairs(frame_samples: pl.DataFrame, boxes: pl.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     """(M,) frame rows and (M,) annotation rows of every (frame, box of its sample) pair, ordered by frame
-    then annotation: a join of row numbers only."""
-    pairs = (
-        frame_samples.lazy().select("sample_token").with_row_index("frame_index")
-        .join(boxes.lazy().select("sample_token").with_row_index("annotation_index"), on="sample_token", how="inner")
-        .select("frame_index", "annotation_index")
-        .sort("frame_index", "annotation_index")  # joins do not promise an order; callers line boxes up with frames
-        .collect()
-    )
-    return pairs["frame_index"].to_numpy().astype(np.int64), pairs["annotation_index"].to_numpy().astype(np.int64)
+    then annotation. Samples become small integer codes (one join per table, F and A rows); the pairs are then
+    laid out with numpy: each frame takes its sample's run of annotations (annotations grouped by sample with
+    a stable sort, so each run keeps the annotations' order)."""
+    codes = frame_samples.select("sample_token").unique(maintain_order=True).with_row_index("code")
+    frame_code = (frame_samples.select("sample_token").join(codes, on="sample_token", how="left",
+                                                            maintain_order="left")["code"].to_numpy().astype(np.int64))
+    unknown = codes.height  # annotations of a previous sample only: no frame takes them
+    box_code = (boxes.select("sample_token").join(codes, on="sample_token", how="left", maintain_order="left")["code"]
+                .fill_null(unknown).to_numpy().astype(np.int64))
+    by_sample = np.argsort(box_code, kind="stable")
+    counts = np.bincount(box_code, minlength=unknown + 1)[:unknown]
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    per_frame = counts[frame_code]
+    frame_index = np.repeat(np.arange(len(frame_code), dtype=np.int64), per_frame)
+    first_pair = np.cumsum(per_frame) - per_frame
+    within = np.arange(len(frame_index), dtype=np.int64) - np.repeat(first_pair, per_frame)
+    annotation_index = by_sample[np.repeat(starts[frame_code], per_frame) + within].astype(np.int64)
+    return frame_index, annotation_index
 
 
 def _previous_annotations(frame_samples: pl.DataFrame, boxes: pl.DataFrame, frame_index: np.ndarray,
