@@ -32,8 +32,8 @@ class EngineOptions:
         False, help="when a scene fails, finish the others (their outputs are written), then exit 1 listing the "
         "failed scenes; by default the first failure stops the job and nothing is committed")
     resume: bool = option(
-        False, help="skip scenes whose outputs are complete from an earlier run (committed, or finished by a run "
-        "that stopped on a failure)")
+        False, help="skip scenes whose outputs are complete from an earlier run with the same options (committed, "
+        "or finished by a run that stopped on a failure)")
 
     def check(self) -> None:
         """Raise UsageError for contradictory or out-of-range options."""

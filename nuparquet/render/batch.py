@@ -13,15 +13,17 @@ Each scene is one work unit: its task opens the dataset (a path or URL every wor
 one-scene `render` (its query reads only that scene: the scene filter is pushed into the Parquet scans) and
 writes its video into the unit's part folder (`DIR/.nuparquet-parts/`). The commit moves each finished video
 into `DIR` (a rename on the same file system) and then writes `DIR/render-summary.json`, which records every
-scene rendered there; `--resume` skips the scenes it lists whose video is present.
+scene rendered there with a digest of the options (`render_settings`); `--resume` skips the scenes it lists
+whose video is present and was made with the same options.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import shutil
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import polars as pl
@@ -106,6 +108,16 @@ def render_unit(unit: WorkUnit, part: Path) -> dict:
             "fps": result.fps, "missing": result.missing[:5]}
 
 
+def render_settings(root: str, options: RenderOptions) -> str:
+    """A short digest of what makes a scene's video what it is: the dataset and every render option but the
+    scene, the output paths, where the images are read from (`dataroot`: a run resumed after the images moved
+    draws the same pictures), `on_missing` and the decode threads. `--resume` reuses only videos made with the
+    same."""
+    fields = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(options).items()
+              if k not in ("scene", "out", "frames_dir", "overwrite", "threads", "dataroot", "on_missing")}
+    return hashlib.sha256(json.dumps({"dataset": root, **fields}, sort_keys=True, default=str).encode()).hexdigest()[:12]
+
+
 def _previous_summary(out_dir: Path) -> dict:
     try:
         summary = json.loads((out_dir / SUMMARY_NAME).read_text())
@@ -154,25 +166,31 @@ def render_scenes(dataset_or_path, options: RenderOptions, selection: SceneSelec
     scenes = select_scenes(dataset, selection)
     out_dir = Path(selection.out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    parts_dir = out_dir / PARTS_NAME
-    previous = _previous_summary(out_dir).get("scenes", {})
-    committed = {name: entry for name, entry in previous.items()
-                 if isinstance(entry, dict) and (out_dir / str(entry.get("video", ""))).is_file()}
     root = str(dataset.root) if dataset.is_remote else str(Path(dataset.root).resolve())
-    args = (root, dataset.storage_options, replace(options, out=None, frames_dir=None))
-    units = [WorkUnit(scene, args) for scene in scenes]
-    outcomes = run_units(render_unit, units, parts_dir=parts_dir, options=engine, committed=committed,
+    options = replace(options, out=None, frames_dir=None)
+    settings = render_settings(root, options)
+    parts_dir = out_dir / PARTS_NAME / settings  # parts of a run with other options are never resumed
+    previous = _previous_summary(out_dir).get("scenes", {})
+    present = {name: entry for name, entry in previous.items()
+               if isinstance(entry, dict) and (out_dir / str(entry.get("video", ""))).is_file()}
+    reusable = {name: entry for name, entry in present.items() if entry.get("settings") == settings}
+    units = [WorkUnit(scene, (root, dataset.storage_options, options)) for scene in scenes]
+    outcomes = run_units(render_unit, units, parts_dir=parts_dir, options=engine, committed=reusable,
                          on_progress=on_progress, label=f"render {len(scenes)} scene(s)")
 
     # Commit: finished videos into place (renames within DIR), then the summary that lists them.
     move_parts(outcomes, parts_dir, out_dir, name=lambda index, scene, filename: filename,
-               skip=lambda outcome: outcome.resumed and outcome.name in committed)
-    entries = dict(committed)  # videos of earlier runs still in DIR stay listed
-    entries.update({o.name: o.value for o in outcomes if o.ok})
+               skip=lambda outcome: outcome.resumed and outcome.name in reusable)
+    entries = dict(present)  # videos of earlier runs still in DIR stay listed
+    entries.update({o.name: {**o.value, "settings": settings} for o in outcomes if o.ok})
     failed = {o.name: o.error for o in outcomes if not o.ok}
     summary = out_dir / SUMMARY_NAME
     _write_json(summary, {"dataset": root, "channel": options.channel, "scenes": entries, "failed": failed})
     if not failed:
         shutil.rmtree(parts_dir, ignore_errors=True)
+        try:
+            (out_dir / PARTS_NAME).rmdir()  # left when parts of another run's options remain
+        except OSError:
+            pass
     raise_failures(outcomes)
     return BatchResult(out_dir=out_dir, summary=summary, outcomes=outcomes)

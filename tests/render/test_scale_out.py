@@ -180,3 +180,18 @@ def test_resume_after_a_stopped_run_reuses_the_scenes_it_finished(scenes_root, s
                  "--resume", *SMALL]) == 0
     assert "rendered 2 scene(s) (1 already done, skipped)" in capsys.readouterr().out
     assert _videos(out_dir) == one_process_videos
+
+
+def test_resume_renders_again_scenes_made_with_other_options(scenes_out, tmp_path, capsys):
+    out_dir = tmp_path / "videos"
+    assert main(["render", str(scenes_out), "--scenes", "scene-0001,scene-0002", "--out-dir", str(out_dir),
+                 "--engine", "serial", *SMALL]) == 0
+    small = _videos(out_dir)
+    capsys.readouterr()
+    assert main(["render", str(scenes_out), "--scenes", "scene-0001,scene-0002", "--out-dir", str(out_dir),
+                 "--engine", "serial", "--resume", "--quiet", "--scale", "0.15"]) == 0
+    assert "rendered 2 scene(s) ->" in capsys.readouterr().out  # none skipped: the scale changed
+    bigger = _videos(out_dir)
+    assert all(bigger[scene] != small[scene] for scene in small)
+    with av.open(str(out_dir / "scene-0001.mp4")) as video:
+        assert (video.streams.video[0].codec_context.width, video.streams.video[0].codec_context.height) == (240, 136)
