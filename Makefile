@@ -10,7 +10,7 @@ DEVKIT_STAMP := $(VENV)/.devkit
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test]'
+	$(BIN)/pip install --quiet -e '.[test,ray]'
 	touch $@
 
 # nuscenes-devkit pins numpy<2; we install it without its pins (test-only reference implementation).
@@ -24,8 +24,9 @@ demo: $(STAMP)
 	$(BIN)/python pipelines/demo.py --out demo-out
 
 # Tests run on every core (up to 4): the suite is ~8 minutes on one core of the 2-core CI machine, ~4 on two.
+# --dist loadgroup keeps the tests marked xdist_group("ray") on one worker: one local Ray session, not four.
 test: $(DEVKIT_STAMP)
-	$(BIN)/python -m pytest -q -n auto --maxprocesses=4
+	$(BIN)/python -m pytest -q -n auto --maxprocesses=4 --dist loadgroup
 
 bench: $(DEVKIT_STAMP)
 	$(BIN)/python benchmarks/run_all.py

@@ -46,8 +46,9 @@ EXTRACT_VERSION = "v1.0-mini-extract"
 EXTRACT_OUT = CACHE / "extract-out"
 
 
-def synth_command(root: Path, scenes: int, version: str, *, with_images: bool = False) -> list[str]:
-    return [*NUPARQUET, "synth", str(root), "--scenes", str(scenes), "--samples-per-scene", str(SAMPLES_PER_SCENE),
+def synth_command(root: Path, scenes: int, version: str, *, with_images: bool = False,
+                  samples_per_scene: int = SAMPLES_PER_SCENE) -> list[str]:
+    return [*NUPARQUET, "synth", str(root), "--scenes", str(scenes), "--samples-per-scene", str(samples_per_scene),
             "--version", version, "--quiet", *(["--with-images"] if with_images else [])]
 
 
@@ -70,15 +71,17 @@ def _params_match(directory: Path, params: dict) -> bool:
         return False
 
 
-def _synth(root: Path, scenes: int, version: str, *, with_images: bool) -> Path:
-    params = {"synth": {"scenes": scenes, "samples_per_scene": SAMPLES_PER_SCENE, "version": version,
+def _synth(root: Path, scenes: int, version: str, *, with_images: bool,
+           samples_per_scene: int = SAMPLES_PER_SCENE) -> Path:
+    params = {"synth": {"scenes": scenes, "samples_per_scene": samples_per_scene, "version": version,
                         "with_images": with_images, "seed": 0}}
     if (root / version / "sample_data.json").is_file() and _params_match(root, params):
         return root
     if root.exists():
         shutil.rmtree(root)
-    log(f"building {root} ({scenes} scenes x {SAMPLES_PER_SCENE} samples{', images' if with_images else ''}) ...")
-    subprocess.run(synth_command(root, scenes, version, with_images=with_images), check=True, cwd=REPO)
+    log(f"building {root} ({scenes} scenes x {samples_per_scene} samples{', images' if with_images else ''}) ...")
+    subprocess.run(synth_command(root, scenes, version, with_images=with_images, samples_per_scene=samples_per_scene),
+                   check=True, cwd=REPO)
     (root / PARAMS).write_text(json.dumps(params) + "\n")
     return root
 
@@ -103,6 +106,34 @@ def trainval_root() -> Path:
 def trainval_out() -> Path:
     """The conversion of `trainval_root()`."""
     return _convert(trainval_root(), TRAINVAL_VERSION, TRAINVAL_OUT)
+
+
+def scenes_root(scenes: int) -> Path:
+    """A smaller metadata-only set with trainval's shape (`scenes` x 40 samples), for quicker runs of rows 1
+    and 4 (`--scenes N`); `scenes=850` is `trainval_root()`."""
+    if scenes == TRAINVAL_SCENES:
+        return trainval_root()
+    return _synth(CACHE / f"scenes-{scenes}", scenes, TRAINVAL_VERSION, with_images=False)
+
+
+def scenes_out(scenes: int) -> Path:
+    if scenes == TRAINVAL_SCENES:
+        return trainval_out()
+    return _convert(scenes_root(scenes), TRAINVAL_VERSION, CACHE / f"scenes-{scenes}-out")
+
+
+SCALE_OUT_SCENES = 10
+SCALE_OUT_SAMPLES = 20
+
+
+def scale_out_root() -> Path:
+    """10 scenes x 20 samples with 1600x900 camera JPEGs: the many-scene render of the scale-out rows."""
+    return _synth(CACHE / "scale-out", SCALE_OUT_SCENES, RENDER_VERSION, with_images=True,
+                  samples_per_scene=SCALE_OUT_SAMPLES)
+
+
+def scale_out_out() -> Path:
+    return _convert(scale_out_root(), RENDER_VERSION, CACHE / "scale-out-out")
 
 
 def render_root() -> Path:

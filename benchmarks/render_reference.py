@@ -59,6 +59,35 @@ def bare_decode_encode(
     return {"frames": len(paths), "seconds": seconds, "fps": len(paths) / seconds}
 
 
+def bare_mosaic_decode_encode(
+    rows_of_paths: list[list[list[str]]],
+    out: str | Path,
+    *,
+    tile_size: tuple[int, int] = (800, 450),
+    fps: float = 2.0,
+    crf: int = DEFAULT_CRF,
+    preset: str = DEFAULT_PRESET,
+) -> dict:
+    """The six-camera floor: for each output, decode every camera's JPEG at the tile size (the same reduced
+    decode), place the tiles in their rows, encode the picture — one thread, nothing drawn, no query.
+
+    Args:
+        rows_of_paths: per output, rows of image files (front row first, each left to right).
+        tile_size: (width, height) of one tile; the video is (columns * width, rows * height).
+    """
+    start = time.perf_counter()
+    scale = tile_size[0] / 1600
+    columns, rows = len(rows_of_paths[0][0]), len(rows_of_paths[0])
+    size = (columns * tile_size[0], rows * tile_size[1])
+    with VideoWriter(out, width=size[0], height=size[1], fps=fps, crf=crf, preset=preset) as video:
+        for layout in rows_of_paths:
+            picture = np.concatenate([np.concatenate([decode_image(path, tile_size, scale) for path in row], axis=1)
+                                      for row in layout], axis=0)
+            video.write(picture)
+    seconds = time.perf_counter() - start
+    return {"frames": len(rows_of_paths), "seconds": seconds, "fps": len(rows_of_paths) / seconds}
+
+
 def _time_render(out_dir: Path, scene: str, all_frames: bool, scale: float, video: Path) -> dict:
     from nuparquet.render.pipeline import RenderOptions, render
 

@@ -25,6 +25,7 @@ import bench_first_query  # noqa: E402
 import bench_project_all  # noqa: E402
 import bench_project_scene  # noqa: E402
 import bench_render  # noqa: E402
+import bench_scale_out  # noqa: E402
 from harness import REPO, load_average, log, machine, markdown_table, write_results  # noqa: E402
 
 BENCHMARKS = {
@@ -34,6 +35,7 @@ BENCHMARKS = {
     "project_all": lambda a: bench_project_all.run(a.repeats),
     "render": lambda a: bench_render.run(a.repeats),
     "analytics": lambda a: bench_analytics.run(a.repeats),
+    "scale_out": lambda a: bench_scale_out.run(1),
 }
 
 

@@ -61,6 +61,35 @@ def scale_intrinsic(image_from_camera, scale) -> np.ndarray:
     return resized_from_image @ np.asarray(image_from_camera, dtype=np.float64)
 
 
+def project_points(image_from_camera, points_camera_m) -> tuple[np.ndarray, np.ndarray]:
+    """Perspective projection (devkit `view_points(..., normalize=True)`) of points by their cameras'
+    intrinsics: image_from_camera (F, 3, 3) and points (F, 3) or (F, K, 3) in the camera frame, metres.
+    Returns pixels [u, v] (the points' shape with 2 coordinates) and depths (camera z, metres); see
+    `Cameras.project`."""
+    points_camera_m = np.asarray(points_camera_m, dtype=np.float64)
+    # view_points' product without its 4x4 padding (a copy of F matrices): the same numbers.
+    camera_to_image_t = np.ascontiguousarray(np.swapaxes(image_from_camera, -1, -2))  # matmul is faster on it
+    if points_camera_m.ndim == 2:
+        projected = (points_camera_m[:, None, :] @ camera_to_image_t)[:, 0]
+    else:
+        projected = points_camera_m @ camera_to_image_t
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = projected[..., :2] / projected[..., 2:3]
+    return uv, points_camera_m[..., 2]
+
+
+def pixels_in_image(uv, size_px, scale, margin_px: float = 0.0) -> np.ndarray:
+    """`Cameras.in_image` for pixels (F, 2) or (F, K, 2) of cameras with (F, 2) image sizes and scales."""
+    uv = np.asarray(uv, dtype=np.float64)
+    offset = (scale - 1.0) / 2.0  # where the full image's pixel 0 lands (scale_pixels)
+    low = margin_px * scale + offset
+    high = size_px - margin_px * scale + offset
+    if uv.ndim == 3:
+        low, high = low[:, None, :], high[:, None, :]
+    u, v = uv[..., 0], uv[..., 1]
+    return (u > low[..., 0]) & (u < high[..., 0]) & (v > low[..., 1]) & (v < high[..., 1])
+
+
 @dataclass(frozen=True)
 class Cameras:
     """F pinhole cameras, one per camera frame.
@@ -148,15 +177,7 @@ class Cameras:
             uv: pixels [u, v] of the shape of the points with 2 coordinates; a point behind the camera projects
             mirrored, one at depth 0 to inf/nan, as in the devkit. depth: camera z, metres.
         """
-        points_camera_m = np.asarray(points_camera_m, dtype=np.float64)
-        # view_points' product without its 4x4 padding (a copy of F matrices): the same numbers.
-        if points_camera_m.ndim == 2:
-            projected = np.einsum("fij,fj->fi", self.image_from_camera, points_camera_m)
-        else:
-            projected = points_camera_m @ np.swapaxes(self.image_from_camera, -1, -2)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            uv = projected[..., :2] / projected[..., 2:3]
-        return uv, points_camera_m[..., 2]
+        return project_points(self.image_from_camera, points_camera_m)
 
     def in_image(self, uv, margin_px: float = 0.0) -> np.ndarray:
         """Whether pixels lie inside the image, as the devkit tests it on the full-size image:
@@ -170,14 +191,7 @@ class Cameras:
         Returns:
             bool array of the shape of `uv` without its last axis.
         """
-        uv = np.asarray(uv, dtype=np.float64)
-        offset = (self.scale - 1.0) / 2.0  # where the full image's pixel 0 lands (scale_pixels)
-        low = margin_px * self.scale + offset
-        high = self.size_px - margin_px * self.scale + offset
-        if uv.ndim == 3:
-            low, high = low[:, None, :], high[:, None, :]
-        u, v = uv[..., 0], uv[..., 1]
-        return (u > low[..., 0]) & (u < high[..., 0]) & (v > low[..., 1]) & (v < high[..., 1])
+        return pixels_in_image(uv, self.size_px, self.scale, margin_px)
 
     def clip_segments(self, segments_camera_m, near_m: float = NEAR_PLANE_M) -> tuple[np.ndarray, np.ndarray]:
         """Clip segments to the half-space z >= near_m in the camera frame, then project them.

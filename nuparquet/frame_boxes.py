@@ -7,9 +7,10 @@ frames = ds.scan("frames").filter(pl.col("scene_name") == "scene-0061")
 boxes = boxes_for_frames(frames, ds.scan("annotations"), ds.scan("tables/sample"))   # one row per (frame, box)
 ```
 
-One polars join pairs every frame with the annotations of its sample and, for sweeps, each annotation with
-the same instance's annotation one sample earlier; the interpolation then runs once over all pairs in numpy
-(`geometry.interp_two_points`, `quaternions.quaternion_slerp`).
+One polars join of row numbers pairs every frame with the annotations of its sample (and, for sweeps, each
+annotation with the same instance's annotation one sample earlier); the values are then gathered once with
+numpy and the interpolation runs once over all sweep pairs (`geometry.interp_two_points`,
+`quaternions.quaternion_slerp`).
 """
 
 from __future__ import annotations
@@ -47,6 +48,8 @@ class FrameBoxes:
         size_wlh_m: (M, 3) [width, length, height], metres.
         rotation_wxyz: (M, 4) orientation in the global frame, quaternion [w, x, y, z].
         interpolated: (M,) bool, interpolated between two samples.
+        annotation_index: (M,) int64 row of the box's annotation among the `annotations` rows of the frames'
+            samples (and the sweeps' previous samples), in the order given.
     """
 
     frame_index: np.ndarray
@@ -58,6 +61,7 @@ class FrameBoxes:
     size_wlh_m: np.ndarray
     rotation_wxyz: np.ndarray
     interpolated: np.ndarray
+    annotation_index: np.ndarray
 
     def __len__(self) -> int:
         return len(self.frame_index)
@@ -123,45 +127,45 @@ def frame_boxes(
 
     frame_samples = _frame_samples(frames_lazy, samples_lazy)
     _check_samples_known(frame_samples)
-    joined = _join_annotations(frame_samples.lazy(), annotations_lazy)
+    boxes = _annotations_of(frame_samples, annotations_lazy)
+    frame_index, annotation_index = _pairs(frame_samples, boxes)
 
-    interpolate = joined["interpolated"].to_numpy()
-    translation_m = columns.to_numpy(joined["translation"], (3,), writable=True)
-    rotation_wxyz = columns.to_numpy(joined["rotation"], (4,), writable=True)
-    if interpolate.any():
-        rows = np.flatnonzero(interpolate)
-        part = joined.select(
-            "prev_sample_timestamp", "sample_timestamp", "frame_timestamp", "prev_translation", "prev_rotation"
-        )[rows]
-        t0 = part["prev_sample_timestamp"].to_numpy().astype(np.int64)
-        t1 = part["sample_timestamp"].to_numpy().astype(np.int64)
-        t = np.maximum(t0, np.minimum(t1, part["frame_timestamp"].to_numpy().astype(np.int64)))
-        translation_m[rows] = geometry.interp_two_points(
-            t, t0, t1, columns.to_numpy(part["prev_translation"], (3,)), translation_m[rows]
-        )
-        rotation_wxyz[rows] = quaternions.quaternion_slerp(
-            columns.to_numpy(part["prev_rotation"], (4,)), rotation_wxyz[rows], geometry.slerp_amount(t, t0, t1)
-        )
+    # Only row numbers were joined; every value is gathered once from its own table (F frames, A annotations).
+    translation_a = columns.to_numpy(boxes["translation"], (3,))
+    rotation_a = columns.to_numpy(boxes["rotation"], (4,))
+    translation_m = translation_a[annotation_index]
+    rotation_wxyz = rotation_a[annotation_index]
+    interpolate = np.zeros(len(frame_index), dtype=bool)
+    between = frame_samples["between_samples"].to_numpy()
+    if between.any():
+        rows, previous = _previous_annotations(frame_samples, boxes, frame_index, annotation_index, between)
+        interpolate[rows] = True
+        frames_of_rows = frame_index[rows]
+        t0, t1, t_frame = (frame_samples[name].gather(frames_of_rows).to_numpy().astype(np.int64)
+                           for name in ("prev_sample_timestamp", "sample_timestamp", "frame_timestamp"))
+        t = np.maximum(t0, np.minimum(t1, t_frame))
+        translation_m[rows] = geometry.interp_two_points(t, t0, t1, translation_a[previous], translation_m[rows])
+        rotation_wxyz[rows] = quaternions.quaternion_slerp(rotation_a[previous], rotation_wxyz[rows],
+                                                           geometry.slerp_amount(t, t0, t1))
 
     return FrameBoxes(
-        frame_index=joined["frame_index"].to_numpy().astype(np.int64),
-        frame_token=joined["frame_token"].to_numpy(),
-        annotation_token=joined["annotation_token"].to_numpy(),
-        instance_token=joined["instance_token"].to_numpy(),
-        category_name=joined["category_name"].to_numpy(),
+        frame_index=frame_index,
+        frame_token=frame_samples["frame_token"].to_numpy()[frame_index],
+        annotation_token=boxes["token"].to_numpy()[annotation_index],
+        instance_token=boxes["instance_token"].to_numpy()[annotation_index],
+        category_name=boxes["category_name"].cast(pl.String).to_numpy()[annotation_index],
         translation_m=translation_m,
-        size_wlh_m=columns.to_numpy(joined["size"], (3,)),
+        size_wlh_m=columns.to_numpy(boxes["size"], (3,))[annotation_index],
         rotation_wxyz=rotation_wxyz,
         interpolated=interpolate,
+        annotation_index=annotation_index,
     )
 
 
 def _frame_samples(frames: pl.LazyFrame, samples: pl.LazyFrame) -> pl.DataFrame:
-    """Each frame with its sample's timestamp and previous sample (token, timestamp)."""
+    """Each frame (F rows, in order) with its sample's timestamp and previous sample (token, timestamp)."""
     return (
-        frames.with_row_index("frame_index")
-        .select(
-            "frame_index",
+        frames.select(
             pl.col("token").alias("frame_token"),
             "sample_token",
             pl.col("timestamp").alias("frame_timestamp"),
@@ -175,6 +179,7 @@ def _frame_samples(frames: pl.LazyFrame, samples: pl.LazyFrame) -> pl.DataFrame:
             ),
             on="sample_token",
             how="left",
+            maintain_order="left",
         )
         .join(
             samples.select(
@@ -183,6 +188,7 @@ def _frame_samples(frames: pl.LazyFrame, samples: pl.LazyFrame) -> pl.DataFrame:
             ),
             on="prev_sample_token",
             how="left",
+            maintain_order="left",
         )
         # get_boxes interpolates exactly when the frame is not a keyframe and its sample has a prev.
         .with_columns((~pl.col("is_key_frame") & (pl.col("prev_sample_token") != "")).alias("between_samples"))
@@ -190,41 +196,57 @@ def _frame_samples(frames: pl.LazyFrame, samples: pl.LazyFrame) -> pl.DataFrame:
     )
 
 
-def _join_annotations(frame_samples: pl.LazyFrame, annotations: pl.LazyFrame) -> pl.DataFrame:
-    """Each frame with its sample's boxes, and each box with the same instance's box one sample earlier."""
-    return (
-        frame_samples.join(
-            annotations.with_row_index("annotation_index").select(
-                "annotation_index",
-                "sample_token",
-                pl.col("token").alias("annotation_token"),
-                "instance_token",
-                pl.col("category_name").cast(pl.String),
-                "translation",
-                "size",
-                "rotation",
-            ),
-            on="sample_token",
-            how="inner",
-        )
-        .join(
-            annotations.select(
-                pl.col("sample_token").alias("prev_sample_token"),
-                "instance_token",
-                pl.col("translation").alias("prev_translation"),
-                pl.col("rotation").alias("prev_rotation"),
-            )
-            # The devkit maps instance -> previous annotation with a dict, so a (malformed) duplicate instance
-            # in one sample yields one box, the last one, rather than one box per duplicate.
-            .unique(["prev_sample_token", "instance_token"], keep="last", maintain_order=True),
-            on=["prev_sample_token", "instance_token"],
-            how="left",
-        )
-        .with_columns((pl.col("between_samples") & pl.col("prev_translation").is_not_null()).alias("interpolated"))
-        # Joins do not promise an order; callers line boxes up with frames, so fix one.
-        .sort("frame_index", "annotation_index")
-        .collect()
+def _annotations_of(frame_samples: pl.DataFrame, annotations: pl.LazyFrame) -> pl.DataFrame:
+    """The annotations of the frames' samples and of the sweeps' previous samples, in the order given (a
+    filter, so a lazy scan of every annotation reads only those)."""
+    needed = pl.concat([
+        frame_samples["sample_token"],
+        frame_samples.filter(pl.col("between_samples"))["prev_sample_token"],
+    ]).unique()
+    return annotations.filter(pl.col("sample_token").is_in(needed.implode())).select(ANNOTATION_COLUMNS).collect()
+
+
+def _pairs(frame_samples: pl.DataFrame, boxes: pl.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """(M,) frame rows and (M,) annotation rows of every (frame, box of its sample) pair, ordered by frame
+    then annotation. Samples become small integer codes (one join per table, F and A rows); the pairs are then
+    laid out with numpy: each frame takes its sample's run of annotations (annotations grouped by sample with
+    a stable sort, so each run keeps the annotations' order)."""
+    codes = frame_samples.select("sample_token").unique(maintain_order=True).with_row_index("code")
+    frame_code = (frame_samples.select("sample_token").join(codes, on="sample_token", how="left",
+                                                            maintain_order="left")["code"].to_numpy().astype(np.int64))
+    unknown = codes.height  # annotations of a previous sample only: no frame takes them
+    box_code = (boxes.select("sample_token").join(codes, on="sample_token", how="left", maintain_order="left")["code"]
+                .fill_null(unknown).to_numpy().astype(np.int64))
+    by_sample = np.argsort(box_code, kind="stable")
+    counts = np.bincount(box_code, minlength=unknown + 1)[:unknown]
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    per_frame = counts[frame_code]
+    frame_index = np.repeat(np.arange(len(frame_code), dtype=np.int64), per_frame)
+    first_pair = np.cumsum(per_frame) - per_frame
+    within = np.arange(len(frame_index), dtype=np.int64) - np.repeat(first_pair, per_frame)
+    annotation_index = by_sample[np.repeat(starts[frame_code], per_frame) + within].astype(np.int64)
+    return frame_index, annotation_index
+
+
+def _previous_annotations(frame_samples: pl.DataFrame, boxes: pl.DataFrame, frame_index: np.ndarray,
+                          annotation_index: np.ndarray, between: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For the pairs of sweep frames: the pair rows whose instance has an annotation in the previous sample,
+    and the row of that annotation in `boxes`."""
+    rows = np.flatnonzero(between[frame_index])
+    sweep_pairs = pl.DataFrame({
+        "row": rows,
+        "prev_sample_token": frame_samples["prev_sample_token"].gather(frame_index[rows]),
+        "instance_token": boxes["instance_token"].gather(annotation_index[rows]),
+    })
+    previous = (
+        boxes.select(pl.col("sample_token").alias("prev_sample_token"), "instance_token")
+        .with_row_index("previous")
+        # The devkit maps instance -> previous annotation with a dict, so a (malformed) duplicate instance
+        # in one sample yields one box, the last one, rather than one box per duplicate.
+        .unique(["prev_sample_token", "instance_token"], keep="last", maintain_order=True)
     )
+    matched = sweep_pairs.join(previous, on=["prev_sample_token", "instance_token"], how="inner").sort("row")
+    return matched["row"].to_numpy().astype(np.int64), matched["previous"].to_numpy().astype(np.int64)
 
 
 def _check_samples_known(frame_samples: pl.DataFrame) -> None:

@@ -27,7 +27,7 @@ _CORNER_SIGNS_XYZ = np.array(
         [1, 1, -1, -1, 1, 1, -1, -1],
     ],
     dtype=np.float64,
-).T  # (8, 3)
+).T.copy()  # (8, 3), contiguous for the stacked product
 
 
 def rigid_transforms(translation_m, rotation_wxyz) -> np.ndarray:
@@ -105,6 +105,23 @@ def transform_points(X_from_Y, points_Y) -> np.ndarray:
     return rotated + translation
 
 
+def box_half_axes(size_wlh_m, rotation_wxyz) -> np.ndarray:
+    """(N, 3, 3) the half-axes of boxes in their frame: row j is the box's axis j (x length, y width,
+    z height) times half the box's extent along it, from sizes (N, 3) [w, l, h] m and orientations (N, 4)
+    quaternions [w, x, y, z] or (N, 3, 3) rotation matrices. `corners_from_half_axes` makes the corners."""
+    size_wlh_m = _as_float_array(size_wlh_m, (3,), "size_wlh_m")
+    rotation = np.asarray(rotation_wxyz, dtype=np.float64)
+    F_from_box_rotation = rotation if rotation.shape[-2:] == (3, 3) else rotation_matrices(rotation)
+    half_lwh = size_wlh_m[..., [1, 0, 2]] / 2.0  # box x is length, y is width, z is height
+    return np.swapaxes(F_from_box_rotation, -1, -2) * half_lwh[..., :, None]
+
+
+def corners_from_half_axes(half_axes) -> np.ndarray:
+    """(N, 3, 3) half-axes (`box_half_axes`) -> (N, 8, 3) corners about the box centre, in `box_corners`
+    order: each corner is a signed sum of the three half-axes."""
+    return _CORNER_SIGNS_XYZ @ np.ascontiguousarray(half_axes, dtype=np.float64)  # (8, 3) @ (N, 3, 3) -> (N, 8, 3)
+
+
 def box_corners(translation_m, size_wlh_m, rotation_wxyz) -> np.ndarray:
     """The 8 corners of boxes, in the order of devkit `Box.corners()` (transposed).
 
@@ -119,17 +136,7 @@ def box_corners(translation_m, size_wlh_m, rotation_wxyz) -> np.ndarray:
         face in the same order.
     """
     translation_m = _as_float_array(translation_m, (3,), "translation_m")
-    size_wlh_m = _as_float_array(size_wlh_m, (3,), "size_wlh_m")
-    rotation = np.asarray(rotation_wxyz, dtype=np.float64)
-    F_from_box_rotation = rotation if rotation.shape[-2:] == (3, 3) else rotation_matrices(rotation)
-    half_lwh = size_wlh_m[..., [1, 0, 2]] / 2.0  # box x is length, y is width, z is height
-    # Each corner is a signed sum of the box's three half-axes in F (rotation columns scaled by half the size):
-    # one (8, 3) @ (3, 3N) matrix product rather than N tiny (8, 3) @ (3, 3) ones (several times faster).
-    half_axes = np.swapaxes(F_from_box_rotation, -1, -2) * half_lwh[..., :, None]  # (N, 3, 3): row j = axis j
-    batch = half_axes.shape[:-2]
-    by_axis = np.moveaxis(half_axes.reshape(-1, 3, 3), 1, 0).reshape(3, -1)  # (3, N * 3)
-    corners = np.moveaxis((_CORNER_SIGNS_XYZ @ by_axis).reshape(8, -1, 3), 0, 1).reshape(batch + (8, 3))
-    return corners + translation_m[..., None, :]
+    return corners_from_half_axes(box_half_axes(size_wlh_m, rotation_wxyz)) + translation_m[..., None, :]
 
 
 def count_points_in_boxes(corners, points) -> np.ndarray:

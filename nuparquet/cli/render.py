@@ -1,7 +1,8 @@
-"""`nuparquet render OUT --scene NAME [--channel CHANNEL|all] --out scene.mp4`: annotated scene videos.
+"""`nuparquet render OUT --scene NAME [--channel CHANNEL|all] --out scene.mp4`: annotated scene videos;
+`nuparquet render OUT --all-scenes --out-dir DIR [--engine ray]`: one video per scene, in parallel.
 
-The flags are generated from `RenderOptions` (`nuparquet.cli.arguments.add_options`); only `OUT` and
-`--quiet` are the CLI's own.
+The flags are generated from `RenderOptions`, `SceneSelection` and `EngineOptions`
+(`nuparquet.cli.arguments.add_options`); only `OUT` and `--quiet` are the CLI's own.
 """
 
 from __future__ import annotations
@@ -11,7 +12,9 @@ import sys
 
 from nuparquet.cli.arguments import add_options, options_from
 from nuparquet.cli.progress import bars
-from nuparquet.render.options import RenderOptions
+from nuparquet.engine.options import EngineOptions
+from nuparquet.errors import UsageError
+from nuparquet.render.options import RenderOptions, SceneSelection
 
 _EPILOG = """\
 examples:
@@ -20,15 +23,23 @@ examples:
   nuparquet render OUT --scene scene-0061 --lidar --scale 1 --frames-dir frames/ --frame-format png
   nuparquet render OUT --scene scene-0061 --channel bev --out scene-0061-bev.mp4
   nuparquet render OUT --scene scene-0061 --channel all --bev --out scene-0061-cams-bev.mp4
+  nuparquet render OUT --all-scenes --out-dir videos/ --channel all            # local processes, every core
+  nuparquet render OUT --where "log_location = 'singapore-onenorth'" --out-dir videos/ --engine ray
+  nuparquet render s3://bucket/OUT --all-scenes --out-dir /shared/videos --engine ray --ray-address auto
 
 Channel names come from the dataset (`nuparquet info OUT`); --channel all tiles every camera, front row over
 back row; --channel bev is the bird's-eye view (map layers when map/ was converted, reference-lidar points
-coloured by height, boxes with their heading, the ego vehicle; --bev-up north|ego, --bev-range-m), and --bev
+coloured by height or --lidar-color, boxes with their heading, the ego; --bev-up north|ego, --bev-range-m), and --bev
 adds it beside the cameras of --channel all. The MP4 is H.264 (yuv420p, index at the front), so web browsers
 play it. Images are read from the dataroot the dataset was converted from (manifest.json, source.dataroot)
 unless --dataroot says otherwise. Missing or unreadable image files are named; by default those frames are
 skipped (a placeholder tile in the mosaic) and counted in a warning at the end. Exit codes: 0 done, 1 input problem (--on-missing error,
 nothing renderable), 2 bad arguments (unknown scene or channel: the valid names are listed).
+
+Many scenes (--all-scenes, --scenes, --where) write DIR/<scene>.mp4 and DIR/render-summary.json; the videos
+are the same bytes whichever --engine renders them. A failing scene is named with its error: the job stops
+and commits nothing, or with --keep-going the other scenes are written and the exit code is 1. --resume
+skips scenes already rendered into DIR (or finished by a run that stopped on a failure).
 """
 
 
@@ -43,12 +54,20 @@ def register(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
-    add_options(p, RenderOptions)
+    add_options(p, RenderOptions, defaults={"scene": None})
+    add_options(p, SceneSelection)
+    add_options(p, EngineOptions)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
+    selection = options_from(args, SceneSelection)
+    if selection.many:
+        return _run_many(args, selection)
+    if args.scene is None:
+        raise UsageError("say what to render: --scene NAME (with --out or --frames-dir), or --all-scenes, "
+                         "--scenes A,B or --where SQL with --out-dir DIR")
     from nuparquet.render.pipeline import render  # cv2 and PyAV load only when rendering
 
     result = render(args.dataset, options_from(args, RenderOptions), on_progress=bars(not args.quiet))
@@ -63,4 +82,24 @@ def run(args) -> int:
             f"skipped; first: {result.missing[0]}",
             file=sys.stderr,
         )
+    return 0
+
+
+def _run_many(args, selection: SceneSelection) -> int:
+    from nuparquet.engine import UnitsFailed
+    from nuparquet.render.batch import render_scenes
+
+    if args.scene is not None:
+        raise UsageError("--scene renders one scene; with --all-scenes, --scenes or --where leave it out")
+    options = options_from(args, RenderOptions, scene="")
+    try:
+        result = render_scenes(args.dataset, options, selection, options_from(args, EngineOptions),
+                               on_progress=bars(not args.quiet))
+    except UnitsFailed as exc:
+        done = [o for o in exc.outcomes if o is not None and o.ok]
+        if done and args.keep_going:
+            print(f"rendered {len(done)} scene(s) -> {selection.out_dir}")
+        raise
+    resumed = f" ({len(result.resumed)} already done, skipped)" if result.resumed else ""
+    print(f"rendered {len(result.rendered)} scene(s){resumed} -> {result.out_dir} (summary: {result.summary.name})")
     return 0

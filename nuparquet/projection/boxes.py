@@ -22,7 +22,7 @@ import numpy as np
 import polars as pl
 
 from nuparquet import geometry, quaternions
-from nuparquet.camera import Cameras
+from nuparquet.camera import Cameras, pixels_in_image, project_points
 from nuparquet.frame_boxes import FRAME_COLUMNS, FrameBoxes, frame_boxes, lazy_with
 from nuparquet.projection.frames import CAMERA_COLUMNS, cameras_from_frames, pose_columns
 
@@ -57,6 +57,44 @@ def boxes_in_cameras(cameras: Cameras, boxes: FrameBoxes) -> BoxesInCameras:
     rotation = cameras.rotation_to_camera(quaternions.rotation_matrices(boxes.rotation_wxyz))
     return BoxesInCameras(center_ego_m, center_camera_m,
                           geometry.box_corners(center_camera_m, boxes.size_wlh_m, rotation))
+
+
+def boxes_in_frame_cameras(cameras: Cameras, boxes: FrameBoxes) -> BoxesInCameras:
+    """`boxes_in_cameras` for F cameras and M boxes, `boxes.frame_index` naming each box's camera: the same
+    numbers (to rounding) without an (M, 4, 4) copy of the cameras. Each frame's rotation global -> camera is
+    composed once, each annotation's half-axes are built once (not once per camera that sees it), and the
+    corners come from one batched product of the half-axes with the frames' rotations."""
+    frame = boxes.frame_index
+    ego_rotation, ego_translation = cameras.ego_from_global[:, :3, :3], cameras.ego_from_global[:, :3, 3]
+    cam_rotation, cam_translation = cameras.camera_from_ego[:, :3, :3], cameras.camera_from_ego[:, :3, 3]
+    # Row vectors times transposed rotations, the transposes made contiguous once per frame: numpy's stacked
+    # matmul is several times faster on contiguous (M, 3, 3) operands than on transposed views.
+    center_ego_m = (boxes.translation_m[:, None, :] @ _transposed(ego_rotation)[frame])[:, 0] + ego_translation[frame]
+    center_camera_m = (center_ego_m[:, None, :] @ _transposed(cam_rotation)[frame])[:, 0] + cam_translation[frame]
+    global_to_camera_t = _transposed(cam_rotation @ ego_rotation)
+    corners_camera_m = geometry.corners_from_half_axes(_half_axes_global(boxes) @ global_to_camera_t[frame])
+    corners_camera_m += center_camera_m[:, None, :]
+    return BoxesInCameras(center_ego_m, center_camera_m, corners_camera_m)
+
+
+def _transposed(matrices: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(np.swapaxes(matrices, -1, -2))
+
+
+def _half_axes_global(boxes: FrameBoxes) -> np.ndarray:
+    """(M, 3, 3) each box's half-axes in the global frame (`geometry.box_half_axes`), built once per annotation
+    (a keyframe annotation is seen by up to six cameras) and once per interpolated sweep box."""
+    moved = np.flatnonzero(boxes.interpolated)
+    fixed = np.flatnonzero(~boxes.interpolated) if len(moved) else slice(None)
+    _, first, inverse = np.unique(boxes.annotation_index[fixed], return_index=True, return_inverse=True)
+    once = np.arange(len(boxes))[fixed][first]
+    per_annotation = geometry.box_half_axes(boxes.size_wlh_m[once], boxes.rotation_wxyz[once])
+    if not len(moved):  # keyframes only: every box is its annotation's
+        return per_annotation[inverse]
+    half_axes = np.empty((len(boxes), 3, 3))
+    half_axes[fixed] = per_annotation[inverse]
+    half_axes[moved] = geometry.box_half_axes(boxes.size_wlh_m[moved], boxes.rotation_wxyz[moved])
+    return half_axes
 
 
 def corner_visibility(cameras: Cameras, corners_px: np.ndarray, depths_m: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -184,10 +222,15 @@ def project_boxes(
         raise ValueError(f"visibility must be one of {', '.join(VISIBILITIES)}, got {visibility!r}")
     cameras_df = camera_rows(frames)
     boxes = frame_boxes(cameras_df.drop("frame_index"), annotations, samples)
-    cameras = cameras_from_frames(cameras_df).take(boxes.frame_index)  # boxes.frame_index counts camera rows
-    seen = boxes_in_cameras(cameras, boxes)
-    corners_px, depths = cameras.project(seen.corners_camera_m)
-    corner_visible, in_front, visible = corner_visibility(cameras, corners_px, depths)
+    cameras = cameras_from_frames(cameras_df)  # F cameras; boxes.frame_index counts camera rows
+    seen = boxes_in_frame_cameras(cameras, boxes)
+    frame = boxes.frame_index
+    corners_px, depths = project_points(cameras.image_from_camera[frame], seen.corners_camera_m)
+    # devkit box_in_image (`corner_visibility`), with each box's image size and scale gathered, not its camera
+    corner_visible = pixels_in_image(corners_px, cameras.size_px[frame], cameras.scale[frame])
+    corner_visible &= depths > CORNER_MIN_DEPTH_M
+    in_front = np.all(depths > BOX_MIN_DEPTH_M, axis=1)
+    visible = np.any(corner_visible, axis=1) & in_front
 
     projected = ProjectedBoxes(
         frame_index=cameras_df["frame_index"].to_numpy().astype(np.int64)[boxes.frame_index],

@@ -76,7 +76,11 @@ class VideoWriter:
         stream = self._container.add_stream("libx264", rate=frame_rate(fps))
         stream.width, stream.height = self.width, self.height
         stream.pix_fmt = "yuv420p"
-        stream.options = {"crf": str(int(crf)), "preset": preset, "threads": str(int(threads))}
+        # mbtree off: with it x264 read memory it had not written (seen with short videos, 3-15 frames, in
+        # long-lived worker processes), and the same pixels gave different files; with it off a video is the same
+        # bytes whichever process or engine renders it (`nuparquet render --all-scenes --engine ...`).
+        stream.options = {"crf": str(int(crf)), "preset": preset, "threads": str(int(threads)),
+                          "x264-params": "mbtree=0"}
         self._stream = stream
         self.frames_written = 0
 

@@ -8,7 +8,8 @@ import dataclasses
 import nuparquet
 from nuparquet.cli import render as render_cli
 from nuparquet.cli.arguments import options_from
-from nuparquet.render.options import RenderOptions
+from nuparquet.engine import EngineOptions
+from nuparquet.render.options import RenderOptions, SceneSelection
 from nuparquet.render.pipeline import render
 
 
@@ -36,7 +37,9 @@ def test_every_cli_render_option_is_a_flag_with_the_library_default():
     assert given == RenderOptions(scene="s1", channel="all", out="v.mp4", frames_dir="d", frame_format="png",
                                   all_frames=True, fps=3.0, scale=0.3, crf=30, lidar=True, labels="track", clip=True,
                                   on_missing="error", dataroot="root")
-    # Every field is either a flag or explicitly library-only.
-    flagged = {f.name for f in dataclasses.fields(RenderOptions) if f.metadata["cli"]}
+    # Every field is either a flag or explicitly library-only; the other flags choose scenes and the engine.
+    flagged = {f.name for option_class in (RenderOptions, SceneSelection, EngineOptions)
+               for f in dataclasses.fields(option_class) if f.metadata["cli"]}
     assert flagged == {a.dest for a in parser._subparsers._group_actions[0].choices["render"]._actions} - {
         "help", "dataset", "quiet"}
+    assert options_from(args, SceneSelection) == SceneSelection() and options_from(args, EngineOptions) == EngineOptions()

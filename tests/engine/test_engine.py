@@ -1,0 +1,119 @@
+"""The engine's contract, with a toy task: outcomes in unit order, part folders, failures named by unit,
+--keep-going, --resume from completion markers, and Ray asked for without Ray installed."""
+
+from __future__ import annotations
+
+import sys
+
+import pytest
+
+from nuparquet.cli.main import main
+from nuparquet.engine import EngineOptions, UnitsFailed, WorkUnit, move_parts, raise_failures, run_units
+from nuparquet.errors import UsageError
+
+from tasks import square_into_part
+
+
+@pytest.mark.parametrize("engine", ["serial", "process"])
+def test_outcomes_come_back_in_unit_order_with_each_units_part_files(engine, tmp_path):
+    values = [7, 3, 11, 0, 5]
+    units = [WorkUnit(f"scene-{i}", v) for i, v in enumerate(values)]
+    outcomes = run_units(square_into_part, units, parts_dir=tmp_path, options=EngineOptions(engine=engine, workers=2))
+    assert [o.name for o in outcomes] == [u.name for u in units]
+    assert [o.value for o in outcomes] == [v * v for v in values]
+    for unit, value in zip(units, values):
+        assert (tmp_path / unit.name / "value.txt").read_text() == str(value * value)
+    assert all(o.ok and not o.resumed and o.peak_rss_mb > 0 for o in outcomes)
+
+
+@pytest.mark.parametrize("engine", ["serial", "process"])
+def test_a_raising_unit_stops_the_job_named_with_its_error(engine, tmp_path):
+    units = [WorkUnit("a", 1), WorkUnit("bad", -2), WorkUnit("c", 3)]
+    with pytest.raises(UnitsFailed) as failed:
+        run_units(square_into_part, units, parts_dir=tmp_path, options=EngineOptions(engine=engine, workers=1))
+    message = str(failed.value)
+    assert "bad: ValueError: negative input -2 (at tasks.py:" in message and "--keep-going" in message
+    assert [f.name for f in failed.value.failures] == ["bad"]
+    assert not (tmp_path / "bad").exists()  # the failed unit's part folder is removed
+
+
+def test_keep_going_finishes_the_other_units(tmp_path):
+    units = [WorkUnit("a", 1), WorkUnit("bad", -2), WorkUnit("c", 3)]
+    outcomes = run_units(square_into_part, units, parts_dir=tmp_path,
+                         options=EngineOptions(engine="process", workers=2, keep_going=True))
+    assert [(o.name, o.value, o.ok) for o in outcomes] == [("a", 1, True), ("bad", None, False), ("c", 9, True)]
+    assert (tmp_path / "c" / "value.txt").read_text() == "9"
+
+
+def test_resume_skips_completed_units_and_reruns_the_rest(tmp_path):
+    units = [WorkUnit("a", 1), WorkUnit("bad", -2), WorkUnit("c", 3)]
+    with pytest.raises(UnitsFailed):
+        run_units(square_into_part, units, parts_dir=tmp_path, options=EngineOptions(engine="serial"))
+    # The serial engine stopped at "bad": "a" finished (marked complete), "c" never ran.
+    (tmp_path / "a" / "value.txt").write_text("kept")  # a rerun of "a" would overwrite this
+    fixed = [WorkUnit("a", 1), WorkUnit("bad", 2), WorkUnit("c", 3)]
+    outcomes = run_units(square_into_part, fixed, parts_dir=tmp_path, options=EngineOptions(engine="serial", resume=True))
+    assert [(o.name, o.value, o.resumed) for o in outcomes] == [("a", 1, True), ("bad", 4, False), ("c", 9, False)]
+    assert (tmp_path / "a" / "value.txt").read_text() == "kept"
+    # Without --resume every unit runs again.
+    outcomes = run_units(square_into_part, fixed, parts_dir=tmp_path, options=EngineOptions(engine="serial"))
+    assert not any(o.resumed for o in outcomes) and (tmp_path / "a" / "value.txt").read_text() == "1"
+
+
+def test_resume_takes_units_the_caller_committed(tmp_path):
+    units = [WorkUnit("a", 1), WorkUnit("b", 2)]
+    outcomes = run_units(square_into_part, units, parts_dir=tmp_path, committed={"a": 1},
+                         options=EngineOptions(engine="serial", resume=True))
+    assert [(o.value, o.resumed) for o in outcomes] == [(1, True), (4, False)]
+    assert not (tmp_path / "a").exists()
+
+
+def test_unit_names_that_are_not_file_names_stay_inside_the_parts_folder(tmp_path):
+    parts = tmp_path / "parts"
+    outcomes = run_units(square_into_part, [WorkUnit("../escape", 2), WorkUnit(".hidden/x", 3)], parts_dir=parts,
+                         options=EngineOptions(engine="serial"))
+    assert [o.value for o in outcomes] == [4, 9]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["parts"]
+    assert len([p for p in parts.iterdir() if p.is_dir()]) == 2
+
+
+def test_duplicate_unit_names_are_refused(tmp_path):
+    with pytest.raises(UsageError, match="unique"):
+        run_units(square_into_part, [WorkUnit("a", 1), WorkUnit("a", 2)], parts_dir=tmp_path)
+
+
+def test_ray_engine_without_ray_says_how_to_install_it(monkeypatch, tmp_path, capsys):
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` raises ImportError
+    with pytest.raises(UsageError, match=r"pip install 'nuparquet\[ray\]'"):
+        run_units(square_into_part, [WorkUnit("a", 1)], parts_dir=tmp_path, options=EngineOptions(engine="ray"))
+    assert main(["render", str(tmp_path), "--all-scenes", "--out-dir", str(tmp_path / "v"), "--engine", "ray"]) == 2
+    assert "nuparquet[ray]" in capsys.readouterr().err
+
+
+def test_ray_address_without_the_ray_engine_is_a_usage_error(tmp_path):
+    with pytest.raises(UsageError, match="--ray-address needs --engine ray"):
+        run_units(square_into_part, [WorkUnit("a", 1)], parts_dir=tmp_path,
+                  options=EngineOptions(engine="process", ray_address="auto"))
+
+
+@pytest.mark.parametrize("engine", ["serial", "process"])
+def test_parts_are_committed_in_unit_order_whatever_order_units_finished(engine, tmp_path):
+    # Units of decreasing size finish in another order on the pool; the commit follows the unit list.
+    values = [9, 4, 7, 1, 8]
+    units = [WorkUnit(f"scene-{v}", v) for v in values]
+    outcomes = run_units(square_into_part, units, parts_dir=tmp_path / "parts",
+                         options=EngineOptions(engine=engine, workers=2))
+    committed = move_parts(outcomes, tmp_path / "parts", tmp_path / "dataset")
+    assert [p.name for p in committed] == [f"{i:05d}-value.txt" for i in range(len(values))]
+    assert [p.read_text() for p in committed] == [str(v * v) for v in values]
+    assert not any((tmp_path / "parts").iterdir())  # part folders and markers gone
+
+
+def test_a_failed_unit_leaves_no_part_in_the_commit(tmp_path):
+    units = [WorkUnit("a", 2), WorkUnit("bad", -1), WorkUnit("c", 3)]
+    outcomes = run_units(square_into_part, units, parts_dir=tmp_path / "parts",
+                         options=EngineOptions(engine="serial", keep_going=True))
+    committed = move_parts(outcomes, tmp_path / "parts", tmp_path / "dataset")
+    assert [(p.name, p.read_text()) for p in committed] == [("00000-value.txt", "4"), ("00002-value.txt", "9")]
+    with pytest.raises(UnitsFailed, match="bad: ValueError"):
+        raise_failures(outcomes)
