@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from nuparquet.index import quaternions, transforms
+from nuparquet.index import blas, quaternions, transforms
 from nuparquet.index.labels import ATTRIBUTES, label_of
 
 VISIBILITIES = ("", "1", "2", "3", "4")  # the converter's filter (every nuScenes visibility)
@@ -64,8 +64,8 @@ def camera_instances(inputs, cameras: tuple[str, ...]) -> CamInstances:
                                                          d.ego_q[r], d.sensor_t[r], d.sensor_q[r])
         corners = transforms.box_corners(center, inputs.ann_size_wlh[a], orientation)  # (N, 3, 8)
         k = d.intrinsic[r]
-        projected = (k[:, :, 0, None] * corners[:, None, 0] + k[:, :, 1, None] * corners[:, None, 1]) \
-            + k[:, :, 2, None] * corners[:, None, 2]
+        # view_points: np.dot(viewpad, [corners; 1]), the 4th term (0 * 1) changes nothing
+        projected = blas.gemm(k, corners)
         with np.errstate(divide="ignore", invalid="ignore"):
             uv = np.moveaxis(projected[:, :2] / projected[:, 2:3], 1, 2)  # (N, 8, 2)
         ok, bounds = _hull_bounds(uv, corners[:, 2] > 0)

@@ -8,22 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from nuparquet.index import quaternions
-
-
-def _mv(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(N, 3) m @ v for (N, 3, 3) m and (N, 3) v, each row summed left to right."""
-    return (m[..., 0] * v[..., None, 0] + m[..., 1] * v[..., None, 1]) + m[..., 2] * v[..., None, 2]
-
-
-def _vm(v: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """(N, 3) v @ m (a row vector times a matrix), summed left to right."""
-    return (v[..., 0, None] * m[..., 0, :] + v[..., 1, None] * m[..., 1, :]) + v[..., 2, None] * m[..., 2, :]
-
-
-def _mm(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) a @ b, summed left to right."""
-    return (a[..., :, 0, None] * b[..., None, 0, :] + a[..., :, 1, None] * b[..., None, 1, :]) \
-        + a[..., :, 2, None] * b[..., None, 2, :]
+from nuparquet.index.blas import gemm, gemv_cols, gemv_rows, inv3
 
 
 def _t(m: np.ndarray) -> np.ndarray:
@@ -39,12 +24,13 @@ def sensor_to_lidar(sensor_t, sensor_q, sensor_ego_t, sensor_ego_q, lidar_t, lid
     """
     l2e_r_s = quaternions.rotation_matrices(sensor_q)
     e2g_r_s = quaternions.rotation_matrices(sensor_ego_q)
-    e2g_inv_t = _t(np.linalg.inv(quaternions.rotation_matrices(ego_q)))
-    l2e_inv_t = _t(np.linalg.inv(quaternions.rotation_matrices(lidar_q)))
-    back = _mm(e2g_inv_t, l2e_inv_t)
-    r = _mm(_mm(_t(l2e_r_s), _t(e2g_r_s)), back)
-    t = _vm(_vm(np.asarray(sensor_t, np.float64), _t(e2g_r_s)) + sensor_ego_t, back)
-    t = t - (_vm(np.asarray(ego_t, np.float64), back) + _vm(np.asarray(lidar_t, np.float64), l2e_inv_t))
+    e2g_inv = inv3(quaternions.rotation_matrices(ego_q))
+    l2e_inv = inv3(quaternions.rotation_matrices(lidar_q))
+    back = gemm(_t(e2g_inv), _t(l2e_inv))
+    r = gemm(gemm(_t(l2e_r_s), _t(e2g_r_s)), back)
+    # `x @ M.T` of a C-ordered M is numpy's gemv of M and x (gemv_rows); `x @ back` is gemv_cols
+    t = gemv_cols(gemv_rows(e2g_r_s, np.asarray(sensor_t, np.float64)) + sensor_ego_t, back)
+    t = t - (gemv_cols(np.asarray(ego_t, np.float64), back) + gemv_rows(l2e_inv, np.asarray(lidar_t, np.float64)))
     return _t(r), t
 
 
@@ -53,7 +39,7 @@ def sensor_from_lidar_f32(sensor2lidar_r: np.ndarray, sensor2lidar_t: np.ndarray
     rt = _t(sensor2lidar_r)
     out = np.zeros(rt.shape[:-2] + (4, 4))
     out[..., :3, :3] = rt
-    out[..., :3, 3] = -_mv(rt, sensor2lidar_t)
+    out[..., :3, 3] = -gemv_rows(rt, sensor2lidar_t)  # -1 * np.matmul(rot.T, trans.reshape(3, 1))
     out[..., 3, 3] = 1.0
     return out.astype(np.float32) if f32 else out
 
@@ -77,7 +63,7 @@ def boxes_to_sensor(center, rotation, ego_t, ego_q, sensor_t, sensor_q):
     orientation = np.asarray(rotation, np.float64)
     for t, q in ((ego_t, ego_q), (sensor_t, sensor_q)):
         q_inv = quaternions.normalised(quaternions.inverse(q))
-        center = _mv(quaternions.rotation_matrices(q_inv), center - t)
+        center = gemv_rows(quaternions.rotation_matrices(q_inv), center - t)
         orientation = quaternions.multiply(q_inv, orientation)
     return center, orientation
 
@@ -85,8 +71,8 @@ def boxes_to_sensor(center, rotation, ego_t, ego_q, sensor_t, sensor_q):
 def velocity_to_sensor(velocity_xy: np.ndarray, ego_q: np.ndarray, sensor_q: np.ndarray) -> np.ndarray:
     """(N, 3) [vx, vy, 0] @ inv(e2g).T @ inv(s2e).T: a global xy velocity into a sensor frame (NaN stays NaN)."""
     v = np.concatenate([velocity_xy, np.zeros(velocity_xy.shape[:-1] + (1,))], axis=-1)
-    v = _vm(v, _t(np.linalg.inv(quaternions.rotation_matrices(ego_q))))
-    return _vm(v, _t(np.linalg.inv(quaternions.rotation_matrices(sensor_q))))
+    v = gemv_rows(inv3(quaternions.rotation_matrices(ego_q)), v)
+    return gemv_rows(inv3(quaternions.rotation_matrices(sensor_q)), v)
 
 
 def box_corners(center, size_wlh, orientation) -> np.ndarray:
@@ -97,6 +83,4 @@ def box_corners(center, size_wlh, orientation) -> np.ndarray:
     z = (h / 2)[:, None] * np.array([1, 1, -1, -1, 1, 1, -1, -1])
     local = np.stack([x, y, z], axis=1)  # (N, 3, 8)
     r = quaternions.rotation_matrices(orientation)
-    rotated = (r[:, :, 0, None] * local[:, None, 0] + r[:, :, 1, None] * local[:, None, 1]) \
-        + r[:, :, 2, None] * local[:, None, 2]
-    return rotated + center[:, :, None]
+    return gemm(r, local) + center[:, :, None]
