@@ -19,10 +19,11 @@ import numpy as np
 
 from nuparquet.dataset import Dataset, open_dataset
 from nuparquet.errors import UsageError
-from nuparquet.index import bevformer, parquet, records, splits, transforms
+from nuparquet.index import bevformer, parquet, records, splits
 from nuparquet.index.compute import compute
 from nuparquet.index.inputs import read_inputs
 from nuparquet.index.options import IndexOptions
+from nuparquet.index.v2_arrays import v2_arrays
 from nuparquet.index.write import write_parquet_dir, write_pickle
 from nuparquet.progress import OnProgress, Reporter
 
@@ -73,19 +74,18 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
                     infos = bevformer.bevformer_infos(computed, infos, samples, *sample_links, can_bus)
                 write_pickle(target, {"infos": infos, "metadata": {"version": version}})
             else:
-                data_list, last_ignored, all_ignored = records.v2_infos(
-                    computed, samples, tuple(options.cameras), options.data_prefix)
+                arrays = v2_arrays(computed, samples, tuple(options.cameras), options.data_prefix)
+                data_list, last_ignored, all_ignored = records.v2_infos(arrays)
                 write_pickle(target, {"metainfo": records.v2_metainfo(version, last_ignored), "data_list": data_list})
+                del data_list
                 if options.corrected:
-                    fixed, _, _ = records.v2_infos(computed, samples, tuple(options.cameras), options.data_prefix,
-                                                   corrected=True)
+                    fixed, _, _ = records.v2_infos(v2_arrays(computed, samples, tuple(options.cameras),
+                                                             options.data_prefix, corrected=True), corrected=True)
                     write_pickle(out / f"nuscenes_infos_{split}_corrected.pkl",
                                  {"metainfo": records.v2_metainfo(version, all_ignored), "data_list": fixed})
+                    del fixed
                 if options.parquet:
-                    d, lid = inputs.data, computed.lidar_row[samples]
-                    table = parquet.infos_table(data_list, split,
-                                                transforms.pose_matrix_f32(d.ego_q[lid], d.ego_t[lid], f32=False),
-                                                transforms.pose_matrix_f32(d.sensor_q[lid], d.sensor_t[lid], f32=False))
+                    table = parquet.infos_table(arrays, split)
                     if table is not None:
                         tables[split] = table
                     progress.advance(step=f"parquet {split}")

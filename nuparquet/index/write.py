@@ -8,15 +8,30 @@ import shutil
 import tempfile
 from pathlib import Path
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+
+class _Pickler(pickle.Pickler):
+    """numpy's own reduction of a float64/int64 scalar (its dtype and raw bytes through
+    `numpy._core.multiarray.scalar`) costs ~3x what pickling the rest of an info does; `numpy.float64(x)`
+    unpickles to the same object (type and value) and exists under that name in numpy 1.x and 2.x."""
+
+    def reducer_override(self, obj):
+        kind = type(obj)
+        if kind is np.float64:
+            return np.float64, (float(obj),)
+        if kind is np.int64:
+            return np.int64, (int(obj),)
+        return NotImplemented
 
 
 def write_pickle(path: Path, obj) -> None:
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     try:
         with open(tmp, "wb") as f:
-            pickle.dump(obj, f, protocol=pickle.HIGHEST_PROTOCOL)
+            _Pickler(f, protocol=pickle.HIGHEST_PROTOCOL).dump(obj)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
