@@ -42,7 +42,8 @@ def _q_bar_matrix(q: np.ndarray) -> np.ndarray:
 def rotation_matrices(q: np.ndarray) -> np.ndarray:
     """(N, 3, 3) `Quaternion(q).rotation_matrix`: q_matrix @ q_bar_matrix.T of the normalised q (a gemm)."""
     q = normalised(q)
-    return blas.gemm(_q_matrix(q), np.swapaxes(_q_bar_matrix(q), -1, -2))[..., 1:, 1:]
+    # only the lower-right 3x3 block is kept: its elements are computed alone, each as the gemm computes it
+    return blas.gemm(_q_matrix(q)[..., 1:, :], np.swapaxes(_q_bar_matrix(q), -1, -2)[..., :, 1:])
 
 
 def inverse(q: np.ndarray) -> np.ndarray:

@@ -103,4 +103,6 @@ def box_local_corners(size_wlh) -> np.ndarray:
 
 def box_corners(center, size_wlh, orientation) -> np.ndarray:
     """(N, 3, 8) devkit `Box.corners()`: corners in the box's frame rotated by the orientation, then moved."""
-    return gemm(quaternions.rotation_matrices(orientation), box_local_corners(size_wlh)) + center[:, :, None]
+    # corners 4-7 are corners 2, 3, 0, 1 negated (before the move) and rounding is symmetric: half the products
+    half = gemm(quaternions.rotation_matrices(orientation), box_local_corners(size_wlh)[:, :, :4])
+    return np.concatenate([half, -half[:, :, [2, 3, 0, 1]]], axis=2) + center[:, :, None]
