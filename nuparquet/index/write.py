@@ -13,6 +13,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 
+ROW_GROUP_ROWS = 256
+
+
 class _Pickler(pickle.Pickler):
     """numpy's own reduction of a float64/int64 scalar (its dtype and raw bytes through
     `numpy._core.multiarray.scalar`) costs ~3x what pickling the rest of an info does; `numpy.float64(x)`
@@ -42,7 +45,8 @@ def write_parquet_dir(directory: Path, tables: dict[str, pa.Table]) -> None:
     tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.tmp-", dir=directory.parent))
     try:
         for name, table in tables.items():
-            pq.write_table(table, tmp / f"{name}.parquet", compression="zstd")
+            # small row groups: a loader reading one row decodes ROW_GROUP_ROWS rows, not the split
+            pq.write_table(table, tmp / f"{name}.parquet", compression="zstd", row_group_size=ROW_GROUP_ROWS)
         old = directory.with_name(f".{directory.name}.old-{os.getpid()}")
         if directory.exists():
             os.replace(directory, old)
