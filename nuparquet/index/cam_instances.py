@@ -52,15 +52,14 @@ def _hull_bounds(corners_uv: np.ndarray, in_front: np.ndarray, canvas=CANVAS_PX)
 
 
 def _rough_may_meet_canvas(center, size_wlh, orientation, k, canvas=CANVAS_PX) -> np.ndarray:
-    """(N,) bool: False only where the box surely has no 2D box (no corner in front of the camera, or the
-    bounding rectangle of the projected corners clear of the canvas), from plain float arithmetic with wide
-    margins; the exact arithmetic then runs on the rest only (a box is in front of ~2 of the 6 cameras)."""
-    w, x, y, z = np.moveaxis(quaternions.normalised(orientation), -1, 0)
-    r = np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-                  np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-                  np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+    """(N,) bool: False only where the box surely has no record: its centre behind the camera (depth <= 0)
+    or no corner in front of it, or the bounding rectangle of the projected corners clear of the canvas.
+    From `transforms.rough_boxes_to_sensor` values and plain float products, with wide margins; the exact
+    arithmetic then runs on the rest only (a box meets ~1 of the 6 images)."""
+    r = quaternions.rough_rotation_matrices(orientation)
     corners = np.einsum("nij,njk->nik", r, transforms.box_local_corners(size_wlh)) + center[:, :, None]
     projected = np.einsum("nij,njk->nik", k, corners)
+    depth = np.einsum("nj,nj->n", k[:, 2], center)  # the exact one is float32 arithmetic: margin below
     maybe_front = corners[:, 2] > -1e-6
     near_zero = (maybe_front & (corners[:, 2] < 1e-6)).any(axis=1)  # projections unbounded: keep
     with np.errstate(divide="ignore", invalid="ignore"):  # inf - inf where no corner is in front: not kept anyway
@@ -69,7 +68,8 @@ def _rough_may_meet_canvas(center, size_wlh, orientation, k, canvas=CANVAS_PX) -
         hi = np.where(maybe_front[:, None], uv, -np.inf).max(axis=2)
         margin = 1e-3 + 1e-9 * np.maximum(np.abs(lo), np.abs(hi))
         clear = ((hi + margin < 0) | (lo - margin > np.array(canvas))).any(axis=1)
-    return maybe_front.any(axis=1) & (near_zero | ~clear)
+    depth_margin = 1e-3 + 1e-6 * np.einsum("nj,nj->n", np.abs(k[:, 2]), np.abs(center))
+    return (depth > -depth_margin) & maybe_front.any(axis=1) & (near_zero | ~clear)
 
 
 def _boxes_2d(center, size_wlh, orientation, k, canvas=CANVAS_PX) -> tuple[np.ndarray, np.ndarray]:
@@ -79,19 +79,17 @@ def _boxes_2d(center, size_wlh, orientation, k, canvas=CANVAS_PX) -> tuple[np.nd
     n = len(center)
     ok = np.zeros(n, bool)
     bounds = np.full((n, 4), np.nan)
-    idx = np.flatnonzero(_rough_may_meet_canvas(center, size_wlh, orientation, k, canvas))
-    corners = transforms.box_corners(center[idx], size_wlh[idx], orientation[idx])  # (M, 3, 8)
+    corners = transforms.box_corners(center, size_wlh, orientation)  # (N, 3, 8)
     # view_points: np.dot(viewpad, [corners; 1]), the 4th term (0 * 1) changes nothing
-    projected = blas.gemm(k[idx], corners)
+    projected = blas.gemm(k, corners)
     with np.errstate(divide="ignore", invalid="ignore"):
-        uv = np.moveaxis(projected[:, :2] / projected[:, 2:3], 1, 2)  # (M, 8, 2)
+        uv = np.moveaxis(projected[:, :2] / projected[:, 2:3], 1, 2)  # (N, 8, 2)
     in_front = corners[:, 2] > 0
-    inside = in_front.all(axis=1) & (size_wlh[idx] > 0).all(axis=1) & (uv > 0).all(axis=(1, 2)) \
+    inside = in_front.all(axis=1) & (size_wlh > 0).all(axis=1) & (uv > 0).all(axis=(1, 2)) \
         & (uv < np.array(canvas)).all(axis=(1, 2))
-    ok[idx[inside]] = True
-    bounds[idx[inside]] = np.concatenate([uv[inside].min(axis=1), uv[inside].max(axis=1)], axis=1)
-    rest = ~inside
-    ok[idx[rest]], bounds[idx[rest]] = _hull_bounds(uv[rest], in_front[rest], canvas)
+    ok[inside] = True
+    bounds[inside] = np.concatenate([uv[inside].min(axis=1), uv[inside].max(axis=1)], axis=1)
+    ok[~inside], bounds[~inside] = _hull_bounds(uv[~inside], in_front[~inside], canvas)
     return ok, bounds
 
 
@@ -105,6 +103,10 @@ def camera_instances(inputs, cameras: tuple[str, ...]) -> CamInstances:
         cam_row = inputs.keyframe[channel][inputs.ann_sample[keep_ann]]
         a = keep_ann[cam_row >= 0]
         r = cam_row[cam_row >= 0]
+        rough = transforms.rough_boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], r, d.ego_t, d.ego_q,
+                                                 d.sensor_t, d.sensor_q)
+        maybe = _rough_may_meet_canvas(*rough[:1], inputs.ann_size_wlh[a], rough[1], d.intrinsic[r])
+        a, r = a[maybe], r[maybe]
         center, orientation = transforms.boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], r, d.ego_t,
                                                          d.ego_q, d.sensor_t, d.sensor_q)
         k = d.intrinsic[r]
