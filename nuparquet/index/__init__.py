@@ -24,10 +24,20 @@ from nuparquet.index.compute import compute
 from nuparquet.index.inputs import read_inputs
 from nuparquet.index.options import IndexOptions
 from nuparquet.index.v2_arrays import v2_arrays
-from nuparquet.index.write import write_parquet_dir, write_pickle
+from nuparquet.index.write import write_infos_pickle, write_parquet_dir, write_pickle
 from nuparquet.progress import OnProgress, Reporter
 
 __all__ = ["IndexOptions", "build_index"]
+
+
+CHUNK_SAMPLES = 1000  # entries built and pickled at a time: bounds memory at trainval scale
+
+
+def _entries(arrays, *, corrected: bool = False):
+    """The v2 entries of `arrays`, CHUNK_SAMPLES at a time."""
+    for lo in range(0, len(arrays.token), CHUNK_SAMPLES):
+        yield records.v2_infos(arrays.slice(lo, min(lo + CHUNK_SAMPLES, len(arrays.token))), corrected=corrected,
+                               first_index=lo)
 
 
 def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: OnProgress | None = None) -> dict:
@@ -75,15 +85,14 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
                 write_pickle(target, {"infos": infos, "metadata": {"version": version}})
             else:
                 arrays = v2_arrays(computed, samples, tuple(options.cameras), options.data_prefix)
-                data_list, last_ignored, all_ignored = records.v2_infos(arrays)
-                write_pickle(target, {"metainfo": records.v2_metainfo(version, last_ignored), "data_list": data_list})
-                del data_list
+                last_ignored, all_ignored = records.v2_ignored(arrays)
+                write_infos_pickle(target, {"metainfo": records.v2_metainfo(version, last_ignored)}, "data_list",
+                                   _entries(arrays))
                 if options.corrected:
-                    fixed, _, _ = records.v2_infos(v2_arrays(computed, samples, tuple(options.cameras),
-                                                             options.data_prefix, corrected=True), corrected=True)
-                    write_pickle(out / f"nuscenes_infos_{split}_corrected.pkl",
-                                 {"metainfo": records.v2_metainfo(version, all_ignored), "data_list": fixed})
-                    del fixed
+                    fixed = v2_arrays(computed, samples, tuple(options.cameras), options.data_prefix, corrected=True)
+                    write_infos_pickle(out / f"nuscenes_infos_{split}_corrected.pkl",
+                                       {"metainfo": records.v2_metainfo(version, all_ignored)}, "data_list",
+                                       _entries(fixed, corrected=True))
                 if options.parquet:
                     table = parquet.infos_table(arrays, split)
                     if table is not None:

@@ -63,9 +63,17 @@ def _chunks(items: list, size: int) -> list:
     return [items[i:i + size] for i in range(0, len(items), size)]
 
 
-def v2_infos(v: V2Arrays, *, corrected: bool = False) -> tuple[list[dict], set[str], set[str]]:
-    """(data_list, unmapped classes of the last sample (what the converter's metainfo keeps), unmapped classes
-    of every sample). `corrected` (with `v` built corrected): num_pts_feats of sweeps set.
+def v2_ignored(v: V2Arrays) -> tuple[set[str], set[str]]:
+    """(unmapped classes of the last sample: what the converter's metainfo keeps, as `ignore_class_name` is
+    reset per sample; unmapped classes of every sample: the corrected form)."""
+    unmapped = v.ann_label < 0
+    last = set(v.ann_name[v.ann_offsets[-2]:][unmapped[v.ann_offsets[-2]:]].tolist()) if len(v.token) else set()
+    return last, set(v.ann_name[unmapped].tolist())
+
+
+def v2_infos(v: V2Arrays, *, corrected: bool = False, first_index: int = 0) -> list[dict]:
+    """The data_list entries of the samples of `v` (`sample_idx` counted from `first_index`). `corrected`
+    (with `v` built corrected): num_pts_feats of sweeps set.
 
     Every array becomes Python objects in one `tolist` call (or one iteration, for the numpy scalars the
     reference holds); the loop below only assembles dicts in the converter's key order.
@@ -106,9 +114,9 @@ def v2_infos(v: V2Arrays, *, corrected: bool = False) -> tuple[list[dict], set[s
     sweep_offsets, ann_offsets = v.sweep_offsets.tolist(), v.ann_offsets.tolist()
     ci_offsets = v.ci_offsets.tolist() if v.ci_offsets is not None else None
     tokens, times, lidar_paths = v.token.tolist(), v.timestamp_s.tolist(), v.lidar_path
-    data_list, last_ignored, all_ignored = [], set(), set()
+    data_list = []
     for i in range(len(v.token)):
-        entry = {"sample_idx": i, "token": tokens[i], "timestamp": times[i], "ego2global": e2g[i],
+        entry = {"sample_idx": first_index + i, "token": tokens[i], "timestamp": times[i], "ego2global": e2g[i],
                  "images": images[i],
                  "lidar_points": {"num_pts_feats": NUM_PTS_FEATS, "lidar_path": lidar_paths[i], "lidar2ego": l2e[i]}}
         lo, hi = sweep_offsets[i], sweep_offsets[i + 1]
@@ -116,13 +124,11 @@ def v2_infos(v: V2Arrays, *, corrected: bool = False) -> tuple[list[dict], set[s
             entry["lidar_sweeps"] = sweeps[lo:hi]
         lo, hi = ann_offsets[i], ann_offsets[i + 1]
         entry["instances"] = instances[lo:hi]
-        ignored = {v.ann_name[a] for a in range(lo, hi) if labels[a] < 0}
-        last_ignored, all_ignored = ignored, all_ignored | ignored
         if cam_instances is not None:
             entry["cam_instances"] = {cam: cam_instances[ci_offsets[i * n_cam + k]:ci_offsets[i * n_cam + k + 1]]
                                       for k, cam in enumerate(cameras)}
         data_list.append(entry)
-    return data_list, last_ignored, all_ignored
+    return data_list
 
 
 def v2_metainfo(version: str, ignored: set[str]) -> dict:

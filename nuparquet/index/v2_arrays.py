@@ -58,6 +58,29 @@ class V2Arrays:
     ci_depth: np.ndarray | None  # (K,)
     ci_attr_label: np.ndarray | None  # (K,)
 
+    def slice(self, lo: int, hi: int) -> V2Arrays:
+        """Samples [lo, hi) with their sweeps, instances and camera instances (offsets rebased)."""
+        n_cam = len(self.cameras)
+        per_sample = ("token", "timestamp_s", "ego2global", "ego2global_f64", "lidar_path", "lidar2ego",
+                      "lidar2ego_f64", "cam2img", "cam2ego", "cam_token", "cam_timestamp_s", "lidar2cam")
+        out = {name: getattr(self, name)[lo:hi] for name in per_sample}
+        out["cam_path"] = self.cam_path[lo * n_cam:hi * n_cam]
+        segments = (("sweep_offsets", lo, hi, ("sweep_timestamp_s", "sweep_ego2global", "sweep_path",
+                                               "sweep_lidar2ego", "sweep_lidar2sensor", "sweep_token")),
+                    ("ann_offsets", lo, hi, ("ann_label", "ann_name", "ann_box", "ann_valid", "ann_num_lidar_pts",
+                                             "ann_num_radar_pts", "ann_velocity")),
+                    ("ci_offsets", lo * n_cam, hi * n_cam, ("ci_label", "ci_bbox", "ci_bbox_3d", "ci_velocity",
+                                                            "ci_center_2d", "ci_depth", "ci_attr_label")))
+        for offsets_name, a, b, names in segments:
+            offs = getattr(self, offsets_name)
+            if offs is None:
+                out[offsets_name] = None
+                out.update(dict.fromkeys(names))
+                continue
+            out[offsets_name] = offs[a:b + 1] - offs[a]
+            out.update({name: getattr(self, name)[offs[a]:offs[b]] for name in names})
+        return V2Arrays(cameras=self.cameras, **out)
+
 
 def gather_segments(segment_offsets: np.ndarray, picked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(items, new offsets): the items of segments `picked` (in that order) of a segmented array."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 import pickle
 import shutil
@@ -35,6 +36,45 @@ def write_pickle(path: Path, obj) -> None:
     try:
         with open(tmp, "wb") as f:
             _Pickler(f, protocol=pickle.HIGHEST_PROTOCOL).dump(obj)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+_PROTOCOL = 3  # explicit memo indices (BINPUT): a memo cleared between chunks just overwrites the slots
+
+
+def _list_body(pickler: _Pickler, buffer: io.BytesIO, items: list) -> bytes:
+    """The opcodes that append `items` to the list below them on the unpickler's stack (MARK items APPENDS,
+    per batch), pickled with a fresh memo: `items` pickled as a list minus the list's own opcodes."""
+    buffer.seek(0)
+    buffer.truncate()
+    pickler.clear_memo()
+    pickler.dump(items)
+    data = buffer.getvalue()
+    head = b"\x80\x03]q\x00"  # PROTO 3, EMPTY_LIST, BINPUT 0
+    if not (data.startswith(head) and data.endswith(b".")):
+        raise AssertionError("unexpected pickle layout")
+    return data[len(head):-1]
+
+
+def write_infos_pickle(path: Path, head: dict, key: str, chunks) -> None:
+    """Pickle `head | {key: [entries of every chunk]}` (loads equal to pickle.dump of that dict) without
+    holding every entry at once: `chunks` yields lists of entries, each pickled with a fresh memo and
+    appended to the list in the stream (a trainval split's entries take more memory than the budget)."""
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    buffer = io.BytesIO()
+    pickler = _Pickler(buffer, protocol=_PROTOCOL)
+    try:
+        with open(tmp, "wb") as f:
+            f.write(b"\x80\x03}(")  # PROTO 3, EMPTY_DICT, MARK (key/value pairs follow)
+            pairs = _list_body(pickler, buffer, [k for item in head.items() for k in item] + [key])
+            f.write(pairs[1:-1])  # the pairs and the last key, without their MARK ... APPENDS
+            f.write(b"]")  # EMPTY_LIST: the value of `key`
+            for chunk in chunks:
+                if chunk:
+                    f.write(_list_body(pickler, buffer, chunk))
+            f.write(b"u.")  # SETITEMS, STOP
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
