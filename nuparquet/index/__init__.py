@@ -58,7 +58,7 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
 
     steps = 3 + len(wanted) * (2 if options.parquet and options.info_version == 2 else 1)
     with Reporter(on_progress, "index", total=steps) as progress:
-        inputs = read_inputs(ds, tuple(options.cameras) + (options.lidar,))
+        inputs = read_inputs(ds, tuple(options.cameras), options.lidar)
         can_bus = None
         sample_links = None
         if options.format == "bevformer":
