@@ -90,11 +90,11 @@ def read_inputs(ds: Dataset, cameras: tuple[str, ...], lidar: str) -> Inputs:
     sd = (ds.scan("tables/sample_data")
           .select("token", "sample_token", "ego_pose_token", "calibrated_sensor_token", "timestamp", "is_key_frame",
                   "filename", "prev")
-          .filter(pl.col("calibrated_sensor_token").is_in(lidar_calib)
-                  | (pl.col("is_key_frame") & pl.col("calibrated_sensor_token").is_in(camera_calib)))
+          .filter(pl.col("calibrated_sensor_token").is_in(lidar_calib.implode())
+                  | (pl.col("is_key_frame") & pl.col("calibrated_sensor_token").is_in(camera_calib.implode())))
           .collect()
           .join(calib, on="calibrated_sensor_token", how="left", maintain_order="left"))
-    pose = (ds.scan("tables/ego_pose").filter(pl.col("token").is_in(sd["ego_pose_token"]))
+    pose = (ds.scan("tables/ego_pose").filter(pl.col("token").is_in(sd["ego_pose_token"].implode()))
             .select(pl.col("token").alias("ego_pose_token"), pl.col("translation").alias("e_t"),
                     pl.col("rotation").alias("e_q"))
             .collect())
