@@ -93,41 +93,50 @@ def _boxes_2d(center, size_wlh, orientation, k, canvas=CANVAS_PX) -> tuple[np.nd
     return ok, bounds
 
 
-def camera_instances(inputs, cameras: tuple[str, ...]) -> CamInstances:
+BLOCK_BOXES = 200_000  # box-camera pairs per vectorised pass: bounds the temporaries (~0.5 GB) at trainval
+
+
+def _camera_block(inputs, c: int, a: np.ndarray, r: np.ndarray, labels_all: np.ndarray) -> dict:
+    """The camera instances of annotations `a` (rows) seen by camera `c` through its readings `r`."""
     d = inputs.data
+    rough = transforms.rough_boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], r, d.ego_t, d.ego_q,
+                                             d.sensor_t, d.sensor_q)
+    maybe = _rough_may_meet_canvas(*rough[:1], inputs.ann_size_wlh[a], rough[1], d.intrinsic[r])
+    a, r = a[maybe], r[maybe]
+    center, orientation = transforms.boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], r, d.ego_t,
+                                                     d.ego_q, d.sensor_t, d.sensor_q)
+    k = d.intrinsic[r]
+    center32, k32 = center.astype(np.float32), k.astype(np.float32)
+    image = (k32[:, :, 0] * center32[:, None, 0] + k32[:, :, 1] * center32[:, None, 1]) \
+        + k32[:, :, 2] * center32[:, None, 2]
+    depth = image[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        center_2d = image[:, :2] / depth[:, None]
+    front = depth > 0  # the converter's last filter, applied first: the filters commute
+    a, r, center, orientation, k = a[front], r[front], center[front], orientation[front], k[front]
+    depth, center_2d = depth[front], center_2d[front]
+    ok, bounds = _boxes_2d(center, inputs.ann_size_wlh[a], orientation, k)
+    a, r = a[ok], r[ok]
+    wlh = inputs.ann_size_wlh[a]
+    velocity = transforms.velocity_to_sensor(inputs.ann_velocity[a, :2], r, d.ego_q, d.sensor_q)
+    return dict(
+        ann=a, camera=np.full(len(a), c), label=labels_all[a], bbox=bounds[ok],
+        bbox_3d=np.column_stack([center[ok], wlh[:, 1], wlh[:, 2], wlh[:, 0], -quaternions.yaw(orientation[ok])]),
+        velocity=velocity[:, [0, 2]], center_2d=center_2d[ok].astype(np.float64),
+        depth=depth[ok].astype(np.float64), attr_label=np.searchsorted(ATTRIBUTES_SORTED, inputs.ann_attribute[a]))
+
+
+def camera_instances(inputs, cameras: tuple[str, ...]) -> CamInstances:
     labels_all = label_of(inputs.ann_category)
     # generate_record drops classes outside the ten: never a record, so never computed
     keep_ann = np.flatnonzero(np.isin(inputs.ann_visibility, VISIBILITIES) & (labels_all >= 0))
     parts = []
-    for c, channel in enumerate(cameras):  # one vectorised pass per camera (6), never per box
+    for c, channel in enumerate(cameras):  # vectorised passes per camera (6) and block of boxes, never per box
         cam_row = inputs.keyframe[channel][inputs.ann_sample[keep_ann]]
-        a = keep_ann[cam_row >= 0]
-        r = cam_row[cam_row >= 0]
-        rough = transforms.rough_boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], r, d.ego_t, d.ego_q,
-                                                 d.sensor_t, d.sensor_q)
-        maybe = _rough_may_meet_canvas(*rough[:1], inputs.ann_size_wlh[a], rough[1], d.intrinsic[r])
-        a, r = a[maybe], r[maybe]
-        center, orientation = transforms.boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], r, d.ego_t,
-                                                         d.ego_q, d.sensor_t, d.sensor_q)
-        k = d.intrinsic[r]
-        center32, k32 = center.astype(np.float32), k.astype(np.float32)
-        image = (k32[:, :, 0] * center32[:, None, 0] + k32[:, :, 1] * center32[:, None, 1]) \
-            + k32[:, :, 2] * center32[:, None, 2]
-        depth = image[:, 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            center_2d = image[:, :2] / depth[:, None]
-        front = depth > 0  # the converter's last filter, applied first: the filters commute
-        a, r, center, orientation, k = a[front], r[front], center[front], orientation[front], k[front]
-        depth, center_2d = depth[front], center_2d[front]
-        ok, bounds = _boxes_2d(center, inputs.ann_size_wlh[a], orientation, k)
-        a, r = a[ok], r[ok]
-        wlh = inputs.ann_size_wlh[a]
-        velocity = transforms.velocity_to_sensor(inputs.ann_velocity[a, :2], r, d.ego_q, d.sensor_q)
-        parts.append(dict(
-            ann=a, camera=np.full(len(a), c), label=labels_all[a], bbox=bounds[ok],
-            bbox_3d=np.column_stack([center[ok], wlh[:, 1], wlh[:, 2], wlh[:, 0], -quaternions.yaw(orientation[ok])]),
-            velocity=velocity[:, [0, 2]], center_2d=center_2d[ok].astype(np.float64),
-            depth=depth[ok].astype(np.float64), attr_label=np.searchsorted(ATTRIBUTES_SORTED, inputs.ann_attribute[a])))
+        for block in range(0, max(len(keep_ann), 1), BLOCK_BOXES):  # one (maybe empty) block at least
+            rows = cam_row[block:block + BLOCK_BOXES]
+            parts.append(_camera_block(inputs, c, keep_ann[block:block + BLOCK_BOXES][rows >= 0], rows[rows >= 0],
+                                       labels_all))
     merged = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
     sample = inputs.ann_sample[merged["ann"]]
     order = np.lexsort((merged["ann"], merged["camera"], sample))
