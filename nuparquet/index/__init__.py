@@ -5,10 +5,11 @@ from nuparquet.index import IndexOptions, build_index
 paths = build_index("OUT", IndexOptions(out="infos", info_version=2))   # {"val": Path(".../nuscenes_infos_val.pkl"), ...}
 ```
 
-Modules: `inputs` (what is read, checked first), `splits`, `quaternions` + `transforms` (the converter's
-arithmetic over arrays), `sweeps` (the lidar prev chain), `compute` (all numbers, vectorised over samples),
-`cam_instances` (v2 camera boxes), `records` (the dicts, v1 and v2), `bevformer`, `parquet` (DIR/infos/),
-`write` (atomic files).
+Modules: `inputs` (what is read, checked first), `splits`, `blas` + `quaternions` + `transforms` (the
+converter's arithmetic over arrays, bit for bit), `sweeps` (the lidar prev chain), `compute` (all numbers,
+vectorised over samples), `cam_instances` (v2 camera boxes), `v2_arrays` (one split's values with offsets),
+`records` (the dicts, v1 and v2), `bevformer`, `parquet` (DIR/infos/ from the same arrays), `write` (atomic
+files, the streamed pickle).
 """
 
 from __future__ import annotations
