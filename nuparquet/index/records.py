@@ -59,6 +59,12 @@ def v1_infos(c: Computed, samples: np.ndarray, cameras: tuple[str, ...], prefix:
     return infos
 
 
+def _lists(matrices: np.ndarray) -> list:
+    """Nested lists of Python floats; float32 widened first (the same values, ~15% faster than tolist of
+    float32, which goes through numpy scalars)."""
+    return matrices.astype(np.float64).tolist()
+
+
 def _chunks(items: list, size: int) -> list:
     return [items[i:i + size] for i in range(0, len(items), size)]
 
@@ -80,8 +86,8 @@ def v2_infos(v: V2Arrays, *, corrected: bool = False, first_index: int = 0) -> l
     """
     cameras = v.cameras
     n_cam = len(cameras)
-    e2g, l2e = v.ego2global.tolist(), v.lidar2ego.tolist()
-    cam2img, cam2ego, lidar2cam = v.cam2img.tolist(), v.cam2ego.tolist(), v.lidar2cam.tolist()
+    e2g, l2e = _lists(v.ego2global), _lists(v.lidar2ego)
+    cam2img, cam2ego, lidar2cam = v.cam2img.tolist(), _lists(v.cam2ego), _lists(v.lidar2cam)
     cam_token, cam_time = v.cam_token.tolist(), v.cam_timestamp_s.tolist()
     images = [
         {cam: {"img_path": v.cam_path[s * n_cam + k], "cam2img": cam2img[s][k], "cam2ego": cam2ego[s][k],
@@ -92,8 +98,8 @@ def v2_infos(v: V2Arrays, *, corrected: bool = False, first_index: int = 0) -> l
     sweeps = [{"timestamp": t, "ego2global": e, "lidar_points": {"num_pts_feats": sweep_pts, "lidar_path": p,
                                                                   "lidar2ego": le, "lidar2sensor": ls},
                "sample_data_token": tok}
-              for t, e, p, le, ls, tok in zip(v.sweep_timestamp_s.tolist(), v.sweep_ego2global.tolist(), v.sweep_path,
-                                             v.sweep_lidar2ego.tolist(), v.sweep_lidar2sensor.tolist(),
+              for t, e, p, le, ls, tok in zip(v.sweep_timestamp_s.tolist(), _lists(v.sweep_ego2global), v.sweep_path,
+                                             _lists(v.sweep_lidar2ego), _lists(v.sweep_lidar2sensor),
                                              v.sweep_token.tolist())]
     labels = v.ann_label.tolist()
     instances = [{"bbox_label": label, "bbox_3d": box, "bbox_3d_isvalid": valid, "bbox_label_3d": label,
