@@ -5,10 +5,11 @@ from nuparquet.index import IndexOptions, build_index
 paths = build_index("OUT", IndexOptions(out="infos", info_version=2))   # {"val": Path(".../nuscenes_infos_val.pkl"), ...}
 ```
 
-Modules: `inputs` (what is read, checked first), `splits`, `quaternions` + `transforms` (the converter's
-arithmetic over arrays), `sweeps` (the lidar prev chain), `compute` (all numbers, vectorised over samples),
-`cam_instances` (v2 camera boxes), `records` (the dicts, v1 and v2), `bevformer`, `parquet` (DIR/infos/),
-`write` (atomic files).
+Modules: `inputs` (what is read, checked first), `splits`, `blas` + `quaternions` + `transforms` (the
+converter's arithmetic over arrays, bit for bit), `sweeps` (the lidar prev chain), `compute` (all numbers,
+vectorised over samples), `cam_instances` (v2 camera boxes), `v2_arrays` (one split's values with offsets),
+`records` (the dicts, v1 and v2), `bevformer`, `parquet` (DIR/infos/ from the same arrays), `write` (atomic
+files, the streamed pickle).
 """
 
 from __future__ import annotations
@@ -19,14 +20,25 @@ import numpy as np
 
 from nuparquet.dataset import Dataset, open_dataset
 from nuparquet.errors import UsageError
-from nuparquet.index import bevformer, parquet, records, splits, transforms
+from nuparquet.index import bevformer, parquet, records, splits
 from nuparquet.index.compute import compute
 from nuparquet.index.inputs import read_inputs
 from nuparquet.index.options import IndexOptions
-from nuparquet.index.write import write_parquet_dir, write_pickle
+from nuparquet.index.v2_arrays import v2_arrays
+from nuparquet.index.write import write_infos_pickle, write_parquet_dir, write_pickle
 from nuparquet.progress import OnProgress, Reporter
 
 __all__ = ["IndexOptions", "build_index"]
+
+
+CHUNK_SAMPLES = 1000  # entries built and pickled at a time: bounds memory at trainval scale
+
+
+def _entries(arrays, *, corrected: bool = False):
+    """The v2 entries of `arrays`, CHUNK_SAMPLES at a time."""
+    for lo in range(0, len(arrays.token), CHUNK_SAMPLES):
+        yield records.v2_infos(arrays.slice(lo, min(lo + CHUNK_SAMPLES, len(arrays.token))), corrected=corrected,
+                               first_index=lo)
 
 
 def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: OnProgress | None = None) -> dict:
@@ -47,7 +59,7 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
 
     steps = 3 + len(wanted) * (2 if options.parquet and options.info_version == 2 else 1)
     with Reporter(on_progress, "index", total=steps) as progress:
-        inputs = read_inputs(ds, tuple(options.cameras) + (options.lidar,))
+        inputs = read_inputs(ds, tuple(options.cameras), options.lidar)
         can_bus = None
         sample_links = None
         if options.format == "bevformer":
@@ -73,19 +85,17 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
                     infos = bevformer.bevformer_infos(computed, infos, samples, *sample_links, can_bus)
                 write_pickle(target, {"infos": infos, "metadata": {"version": version}})
             else:
-                data_list, last_ignored, all_ignored = records.v2_infos(
-                    computed, samples, tuple(options.cameras), options.data_prefix)
-                write_pickle(target, {"metainfo": records.v2_metainfo(version, last_ignored), "data_list": data_list})
+                arrays = v2_arrays(computed, samples, tuple(options.cameras), options.data_prefix)
+                last_ignored, all_ignored = records.v2_ignored(arrays)
+                write_infos_pickle(target, {"metainfo": records.v2_metainfo(version, last_ignored)}, "data_list",
+                                   _entries(arrays))
                 if options.corrected:
-                    fixed, _, _ = records.v2_infos(computed, samples, tuple(options.cameras), options.data_prefix,
-                                                   corrected=True)
-                    write_pickle(out / f"nuscenes_infos_{split}_corrected.pkl",
-                                 {"metainfo": records.v2_metainfo(version, all_ignored), "data_list": fixed})
+                    fixed = v2_arrays(computed, samples, tuple(options.cameras), options.data_prefix, corrected=True)
+                    write_infos_pickle(out / f"nuscenes_infos_{split}_corrected.pkl",
+                                       {"metainfo": records.v2_metainfo(version, all_ignored)}, "data_list",
+                                       _entries(fixed, corrected=True))
                 if options.parquet:
-                    d, lid = inputs.data, computed.lidar_row[samples]
-                    table = parquet.infos_table(data_list, split,
-                                                transforms.pose_matrix_f32(d.ego_q[lid], d.ego_t[lid], f32=False),
-                                                transforms.pose_matrix_f32(d.sensor_q[lid], d.sensor_t[lid], f32=False))
+                    table = parquet.infos_table(arrays, split)
                     if table is not None:
                         tables[split] = table
                     progress.advance(step=f"parquet {split}")

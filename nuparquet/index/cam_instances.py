@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from nuparquet.index import quaternions, transforms
+from nuparquet.index import blas, quaternions, transforms
 from nuparquet.index.labels import ATTRIBUTES, label_of
 
 VISIBILITIES = ("", "1", "2", "3", "4")  # the converter's filter (every nuScenes visibility)
@@ -51,40 +51,92 @@ def _hull_bounds(corners_uv: np.ndarray, in_front: np.ndarray, canvas=CANVAS_PX)
     return ok, bounds
 
 
-def camera_instances(inputs, cameras: tuple[str, ...]) -> CamInstances:
+def _rough_may_meet_canvas(center, size_wlh, orientation, k, canvas=CANVAS_PX) -> np.ndarray:
+    """(N,) bool: False only where the box surely has no record: its centre behind the camera (depth <= 0)
+    or no corner in front of it, or the bounding rectangle of the projected corners clear of the canvas.
+    From `transforms.rough_boxes_to_sensor` values and plain float products, with wide margins; the exact
+    arithmetic then runs on the rest only (a box meets ~1 of the 6 images)."""
+    r = quaternions.rough_rotation_matrices(orientation)
+    corners = np.einsum("nij,njk->nik", r, transforms.box_local_corners(size_wlh)) + center[:, :, None]
+    projected = np.einsum("nij,njk->nik", k, corners)
+    depth = np.einsum("nj,nj->n", k[:, 2], center)  # the exact one is float32 arithmetic: margin below
+    maybe_front = corners[:, 2] > -1e-6
+    near_zero = (maybe_front & (corners[:, 2] < 1e-6)).any(axis=1)  # projections unbounded: keep
+    with np.errstate(divide="ignore", invalid="ignore"):  # inf - inf where no corner is in front: not kept anyway
+        uv = projected[:, :2] / projected[:, 2:3]
+        lo = np.where(maybe_front[:, None], uv, np.inf).min(axis=2)
+        hi = np.where(maybe_front[:, None], uv, -np.inf).max(axis=2)
+        margin = 1e-3 + 1e-9 * np.maximum(np.abs(lo), np.abs(hi))
+        clear = ((hi + margin < 0) | (lo - margin > np.array(canvas))).any(axis=1)
+    depth_margin = 1e-3 + 1e-6 * np.einsum("nj,nj->n", np.abs(k[:, 2]), np.abs(center))
+    return (depth > -depth_margin) & maybe_front.any(axis=1) & (near_zero | ~clear)
+
+
+def _boxes_2d(center, size_wlh, orientation, k, canvas=CANVAS_PX) -> tuple[np.ndarray, np.ndarray]:
+    """(ok (N,), bounds (N, 4)): `post_process_coords` of each box's projected corners, exact. A hull wholly
+    inside the canvas (8 corners in front, all strictly inside) is its own intersection with it: its bounds
+    are the corners' extremes, without GEOS."""
+    n = len(center)
+    ok = np.zeros(n, bool)
+    bounds = np.full((n, 4), np.nan)
+    corners = transforms.box_corners(center, size_wlh, orientation)  # (N, 3, 8)
+    # view_points: np.dot(viewpad, [corners; 1]), the 4th term (0 * 1) changes nothing
+    projected = blas.gemm(k, corners)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = np.moveaxis(projected[:, :2] / projected[:, 2:3], 1, 2)  # (N, 8, 2)
+    in_front = corners[:, 2] > 0
+    inside = in_front.all(axis=1) & (size_wlh > 0).all(axis=1) & (uv > 0).all(axis=(1, 2)) \
+        & (uv < np.array(canvas)).all(axis=(1, 2))
+    ok[inside] = True
+    bounds[inside] = np.concatenate([uv[inside].min(axis=1), uv[inside].max(axis=1)], axis=1)
+    ok[~inside], bounds[~inside] = _hull_bounds(uv[~inside], in_front[~inside], canvas)
+    return ok, bounds
+
+
+BLOCK_BOXES = 200_000  # box-camera pairs per vectorised pass: bounds the temporaries (~0.5 GB) at trainval
+
+
+def _camera_block(inputs, c: int, a: np.ndarray, r: np.ndarray, labels_all: np.ndarray) -> dict:
+    """The camera instances of annotations `a` (rows) seen by camera `c` through its readings `r`."""
     d = inputs.data
-    keep_ann = np.flatnonzero(np.isin(inputs.ann_visibility, VISIBILITIES))
+    rough = transforms.rough_boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], r, d.ego_t, d.ego_q,
+                                             d.sensor_t, d.sensor_q)
+    maybe = _rough_may_meet_canvas(*rough[:1], inputs.ann_size_wlh[a], rough[1], d.intrinsic[r])
+    a, r = a[maybe], r[maybe]
+    center, orientation = transforms.boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], r, d.ego_t,
+                                                     d.ego_q, d.sensor_t, d.sensor_q)
+    k = d.intrinsic[r]
+    center32, k32 = center.astype(np.float32), k.astype(np.float32)
+    image = (k32[:, :, 0] * center32[:, None, 0] + k32[:, :, 1] * center32[:, None, 1]) \
+        + k32[:, :, 2] * center32[:, None, 2]
+    depth = image[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        center_2d = image[:, :2] / depth[:, None]
+    front = depth > 0  # the converter's last filter, applied first: the filters commute
+    a, r, center, orientation, k = a[front], r[front], center[front], orientation[front], k[front]
+    depth, center_2d = depth[front], center_2d[front]
+    ok, bounds = _boxes_2d(center, inputs.ann_size_wlh[a], orientation, k)
+    a, r = a[ok], r[ok]
+    wlh = inputs.ann_size_wlh[a]
+    velocity = transforms.velocity_to_sensor(inputs.ann_velocity[a, :2], r, d.ego_q, d.sensor_q)
+    return dict(
+        ann=a, camera=np.full(len(a), c), label=labels_all[a], bbox=bounds[ok],
+        bbox_3d=np.column_stack([center[ok], wlh[:, 1], wlh[:, 2], wlh[:, 0], -quaternions.yaw(orientation[ok])]),
+        velocity=velocity[:, [0, 2]], center_2d=center_2d[ok].astype(np.float64),
+        depth=depth[ok].astype(np.float64), attr_label=np.searchsorted(ATTRIBUTES_SORTED, inputs.ann_attribute[a]))
+
+
+def camera_instances(inputs, cameras: tuple[str, ...]) -> CamInstances:
     labels_all = label_of(inputs.ann_category)
+    # generate_record drops classes outside the ten: never a record, so never computed
+    keep_ann = np.flatnonzero(np.isin(inputs.ann_visibility, VISIBILITIES) & (labels_all >= 0))
     parts = []
-    for c, channel in enumerate(cameras):  # one vectorised pass per camera (6), never per box
+    for c, channel in enumerate(cameras):  # vectorised passes per camera (6) and block of boxes, never per box
         cam_row = inputs.keyframe[channel][inputs.ann_sample[keep_ann]]
-        a = keep_ann[cam_row >= 0]
-        r = cam_row[cam_row >= 0]
-        center, orientation = transforms.boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], d.ego_t[r],
-                                                         d.ego_q[r], d.sensor_t[r], d.sensor_q[r])
-        corners = transforms.box_corners(center, inputs.ann_size_wlh[a], orientation)  # (N, 3, 8)
-        k = d.intrinsic[r]
-        projected = (k[:, :, 0, None] * corners[:, None, 0] + k[:, :, 1, None] * corners[:, None, 1]) \
-            + k[:, :, 2, None] * corners[:, None, 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            uv = np.moveaxis(projected[:, :2] / projected[:, 2:3], 1, 2)  # (N, 8, 2)
-        ok, bounds = _hull_bounds(uv, corners[:, 2] > 0)
-        center32, k32 = center.astype(np.float32), k.astype(np.float32)
-        image = (k32[:, :, 0] * center32[:, None, 0] + k32[:, :, 1] * center32[:, None, 1]) \
-            + k32[:, :, 2] * center32[:, None, 2]
-        depth = image[:, 2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            center_2d = image[:, :2] / depth[:, None]
-        keep = ok & (labels_all[a] >= 0) & (depth > 0)
-        a, r = a[keep], r[keep]
-        wlh = inputs.ann_size_wlh[a]
-        velocity = transforms.velocity_to_sensor(inputs.ann_velocity[a, :2], d.ego_q[r], d.sensor_q[r])
-        parts.append(dict(
-            ann=a, camera=np.full(len(a), c), label=labels_all[a], bbox=bounds[keep],
-            bbox_3d=np.column_stack([center[keep], wlh[:, 1], wlh[:, 2], wlh[:, 0],
-                                     -quaternions.yaw(orientation[keep])]),
-            velocity=velocity[:, [0, 2]], center_2d=center_2d[keep].astype(np.float64),
-            depth=depth[keep].astype(np.float64), attr_label=np.searchsorted(ATTRIBUTES_SORTED, inputs.ann_attribute[a])))
+        for block in range(0, max(len(keep_ann), 1), BLOCK_BOXES):  # one (maybe empty) block at least
+            rows = cam_row[block:block + BLOCK_BOXES]
+            parts.append(_camera_block(inputs, c, keep_ann[block:block + BLOCK_BOXES][rows >= 0], rows[rows >= 0],
+                                       labels_all))
     merged = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
     sample = inputs.ann_sample[merged["ann"]]
     order = np.lexsort((merged["ann"], merged["camera"], sample))

@@ -49,9 +49,7 @@ def compute(inputs: Inputs, cameras: tuple[str, ...], lidar: str, max_sweeps: in
         raise InputError(f"sample {inputs.sample_token[s]} has no {cameras[c]} keyframe (--cameras)")
 
     def to_lidar(rows: np.ndarray, owner: np.ndarray):
-        lid = lidar_row[owner]
-        return transforms.sensor_to_lidar(d.sensor_t[rows], d.sensor_q[rows], d.ego_t[rows], d.ego_q[rows],
-                                          d.sensor_t[lid], d.sensor_q[lid], d.ego_t[lid], d.ego_q[lid])
+        return transforms.sensor_to_lidar(rows, lidar_row[owner], d.sensor_t, d.sensor_q, d.ego_t, d.ego_q)
 
     s, c = cam_row.shape
     owner = np.repeat(np.arange(s), c)
@@ -64,10 +62,10 @@ def compute(inputs: Inputs, cameras: tuple[str, ...], lidar: str, max_sweeps: in
     a_sample = inputs.ann_sample[ann_order]
     lid = lidar_row[a_sample]
     center, orientation = transforms.boxes_to_sensor(inputs.ann_center[ann_order], inputs.ann_rotation[ann_order],
-                                                     d.ego_t[lid], d.ego_q[lid], d.sensor_t[lid], d.sensor_q[lid])
+                                                     lid, d.ego_t, d.ego_q, d.sensor_t, d.sensor_q)
     wlh = inputs.ann_size_wlh[ann_order]
     gt_boxes = np.column_stack([center, wlh[:, 1], wlh[:, 0], wlh[:, 2], quaternions.yaw(orientation)])
-    velocity = transforms.velocity_to_sensor(inputs.ann_velocity[ann_order, :2], d.ego_q[lid], d.sensor_q[lid])
+    velocity = transforms.velocity_to_sensor(inputs.ann_velocity[ann_order, :2], lid, d.ego_q, d.sensor_q)
     return Computed(
         inputs=inputs, lidar_row=lidar_row, cam_row=cam_row, cam_s2l_r=r.reshape(s, c, 3, 3),
         cam_s2l_t=t.reshape(s, c, 3), sweep_owner=sweep_owner, sweep_row=sweep_row, sweep_s2l_r=sweep_r,

@@ -27,7 +27,7 @@ def check_inputs(ds: Dataset, extra: tuple[str, ...] = ()) -> None:
 
 @dataclass
 class SampleData:
-    """Every sample_data row (table order): keyframes and sweeps of every channel."""
+    """The sample_data rows the infos use, in table order: every reading of the lidar, the cameras' keyframes."""
 
     token: np.ndarray  # (D,) str
     channel: np.ndarray  # (D,) str
@@ -71,21 +71,34 @@ def _rows(tokens: pl.Series, keys: pl.Series) -> np.ndarray:
             .fill_null(-1).to_numpy())
 
 
-def read_inputs(ds: Dataset, channels: tuple[str, ...]) -> Inputs:
+def read_inputs(ds: Dataset, cameras: tuple[str, ...], lidar: str) -> Inputs:
+    """The inputs for `cameras` and `lidar`. Of sample_data, only the rows the infos can use are read: every
+    `lidar` reading (sweeps follow its prev chain) and the keyframes of the cameras; camera sweeps and radar,
+    most of the table, never are."""
     check_inputs(ds)
     sample = ds.scan("tables/sample").select("token", "timestamp", "scene_token").collect()
     scene = ds.scan("tables/scene").select("token", "name").collect()
-    calib = ds.scan("tables/calibrated_sensor").collect()
-    sensor = ds.scan("tables/sensor").select("token", "channel").collect()
-    pose = ds.scan("tables/ego_pose").select("token", "translation", "rotation").collect()
-    sd = ds.scan("tables/sample_data").select(
-        "token", "sample_token", "ego_pose_token", "calibrated_sensor_token", "timestamp", "is_key_frame",
-        "filename", "prev").collect()
-    calib = calib.join(sensor.rename({"token": "sensor_token"}), on="sensor_token", how="left")
-    sd = (sd.join(calib.rename({"token": "calibrated_sensor_token", "translation": "s_t", "rotation": "s_q"}),
-                  on="calibrated_sensor_token", how="left", maintain_order="left")
-          .join(pose.rename({"token": "ego_pose_token", "translation": "e_t", "rotation": "e_q"}),
-                on="ego_pose_token", how="left", maintain_order="left"))
+    calib = (ds.scan("tables/calibrated_sensor")
+             .join(ds.scan("tables/sensor").select(pl.col("token").alias("sensor_token"), "channel"),
+                   on="sensor_token", how="left")
+             .select(pl.col("token").alias("calibrated_sensor_token"), "channel", pl.col("translation").alias("s_t"),
+                     pl.col("rotation").alias("s_q"), "camera_intrinsic")
+             .collect())
+    # filters on tokens rather than on joined columns: polars applies them while it reads
+    lidar_calib = calib.filter(pl.col("channel") == lidar)["calibrated_sensor_token"]
+    camera_calib = calib.filter(pl.col("channel").is_in(list(cameras)))["calibrated_sensor_token"]
+    sd = (ds.scan("tables/sample_data")
+          .select("token", "sample_token", "ego_pose_token", "calibrated_sensor_token", "timestamp", "is_key_frame",
+                  "filename", "prev")
+          .filter(pl.col("calibrated_sensor_token").is_in(lidar_calib.implode())
+                  | (pl.col("is_key_frame") & pl.col("calibrated_sensor_token").is_in(camera_calib.implode())))
+          .collect()
+          .join(calib, on="calibrated_sensor_token", how="left", maintain_order="left"))
+    pose = (ds.scan("tables/ego_pose").filter(pl.col("token").is_in(sd["ego_pose_token"].implode()))
+            .select(pl.col("token").alias("ego_pose_token"), pl.col("translation").alias("e_t"),
+                    pl.col("rotation").alias("e_q"))
+            .collect())
+    sd = sd.join(pose, on="ego_pose_token", how="left", maintain_order="left")
     data = SampleData(
         token=sd["token"].to_numpy(), channel=sd["channel"].to_numpy(), is_key_frame=sd["is_key_frame"].to_numpy(),
         prev=_rows(sd["token"], sd["prev"]), filename=sd["filename"].to_numpy(),
@@ -96,7 +109,7 @@ def read_inputs(ds: Dataset, channels: tuple[str, ...]) -> Inputs:
     # The devkit's sample['data'][channel]: the keyframe reading of that channel (the last in table order).
     sd_sample = _rows(sample["token"], sd["sample_token"])
     keyframe = {}
-    for channel in channels:
+    for channel in (*cameras, lidar):
         pick = np.flatnonzero(data.is_key_frame & (data.channel == channel) & (sd_sample >= 0))
         rows = np.full(len(sample), -1, dtype=np.int64)
         rows[sd_sample[pick]] = pick

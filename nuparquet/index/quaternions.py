@@ -4,7 +4,11 @@ summation order, same normalisation rule)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from nuparquet.index import blas
 
 _UNIT_TOLERANCE = 1e-14  # pyquaternion's Quaternion.is_unit default
 
@@ -36,11 +40,19 @@ def _q_bar_matrix(q: np.ndarray) -> np.ndarray:
 
 
 def rotation_matrices(q: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) `Quaternion(q).rotation_matrix`: q_matrix @ q_bar_matrix.T of the normalised q."""
+    """(N, 3, 3) `Quaternion(q).rotation_matrix`: q_matrix @ q_bar_matrix.T of the normalised q (a gemm)."""
     q = normalised(q)
-    a, b = _q_matrix(q), _q_bar_matrix(q)
-    product = _sum4(a[..., :, None, :], b[..., None, :, :])  # [i, j] = sum_k a[i, k] * b[j, k]
-    return product[..., 1:, 1:]
+    # only the lower-right 3x3 block is kept: its elements are computed alone, each as the gemm computes it
+    return blas.gemm(_q_matrix(q)[..., 1:, :], np.swapaxes(_q_bar_matrix(q), -1, -2)[..., :, 1:])
+
+
+def rough_rotation_matrices(q: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) the textbook closed form of the rotation matrix: a few ulps from `rotation_matrices`, for
+    conservative pre-filters with margins only (never for output values)."""
+    w, x, y, z = np.moveaxis(normalised(q), -1, 0)
+    return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+                     np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+                     np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
 
 
 def inverse(q: np.ndarray) -> np.ndarray:
@@ -51,12 +63,21 @@ def inverse(q: np.ndarray) -> np.ndarray:
 
 
 def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """(N, 4) the Hamilton product `p * q` (pyquaternion: q_matrix(p) @ q)."""
-    return _sum4(_q_matrix(p), np.asarray(q, dtype=np.float64)[..., None, :])
+    """(N, 4) the Hamilton product `p * q` (pyquaternion: np.dot(q_matrix(p), q), a gemv)."""
+    return blas.gemv_rows(_q_matrix(np.asarray(p, dtype=np.float64)), np.asarray(q, dtype=np.float64))
 
 
 def yaw(q: np.ndarray) -> np.ndarray:
-    """(N,) `Quaternion(q).yaw_pitch_roll[0]` in radians."""
+    """(N,) `Quaternion(q).yaw_pitch_roll[0]` in radians.
+
+    pyquaternion computes it on numpy scalars: `y ** 2` is the C library's pow (not always y * y) and
+    np.arctan2 of scalars in numpy 1.26 is the C library's atan2 (numpy 2's vectorised arctan2 differs in
+    the last bit), so both go through `math` here, one scalar at a time (~0.3 us each).
+    """
     q = normalised(q)
     w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.arctan2(2 * (w * z - x * y), 1 - 2 * (y**2 + z**2))
+    y2 = np.fromiter(map(math.pow, y.ravel().tolist(), [2.0] * y.size), np.float64, y.size).reshape(y.shape)
+    z2 = np.fromiter(map(math.pow, z.ravel().tolist(), [2.0] * z.size), np.float64, z.size).reshape(z.shape)
+    num, den = 2 * (w * z - x * y), 1 - 2 * (y2 + z2)
+    return np.fromiter(map(math.atan2, num.ravel().tolist(), den.ravel().tolist()), np.float64,
+                       num.size).reshape(num.shape)

@@ -8,43 +8,40 @@ from __future__ import annotations
 import numpy as np
 
 from nuparquet.index import quaternions
-
-
-def _mv(m: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(N, 3) m @ v for (N, 3, 3) m and (N, 3) v, each row summed left to right."""
-    return (m[..., 0] * v[..., None, 0] + m[..., 1] * v[..., None, 1]) + m[..., 2] * v[..., None, 2]
-
-
-def _vm(v: np.ndarray, m: np.ndarray) -> np.ndarray:
-    """(N, 3) v @ m (a row vector times a matrix), summed left to right."""
-    return (v[..., 0, None] * m[..., 0, :] + v[..., 1, None] * m[..., 1, :]) + v[..., 2, None] * m[..., 2, :]
-
-
-def _mm(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) a @ b, summed left to right."""
-    return (a[..., :, 0, None] * b[..., None, 0, :] + a[..., :, 1, None] * b[..., None, 1, :]) \
-        + a[..., :, 2, None] * b[..., None, 2, :]
+from nuparquet.index.blas import gemm, gemv_cols, gemv_rows, inv3
 
 
 def _t(m: np.ndarray) -> np.ndarray:
     return np.swapaxes(m, -1, -2)
 
 
-def sensor_to_lidar(sensor_t, sensor_q, sensor_ego_t, sensor_ego_q, lidar_t, lidar_q, ego_t, ego_q):
+def _per_reading(reading: np.ndarray, matrices_of) -> np.ndarray:
+    """`matrices_of(rows)` computed once per distinct reading and gathered for every row of `reading`: the
+    rotation matrices and inverses of a camera's pose are shared by all of its boxes."""
+    unique, index = np.unique(reading, return_inverse=True)
+    return matrices_of(unique)[index]
+
+
+def sensor_to_lidar(rows, lidar_rows, sensor_t, sensor_q, ego_t, ego_q):
     """`obtain_sensor2top`: (R (N, 3, 3), T (N, 3)) with points_lidar = points_sensor @ R.T + T.
 
-    sensor_*: the reading's calibration (translation, rotation); sensor_ego_*: its ego pose; lidar_*, ego_*:
-    the keyframe lidar's calibration and ego pose (one row per reading). Returns `sensor2lidar_rotation`
-    (= R.T of the converter's R) and `sensor2lidar_translation`.
+    rows (N,): the readings; lidar_rows (N,): the keyframe lidar reading of each; sensor_* (calibration) and
+    ego_* (ego pose): (D, ...) per reading. Returns `sensor2lidar_rotation` (= R.T of the converter's R) and
+    `sensor2lidar_translation`.
     """
-    l2e_r_s = quaternions.rotation_matrices(sensor_q)
-    e2g_r_s = quaternions.rotation_matrices(sensor_ego_q)
-    e2g_inv_t = _t(np.linalg.inv(quaternions.rotation_matrices(ego_q)))
-    l2e_inv_t = _t(np.linalg.inv(quaternions.rotation_matrices(lidar_q)))
-    back = _mm(e2g_inv_t, l2e_inv_t)
-    r = _mm(_mm(_t(l2e_r_s), _t(e2g_r_s)), back)
-    t = _vm(_vm(np.asarray(sensor_t, np.float64), _t(e2g_r_s)) + sensor_ego_t, back)
-    t = t - (_vm(np.asarray(ego_t, np.float64), back) + _vm(np.asarray(lidar_t, np.float64), l2e_inv_t))
+    l2e_r_s = _per_reading(rows, lambda r: quaternions.rotation_matrices(sensor_q[r]))
+    e2g_r_s = _per_reading(rows, lambda r: quaternions.rotation_matrices(ego_q[r]))
+
+    def lidar_side(r):  # (inv(e2g_r_mat).T @ inv(l2e_r_mat).T, inv(l2e_r_mat)) per keyframe lidar reading
+        e2g_inv = inv3(quaternions.rotation_matrices(ego_q[r]))
+        l2e_inv = inv3(quaternions.rotation_matrices(sensor_q[r]))
+        return np.stack([gemm(_t(e2g_inv), _t(l2e_inv)), l2e_inv], axis=1)
+
+    back, l2e_inv = np.moveaxis(_per_reading(lidar_rows, lidar_side), 1, 0)
+    r = gemm(gemm(_t(l2e_r_s), _t(e2g_r_s)), back)
+    # `x @ M.T` of a C-ordered M is numpy's gemv of M and x (gemv_rows); `x @ back` is gemv_cols
+    t = gemv_cols(gemv_rows(e2g_r_s, sensor_t[rows]) + ego_t[rows], back)
+    t = t - (gemv_cols(ego_t[lidar_rows], back) + gemv_rows(l2e_inv, sensor_t[lidar_rows]))
     return _t(r), t
 
 
@@ -53,7 +50,7 @@ def sensor_from_lidar_f32(sensor2lidar_r: np.ndarray, sensor2lidar_t: np.ndarray
     rt = _t(sensor2lidar_r)
     out = np.zeros(rt.shape[:-2] + (4, 4))
     out[..., :3, :3] = rt
-    out[..., :3, 3] = -_mv(rt, sensor2lidar_t)
+    out[..., :3, 3] = -gemv_rows(rt, sensor2lidar_t)  # -1 * np.matmul(rot.T, trans.reshape(3, 1))
     out[..., 3, 3] = 1.0
     return out.astype(np.float32) if f32 else out
 
@@ -67,8 +64,9 @@ def pose_matrix_f32(q: np.ndarray, t: np.ndarray, *, f32: bool = True) -> np.nda
     return out.astype(np.float32) if f32 else out
 
 
-def boxes_to_sensor(center, rotation, ego_t, ego_q, sensor_t, sensor_q):
-    """Global boxes into a sensor frame as the devkit moves a Box: (center (N, 3), orientation (N, 4)).
+def boxes_to_sensor(center, rotation, reading, ego_t, ego_q, sensor_t, sensor_q):
+    """Global boxes into the frame of sensor reading `reading` (N,) as the devkit moves a Box: (center (N, 3),
+    orientation (N, 4)). `ego_*`, `sensor_*`: (D, ...) per reading.
 
     Each step is `translate(-t)` then `rotate(inverse q)`; `rotate` normalises the inverse quaternion
     (rotation_matrix does, in place) before multiplying the orientation by it.
@@ -76,27 +74,47 @@ def boxes_to_sensor(center, rotation, ego_t, ego_q, sensor_t, sensor_q):
     center = np.asarray(center, np.float64)
     orientation = np.asarray(rotation, np.float64)
     for t, q in ((ego_t, ego_q), (sensor_t, sensor_q)):
-        q_inv = quaternions.normalised(quaternions.inverse(q))
-        center = _mv(quaternions.rotation_matrices(q_inv), center - t)
+        q_inv = quaternions.normalised(quaternions.inverse(q[reading]))
+        r = _per_reading(reading, lambda rows, q=q: quaternions.rotation_matrices(
+            quaternions.normalised(quaternions.inverse(q[rows]))))
+        center = gemv_rows(r, center - t[reading])
         orientation = quaternions.multiply(q_inv, orientation)
     return center, orientation
 
 
-def velocity_to_sensor(velocity_xy: np.ndarray, ego_q: np.ndarray, sensor_q: np.ndarray) -> np.ndarray:
-    """(N, 3) [vx, vy, 0] @ inv(e2g).T @ inv(s2e).T: a global xy velocity into a sensor frame (NaN stays NaN)."""
+def rough_boxes_to_sensor(center, rotation, reading, ego_t, ego_q, sensor_t, sensor_q):
+    """`boxes_to_sensor` with plain float products (centres within ~1e-12 relative of the exact ones; the
+    orientation is exact): for pre-filters with margins only."""
+    center = np.asarray(center, np.float64)
+    orientation = np.asarray(rotation, np.float64)
+    for t, q in ((ego_t, ego_q), (sensor_t, sensor_q)):
+        r = _per_reading(reading, lambda rows, q=q: quaternions.rough_rotation_matrices(q[rows]))
+        center = np.einsum("nji,nj->ni", r, center - t[reading])  # R.T @ (c - t)
+        orientation = quaternions.multiply(quaternions.normalised(quaternions.inverse(q[reading])), orientation)
+    return center, orientation
+
+
+def velocity_to_sensor(velocity_xy: np.ndarray, reading: np.ndarray, ego_q: np.ndarray,
+                       sensor_q: np.ndarray) -> np.ndarray:
+    """(N, 3) [vx, vy, 0] @ inv(e2g).T @ inv(s2e).T: a global xy velocity into the frame of sensor reading
+    `reading` (N,); `ego_q`, `sensor_q` (D, 4) per reading. NaN stays NaN."""
     v = np.concatenate([velocity_xy, np.zeros(velocity_xy.shape[:-1] + (1,))], axis=-1)
-    v = _vm(v, _t(np.linalg.inv(quaternions.rotation_matrices(ego_q))))
-    return _vm(v, _t(np.linalg.inv(quaternions.rotation_matrices(sensor_q))))
+    for q in (ego_q, sensor_q):
+        v = gemv_rows(_per_reading(reading, lambda rows, q=q: inv3(quaternions.rotation_matrices(q[rows]))), v)
+    return v
 
 
-def box_corners(center, size_wlh, orientation) -> np.ndarray:
-    """(N, 3, 8) devkit `Box.corners()`: corners in the box's frame rotated by the orientation, then moved."""
+def box_local_corners(size_wlh) -> np.ndarray:
+    """(N, 3, 8) devkit `Box.corners()` before rotation: x = l/2 * (1, 1, 1, 1, -1, -1, -1, -1), and so on."""
     w, l, h = np.moveaxis(np.asarray(size_wlh, np.float64), -1, 0)
     x = (l / 2)[:, None] * np.array([1, 1, 1, 1, -1, -1, -1, -1])
     y = (w / 2)[:, None] * np.array([1, -1, -1, 1, 1, -1, -1, 1])
     z = (h / 2)[:, None] * np.array([1, 1, -1, -1, 1, 1, -1, -1])
-    local = np.stack([x, y, z], axis=1)  # (N, 3, 8)
-    r = quaternions.rotation_matrices(orientation)
-    rotated = (r[:, :, 0, None] * local[:, None, 0] + r[:, :, 1, None] * local[:, None, 1]) \
-        + r[:, :, 2, None] * local[:, None, 2]
-    return rotated + center[:, :, None]
+    return np.stack([x, y, z], axis=1)
+
+
+def box_corners(center, size_wlh, orientation) -> np.ndarray:
+    """(N, 3, 8) devkit `Box.corners()`: corners in the box's frame rotated by the orientation, then moved."""
+    # corners 4-7 are corners 2, 3, 0, 1 negated (before the move) and rounding is symmetric: half the products
+    half = gemm(quaternions.rotation_matrices(orientation), box_local_corners(size_wlh)[:, :, :4])
+    return np.concatenate([half, -half[:, :, [2, 3, 0, 1]]], axis=2) + center[:, :, None]
