@@ -11,6 +11,7 @@ is larger (a nuScenes lidar frame: ~35k points, ~1.5 MB of columns) — plus the
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -61,6 +62,16 @@ class SceneSummary:
     pcd_layout: tuple[tuple[str, str], ...] | None = None  # radar: (field, numpy type) of the header
     pcd_file: str | None = None  # the radar file the layout was read from
     labelled: dict[str, int] = field(default_factory=dict)  # frames with a lidarseg / panoptic label file
+
+    def to_json(self) -> dict:
+        """A JSON-able form (the engine keeps a finished scene's value in a marker file)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_json(cls, value: dict) -> SceneSummary:
+        layout = value.get("pcd_layout")
+        return cls(**{**value, "problems": [Problem(**p) for p in value.get("problems", [])],
+                      "pcd_layout": None if layout is None else tuple(tuple(pair) for pair in layout)})
 
 
 def convert_scene(task: SceneTask) -> SceneSummary:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import Literal
 
 from nuparquet.errors import UsageError
 from nuparquet.options import option
@@ -35,6 +36,13 @@ class ConvertOptions:
                                       "are listed in manifest.json and counted in one warning)")
     jobs: int = option(0, metavar="N", help="with --sensors: processes converting scenes in parallel (default 0: "
                                             "one per core); the output is the same whatever N")
+    engine: Literal["process", "ray", "serial"] = option(
+        "process", help="with --sensors: where scenes are converted: 'process' (--jobs local processes, default), "
+        "'ray' (Ray tasks: a local Ray of --jobs CPUs, or the cluster of --ray-address; the dataroot and OUT must be "
+        "on storage every node sees) or 'serial'. The output is the same byte for byte")
+    ray_address: str | None = option(
+        None, metavar="ADDRESS", help="with --sensors --engine ray: join this Ray cluster ('auto' on a cluster "
+        "node, or ray://head:10001) instead of starting a local Ray")
     lidar_columns: int = option(
         NUSCENES_LIDAR_COLUMNS, metavar="N",
         help=f"float32 values per lidar point in the .pcd.bin files (default {NUSCENES_LIDAR_COLUMNS}, nuScenes: x y z "
@@ -48,6 +56,12 @@ class ConvertOptions:
             raise UsageError(f"--sensors takes {', '.join(SENSOR_MODALITIES)} (got {', '.join(unknown)})")
         if self.jobs < 0:
             raise UsageError(f"--jobs must be 0 (one per core) or more (got {self.jobs})")
+        from nuparquet.engine import EngineOptions, check_engine
+
+        engine = EngineOptions(engine=self.engine, ray_address=self.ray_address)
+        engine.check()
+        if self.sensors and self.engine == "ray":
+            check_engine(engine)  # Ray installed: say so before the tables are converted, not after
         if self.lidar_columns not in (4, 5):
             raise UsageError(f"--lidar-columns must be 4 or 5 (got {self.lidar_columns})")
         if not self.version or not self.version.strip():

@@ -3,8 +3,9 @@ nuScenes-lidarseg and Panoptic nuScenes labels, converted scene by scene on a pr
 
 Opt-in (`convert --sensors lidar,radar`), keyframes unless `--sweeps`. Each scene is one task
 (`nuparquet.scene_points`: `SceneTask` -> `convert_scene`, a top-level function of explicit inputs) that writes one part file,
-`part-{scene:05d}.parquet` (scene position in name order), straight into the temporary output; the only pool
-is in `run_scene_tasks`, so another engine can replace it. Output is byte-identical whatever `--jobs`.
+`part-{scene:05d}.parquet` (scene position in name order), committed into the temporary output by the
+scale-out engine (`run_scene_tasks`: serial, local processes or Ray with `--engine ray`). Output is
+byte-identical whatever `--jobs` and `--engine`.
 
 Memory: a worker holds one row group at a time — whole frames, at most `scene_points.ROW_GROUP_ROWS` points
 unless one frame is larger (a nuScenes lidar frame: ~35k points, ~1.5 MB of columns) — plus the file it is
@@ -15,16 +16,20 @@ of scenes.
 
 from __future__ import annotations
 
-import multiprocessing
+import dataclasses
+import shutil
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
 
 import polars as pl
 import pyarrow.parquet as pq
 
+from nuparquet.convert.options import ConvertOptions
 from nuparquet.convert.registry import BuildContext, Builder, WrittenParts
 from nuparquet.convert.write import part_name
+from nuparquet.engine import EngineOptions, WorkUnit, move_parts, run_units
 from nuparquet.problems import Problem, ProblemsFound
+from nuparquet.progress import Progress
 from nuparquet.scene_points import (
     LABELS, SceneSummary, SceneTask, convert_scene, layout_text, lidar_schema, radar_schema,
 )
@@ -34,30 +39,37 @@ from nuparquet.scene_points import (
 MAX_LISTED_MISSING = 10_000
 
 
-def run_scene_tasks(tasks: list[SceneTask], jobs: int, on_done: Callable[[SceneSummary], None]) -> list[SceneSummary]:
-    """`convert_scene` over `tasks` (in-process for one job, else on a process pool); summaries in task order.
-    The one place that chooses how scenes run in parallel (a scale-out engine can take its place)."""
-    if jobs <= 1 or len(tasks) <= 1:
-        summaries = []
-        for task in tasks:
-            summaries.append(convert_scene(task))
-            on_done(summaries[-1])
-        return summaries
-    # forkserver: workers fork from a clean server process that imported the task module once (a plain fork of
-    # this process, which runs polars/Arrow thread pools, can deadlock; spawn re-imports in every worker).
-    context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload(["nuparquet.scene_points"])
-    with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=context) as pool:
-        futures = [pool.submit(convert_scene, task) for task in tasks]
-        summaries = []
-        try:
-            for future in futures:
-                summaries.append(future.result())
-                on_done(summaries[-1])
-        except BaseException:  # a worker failed or Ctrl-C: do not convert the remaining scenes first
-            pool.shutdown(wait=True, cancel_futures=True)
-            raise
-        return summaries
+def run_scene_tasks(tasks: list[SceneTask], directory: Path, options: ConvertOptions,
+                    on_done: Callable[[str], None]) -> list[SceneSummary]:
+    """`convert_scene` over `tasks` on the scale-out engine (`nuparquet.engine`: in this process for one job, else
+    a local process pool, or Ray with --engine ray), each scene writing into its own part folder; the parts are
+    then moved into `directory` as `part-{i:05d}.parquet` in task order. Summaries in task order; a scene whose task
+    raised stops the conversion with its name (UnitsFailed)."""
+    engine = EngineOptions(engine=options.engine, workers=options.workers, ray_address=options.ray_address)
+    if engine.engine == "process" and (options.workers <= 1 or len(tasks) <= 1):
+        engine.engine = "serial"  # one job: no worker process to start
+    parts_dir = directory.parent / f".{directory.name}.parts"
+    outcomes = run_units(_convert_unit, [WorkUnit(task.scene_name, task) for task in tasks], parts_dir=parts_dir,
+                         options=engine, on_progress=_forward(on_done))
+    move_parts(outcomes, parts_dir, directory, name=lambda index, unit, filename: part_name(index))
+    shutil.rmtree(parts_dir, ignore_errors=True)
+    return [SceneSummary.from_json(outcome.value) for outcome in outcomes]
+
+
+def _convert_unit(unit: WorkUnit, part: Path) -> dict:
+    """The engine's task: one scene's points into its part folder (a top-level function, pickled to workers)."""
+    return convert_scene(dataclasses.replace(unit.args, path=str(Path(part) / "points.parquet"))).to_json()
+
+
+def _forward(on_done: Callable[[str], None]) -> Callable[[Progress], None]:
+    """The engine's progress events as one `on_done(scene name)` per finished scene."""
+    seen = [0]
+
+    def on_progress(event: Progress) -> None:
+        while seen[0] < event.done:
+            seen[0] += 1
+            on_done(event.step)
+    return on_progress
 
 
 def sensor_frames(ctx: BuildContext, modality: str) -> pl.DataFrame:
@@ -88,11 +100,11 @@ def build_points(ctx: BuildContext, modality: str, name: str) -> dict[str, Writt
     if ctx.reporter:
         ctx.reporter.grow(len(tasks))
 
-    def done(summary: SceneSummary) -> None:
+    def done(scene: str) -> None:
         if ctx.reporter:
-            ctx.reporter.advance(step=f"{name} {tasks[summary.part].scene_name}")
+            ctx.reporter.advance(step=f"{name} {scene}")
 
-    summaries = run_scene_tasks(tasks, ctx.options.workers, done)
+    summaries = run_scene_tasks(tasks, directory, ctx.options, done)
     problems = [p for s in summaries for p in s.problems]
     missing = [m for s in summaries for m in s.missing]
     layouts = {s.pcd_layout: s.pcd_file for s in summaries if s.pcd_layout is not None}
