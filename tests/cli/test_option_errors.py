@@ -27,8 +27,6 @@ from nuparquet.cli.main import main
      "unknown channel 'CAM_NOWHERE' for scene-0001"),
     (["convert", "{root}", "--version", "v1.0-synth", "--out", "{tmp}/x", "--sensors", "lidar", "--ray-address", "auto"],
      "--ray-address needs --engine ray"),
-    (["convert", "{root}", "--version", "v1.0-synth", "--out", "{tmp}/x", "--sensors", "lidar", "--engine", "spark"],
-     "invalid choice: 'spark'"),
     (["validate", "{root}", "--version", ""], "--version must name the version folder"),
     (["validate", "{root}", "--version", ".."], "--version must name the version folder"),
     (["convert", "{root}", "--version", " ", "--out", "{tmp}/x"], "--version must name the version folder"),
