@@ -81,3 +81,39 @@ def lyft_rig_out(lyft_rig_root, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("lyft-rig-out") / "out"
     convert(lyft_rig_root, LYFT_RIG_VERSION, out)
     return out
+
+
+IRREGULAR_VERSION = "v1.0-irregular"
+IRREGULAR_EMPTY_VERSION = IRREGULAR_VERSION + "-test"  # same tables, empty annotation tables
+
+
+@pytest.fixture(scope="session")
+def irregular_root(tmp_path_factory) -> Path:
+    """The generator's irregular profile (`synth.irregular`): 2 scenes x 9 samples with images and lidar, tracks
+    with 1-3 s gaps, hills, boxes 0.05-1.5 m in front of CAM_FRONT, clock ties, a late first CAM_FRONT frame,
+    and IRREGULAR_EMPTY_VERSION beside IRREGULAR_VERSION."""
+    from nuparquet.synth import synthesize
+
+    root = tmp_path_factory.mktemp("irregular") / "data"
+    synthesize(root, scenes=2, samples_per_scene=9, with_images=True, with_lidar=True, seed=5,
+               version=IRREGULAR_VERSION, profile="irregular")
+    return root
+
+
+@pytest.fixture(scope="session")
+def irregular_out(irregular_root, tmp_path_factory) -> Path:
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp("irregular-out") / "out"
+    convert(irregular_root, IRREGULAR_VERSION, out)
+    return out
+
+
+@pytest.fixture(scope="session")
+def irregular_empty_out(irregular_root, tmp_path_factory) -> Path:
+    """The conversion of the version folder whose sample_annotation and instance tables are empty."""
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp("irregular-empty-out") / "out"
+    convert(irregular_root, IRREGULAR_EMPTY_VERSION, out)
+    return out
