@@ -22,8 +22,8 @@ from nuparquet.projection.lidar import project_points
 
 os.environ.setdefault("MPLBACKEND", "Agg")  # the devkit's explorer imports pyplot; never open a window
 
-EXTRACT_VERSION = "v1.0-mini-extract"
-SYNTH_VERSION = "v1.0-synth"
+from conftest import EXTRACT_VERSION, IRREGULAR_VERSION, SYNTH_VERSION
+
 PARITY_SCENE = "scene-0916"  # busy parking lot: ~1400 camera frames, ~85k (frame, box) pairs
 CORNER_TOLERANCE_PX = 1e-6
 # The devkit rounds lidar points to float32 after every transform step: at ~1e3 m global coordinates that is
@@ -61,7 +61,7 @@ def assert_boxes_match_devkit(nusc, frames: pl.DataFrame, annotations, samples) 
     passes_all = ours.corner_visible.all(axis=1) & ours.in_front
 
     ours_rows, devkit_corners_px, devkit_depths = [], [], []
-    counts = {"frames": 0, "none": 0, "any": 0, "all": 0, "sweeps": 0}
+    counts = {"frames": 0, "none": 0, "any": 0, "all": 0, "sweeps": 0, "near_in_view": 0}
     for frame in frames.select("token", "width", "height", "is_key_frame").iter_rows(named=True):
         # get_sample_data(token, level) filters get_sample_data(token, NONE) by box_in_image(box, K, size, level):
         # one devkit call per frame and level-wise filtering is the same computation at a third of the cost.
@@ -76,6 +76,10 @@ def assert_boxes_match_devkit(nusc, frames: pl.DataFrame, annotations, samples) 
             counts["any" if level == BoxVisibility.ANY else "all"] += len(devkit_set)
         for box in boxes:
             corners_camera = box.corners()
+            centre_px = view_points(box.center[:, None], intrinsic, normalize=True)[:2, 0]
+            if ((corners_camera[2] > 0.1).all() and (corners_camera[2] <= 1.0).all()
+                    and 0 < centre_px[0] < imsize[0] and 0 < centre_px[1] < imsize[1]):
+                counts["near_in_view"] += 1  # in front and in view, yet dropped: corners count beyond 1 m only
             ours_rows.append(row_of[frame["token"], box.token])
             devkit_corners_px.append(view_points(corners_camera, intrinsic, normalize=True)[:2].T)
             devkit_depths.append(corners_camera[2])
@@ -151,7 +155,8 @@ def assert_lidar_matches_devkit(nusc, monkeypatch, out: Path, dataroot: Path, sc
     global_from_ego, ego_from_lidar = sensor_poses(lidar_frames)
     cameras_df = frames.filter(pl.col("modality") == "camera")
     cameras = cameras_from_frames(cameras_df)  # once for every image
-    counts = {"images": 0, "points": 0, "boundary_points": 0, "max_error_px": 0.0, "max_depth_error_m": 0.0}
+    counts = {"images": 0, "points": 0, "boundary_points": 0, "max_error_px": 0.0, "max_depth_error_m": 0.0,
+              "near_points": 0}
     for index_of_camera, camera in enumerate(cameras_df.iter_rows(named=True)):
         row = lidar_of_sample[camera["sample_token"]]
         lidar = lidar_frames.row(row, named=True)
@@ -169,6 +174,9 @@ def assert_lidar_matches_devkit(nusc, monkeypatch, out: Path, dataroot: Path, sc
             & (devkit_uv[:, 1] > 1) & (devkit_uv[:, 1] < height - 1)
         )
         np.testing.assert_array_equal(devkit_uv[devkit_keep], devkit_kept_uv)  # we recorded the right call
+        counts["near_points"] += int(((devkit_depth_m > 0.1) & (devkit_depth_m <= 1.0) & (devkit_uv[:, 0] > 1)
+                                      & (devkit_uv[:, 0] < width - 1) & (devkit_uv[:, 1] > 1)
+                                      & (devkit_uv[:, 1] < height - 1)).sum())  # in view, dropped by min_dist
 
         # Points either side of a filter edge only by the devkit's float32 rounding may differ; no others.
         differ = np.setxor1d(index, np.flatnonzero(devkit_keep))
@@ -233,29 +241,31 @@ def test_lidar_points_in_keyframe_images_equal_devkit_map_pointcloud_to_image(
 # ---------------------------------------------------------------------------------------------- synthetic data
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="module", params=["synth", "irregular"])
 def synth(request, devkit):
-    try:
-        from nuparquet.synth import synthesize  # noqa: F401 - being written in parallel; skip until it lands
-    except ImportError:
-        pytest.skip("nuparquet.synth.synthesize is not available yet")
+    """The regular synthetic dataset, and the irregular one (boxes and lidar points 0.05-1.5 m in front of
+    CAM_FRONT, tracks with gaps that get_boxes must not interpolate across, hills)."""
+    if request.param == "irregular":
+        root, out = request.getfixturevalue("irregular_root"), request.getfixturevalue("irregular_out")
+        return root, out, load_devkit(devkit, root, IRREGULAR_VERSION)
     root, out = request.getfixturevalue("synth_root"), request.getfixturevalue("synth_out")
     return root, out, load_devkit(devkit, root, SYNTH_VERSION)
 
 
 @pytest.mark.devkit
 def test_synthetic_boxes_equal_devkit_get_sample_data(synth):
-    _, out, nusc = synth
+    root, out, nusc = synth
     counts = assert_boxes_match_devkit(nusc, *read_out(out))
     assert counts["frames"] > 0 and counts["any"] > 0
+    if IRREGULAR_VERSION in {p.name for p in root.iterdir()}:
+        assert counts["near_in_view"] >= 2  # the boxes 0.5 and 0.8 m in front of CAM_FRONT were compared
 
 
 @pytest.mark.devkit
 def test_synthetic_sweep_boxes_equal_devkit_get_boxes(synth):
     _, out, nusc = synth
     frames, annotations, samples = read_out(out)
-    if frames["is_key_frame"].all():
-        pytest.skip("the synthetic dataset has no camera sweeps")
+    assert not frames["is_key_frame"].all()  # the generator writes sweeps: a regression there must fail, not skip
     assert assert_sweep_boxes_match_devkit_get_boxes(nusc, frames, annotations, samples) > 0
 
 
@@ -264,6 +274,8 @@ def test_synthetic_lidar_points_equal_devkit_map_pointcloud_to_image(synth, monk
     root, out, nusc = synth
     counts = assert_lidar_matches_devkit(nusc, monkeypatch, out, root, None)
     assert counts["images"] > 0
+    if IRREGULAR_VERSION in {p.name for p in root.iterdir()}:
+        assert counts["near_points"] > 50  # points on the boxes just in front of CAM_FRONT, nearer than 1 m
 
 
 # ---------------------------------------------------------------------------------- get_boxes on small tables

@@ -13,19 +13,23 @@ import polars as pl
 import pyarrow.parquet as pq
 import pytest
 
-from conftest import EXTRACT_VERSION, SYNTH_VERSION
+from conftest import EXTRACT_VERSION, IRREGULAR_VERSION, SYNTH_VERSION
 
 
 def read(out: Path, dataset: str) -> pl.DataFrame:
     return pl.read_parquet(out / dataset / "*.parquet")
 
 
-@pytest.fixture(scope="module", params=["extract", "synth"])
+@pytest.fixture(scope="module", params=["extract", "synth", "irregular"])
 def case(request):
-    """(dataroot, version, converted OUT, devkit NuScenes) for the real extract and a synthetic dataset."""
+    """(dataroot, version, converted OUT, devkit NuScenes) for the real extract, a synthetic dataset and the
+    irregular synthetic one (gaps of 1-3 s, hills: velocities at the devkit's limits, 3D path lengths)."""
     devkit = request.getfixturevalue("devkit")
     if request.param == "extract":
         root, version, out = request.getfixturevalue("extract_root"), EXTRACT_VERSION, request.getfixturevalue("extract_out")
+    elif request.param == "irregular":
+        root, out = request.getfixturevalue("irregular_root"), request.getfixturevalue("irregular_out")
+        version = IRREGULAR_VERSION
     else:
         root, version, out = request.getfixturevalue("synth_root"), SYNTH_VERSION, request.getfixturevalue("synth_out")
     return root, version, out, devkit.NuScenes(version=version, dataroot=str(root), verbose=False)
