@@ -8,6 +8,7 @@ import math
 import shutil
 from pathlib import Path
 
+import polars as pl
 import pytest
 
 from conftest import SYNTH_VERSION
@@ -212,6 +213,29 @@ def test_failed_overwrite_keeps_the_previous_output(root, tmp_path, monkeypatch)
     _replace_builder(monkeypatch, "instances", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt))
     assert main(["convert", str(root), "--version", V, "--out", str(out), "--overwrite", "--quiet"]) == 130
     assert (out / "manifest.json").read_text() == before
+
+
+def test_successful_overwrite_leaves_the_new_output_and_nothing_of_the_old(irregular_root, tmp_path):
+    """Convert the annotated version, then --overwrite with the version whose annotation tables are empty: the
+    annotations are gone (counted from the JSON), a file only the old output had is gone, the files are those of
+    a fresh conversion, and no temporary sibling is left."""
+    from conftest import IRREGULAR_EMPTY_VERSION, IRREGULAR_VERSION
+
+    out, fresh = tmp_path / "out", tmp_path / "fresh"
+    assert main(["convert", str(irregular_root), "--version", IRREGULAR_VERSION, "--out", str(out), "--quiet"]) == 0
+    old_annotations = len(json.loads((irregular_root / IRREGULAR_VERSION / "sample_annotation.json").read_text()))
+    assert pl.read_parquet(out / "annotations" / "*.parquet").height == old_annotations > 0
+    (out / "annotations" / "stale-part.parquet").write_bytes(b"old")
+    assert main(["convert", str(irregular_root), "--version", IRREGULAR_EMPTY_VERSION, "--out", str(out),
+                 "--overwrite", "--quiet"]) == 0
+    assert json.loads((out / "manifest.json").read_text())["source"]["version"] == IRREGULAR_EMPTY_VERSION
+    assert not (out / "annotations" / "stale-part.parquet").exists()
+    assert pl.read_parquet(out / "annotations" / "*.parquet").height == 0
+    assert main(["convert", str(irregular_root), "--version", IRREGULAR_EMPTY_VERSION, "--out", str(fresh),
+                 "--quiet"]) == 0
+    listing = lambda root: sorted(str(p.relative_to(root)) for p in root.rglob("*"))  # noqa: E731
+    assert listing(out) == listing(fresh)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fresh", "out"]
 
 
 @pytest.mark.parametrize("table,field,value,expected", [
