@@ -140,6 +140,26 @@ def test_dangling_foreign_key_names_file_record_and_token(root, tmp_path, capsys
     assert code == 1 and f"{table}.json[{index}]" in message
 
 
+def _empty_means_none(table: str, field: str) -> bool:
+    from nuparquet.schemas import table_schemas
+
+    return next(f for f in table_schemas()[table].fields if f.name == field).empty_ok
+
+
+@pytest.mark.parametrize("table,field", [(t, f) for t, f in FOREIGN_KEYS if f not in ("attribute_tokens", "log_tokens")
+                                         and not _empty_means_none(t, f)])
+def test_empty_string_foreign_key_outside_prev_next_is_dangling(root, capsys, table, field):
+    """"" means "none" only where the schema says so (prev/next, visibility_token); elsewhere, e.g. an
+    annotation's instance_token, it is a reference to nothing."""
+    records = load(root, table)
+    index = len(records) // 2 if table not in ("scene", "map") else 0
+    records[index][field] = ""
+    save(root, table, records)
+    code, message = validate(root, capsys)
+    assert code == 1
+    assert f"{table}.json[{index}] token={records[index]['token']}: {field} '' does not resolve" in message
+
+
 @pytest.mark.parametrize("bad", [[math.nan, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 0.0], [1.0, 1.0, 0.0, 0.0]])
 def test_bad_quaternion(root, tmp_path, capsys, bad):
     records = load(root, "ego_pose")
@@ -156,6 +176,22 @@ def test_count_field_disagreeing_with_the_records(root, tmp_path, capsys):
     save(root, "scene", records)
     code, message = validate(root, capsys)
     assert code == 1 and f"scene.json[0] token={records[0]['token']}: nbr_samples" in message
+
+
+def test_count_field_on_a_record_nothing_refers_to(root, capsys):
+    """An instance with nbr_annotations 3 that no annotation names (its first/last point at another instance's
+    annotations, so only the count is wrong); and a scene claiming one sample fewer than it has."""
+    instances = load(root, "instance")
+    lonely = dict(instances[0], token="e" * 32, nbr_annotations=3)
+    save(root, "instance", instances + [lonely])
+    scenes = load(root, "scene")
+    scenes[0]["nbr_samples"] -= 1
+    save(root, "scene", scenes)
+    code, message = validate(root, capsys)
+    assert code == 1
+    assert (f"instance.json[{len(instances)}] token={'e' * 32}: nbr_annotations is 3 but 0 sample_annotation "
+            "records refer to it") in message
+    assert f"scene.json[0] token={scenes[0]['token']}: nbr_samples is {scenes[0]['nbr_samples']} but" in message
 
 
 def test_problems_are_listed_all_at_once_with_a_bound(root, capsys):
@@ -241,6 +277,12 @@ def test_successful_overwrite_leaves_the_new_output_and_nothing_of_the_old(irreg
 @pytest.mark.parametrize("table,field,value,expected", [
     ("sample_annotation", "size", [1.0, "x", 2.0], "must be a list of numbers"),
     ("sample_annotation", "translation", [1.0, 2.0], "must have 3 numbers"),
+    ("sample_annotation", "translation", [1.0, 2.0, 3.0, 4.0], "must have 3 numbers"),  # too long, too
+    ("ego_pose", "rotation", [1.0, 0.0, 0.0, 0.0, 0.0], "must have 4 numbers"),
+    ("calibrated_sensor", "camera_intrinsic", [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]],
+     "must have 3x3 numbers or be []"),
+    ("calibrated_sensor", "camera_intrinsic", [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
+     "must have 3x3 numbers or be []"),
     ("calibrated_sensor", "camera_intrinsic", [[1.0, 0.0], [0.0, 1.0]], "must have 3x3 numbers or be []"),
     ("sample_data", "is_key_frame", "yes", "must be a boolean"),
     ("sensor", "channel", 5, "must be a string"),
