@@ -7,8 +7,8 @@ What changes, scene by scene (its own seeded generator; the regular draws are un
   exactly 1.5 s, where devkit `box_velocity`'s strict `>` matters), every frame shifted with its sample.
 - Camera sweeps within 20 ms of a 10 Hz clock tick (devkit `render_scene`'s default time step, counted from
   the first sample) are moved onto the tick: ties between a clock step and a frame timestamp.
-- In the first scene, CAM_FRONT's first keyframe comes 250 ms after the first sample (its earlier sweeps
-  dropped): a camera whose first frame comes late.
+- In the first scene, CAM_FRONT's first keyframe comes 250 ms after the first sample, after sweeps of the
+  first sample: a camera whose first keyframe comes late, with frames before it.
 - Tracks of eight annotations or more lose runs of annotations (`GAP_PATTERNS`): gaps of 1 to 3 s, on one side
   or both sides of an annotation (prev/next link across the gap, as in nuScenes; get_boxes does not
   interpolate sweep boxes across it, since the instance is absent from the sample before).
@@ -72,7 +72,7 @@ def irregular_timeline(timeline: Timeline, channels, scene_index: int) -> Timeli
     samples = first_us + np.arange(old_samples.size, dtype=np.int64) * KEYFRAME_INTERVAL_US
     stamps = timeline.frame_timestamp_us + (samples - old_samples)[timeline.frame_sample_index]
     channel = timeline.frame_channel
-    keep = np.ones(stamps.size, dtype=bool)
+    sample_index = timeline.frame_sample_index.copy()
     for c, ch in enumerate(channels):
         if ch.modality != "camera":
             continue
@@ -81,10 +81,11 @@ def irregular_timeline(timeline: Timeline, channels, scene_index: int) -> Timeli
             first_key = rows[timeline.frame_is_key_frame[rows]][0]
             late_us = first_us + LATE_FIRST_FRAME_US
             stamps[first_key] = late_us
-            keep[rows[(stamps[rows] <= late_us) & ~timeline.frame_is_key_frame[rows]]] = False
-        _snap_to_clock(stamps, rows[keep[rows]], timeline.frame_is_key_frame, first_us)
-    return _timeline_of(samples, channel[keep], stamps[keep], timeline.frame_is_key_frame[keep],
-                        timeline.frame_sample_index[keep])
+            # The sweeps it now comes after belong to the first sample: frames before a channel's first
+            # keyframe, which the devkit's render_scene never shows (it starts each camera at that keyframe).
+            sample_index[rows[(stamps[rows] <= late_us) & ~timeline.frame_is_key_frame[rows]]] = 0
+        _snap_to_clock(stamps, rows, timeline.frame_is_key_frame, first_us)
+    return _timeline_of(samples, channel, stamps, timeline.frame_is_key_frame, sample_index)
 
 
 def _snap_to_clock(stamps: np.ndarray, rows: np.ndarray, is_key: np.ndarray, first_us: int) -> None:
@@ -103,6 +104,9 @@ def _snap_to_clock(stamps: np.ndarray, rows: np.ndarray, is_key: np.ndarray, fir
 
 
 def _timeline_of(samples, channel, stamps, is_key, sample_index) -> Timeline:
+    """Frames ordered by channel, then time, linked to their neighbours of the same channel."""
+    order = np.lexsort((stamps, channel))
+    channel, stamps, is_key, sample_index = channel[order], stamps[order], is_key[order], sample_index[order]
     index = np.arange(channel.size)
     same_as_prev = np.r_[False, channel[1:] == channel[:-1]]
     same_as_next = np.r_[channel[:-1] == channel[1:], False]

@@ -93,8 +93,12 @@ def test_camera_sweeps_fall_on_ten_hertz_clock_ticks_and_the_first_cam_front_fra
             and (sd["timestamp"] - first[scene_of[sd["sample_token"]]]) % 100_000 == 0]
     assert len(ties) > 20
     late = [sd for sd in t["sample_data"] if channel[sd["token"]] == "CAM_FRONT" and sd["is_key_frame"]
-            and sd["timestamp"] > sample[sd["sample_token"]]["timestamp"] and not sd["prev"]]
+            and sd["timestamp"] > sample[sd["sample_token"]]["timestamp"]]
     assert len(late) == 1 and late[0]["timestamp"] - sample[late[0]["sample_token"]]["timestamp"] == 250_000
+    # Sweeps of the same sample come before it (frames before the channel's first keyframe).
+    before = [sd for sd in t["sample_data"] if sd["sample_token"] == late[0]["sample_token"]
+              and channel[sd["token"]] == "CAM_FRONT" and not sd["is_key_frame"]]
+    assert before and all(sd["timestamp"] < late[0]["timestamp"] for sd in before) and late[0]["prev"]
 
 
 def test_the_test_version_has_the_same_tables_with_empty_annotation_tables(irregular_root, t):
