@@ -24,6 +24,7 @@ demo: $(STAMP)
 	$(BIN)/python pipelines/demo.py --out demo-out
 
 # Tests run on every core (up to 4): the suite is ~8 minutes on one core of the 2-core CI machine, ~4 on two.
+# Where ../shared is present, a skipped parity/devkit test fails the run (tests/conftest.py, pytest_sessionfinish).
 test: $(DEVKIT_STAMP)
 	$(BIN)/python -m pytest -q -n auto --maxprocesses=4
 
