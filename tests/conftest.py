@@ -3,6 +3,7 @@ datasets, and their conversions. Conversions are session-scoped: every test read
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -78,14 +79,29 @@ def extract_out(extract_root, tmp_path_factory) -> Path:
     return out
 
 
+def generated_root(tmp_path_factory, name: str, make) -> Path:
+    """A dataroot written by `make(root)` (the generator): in a fresh temporary directory, or, when
+    NUPARQUET_TEST_CACHE names a directory (the mutation runs, which start pytest once per mutant), made once
+    there and reused. The generator is deterministic and never mutated, so the cache cannot go stale within a run."""
+    cache = os.environ.get("NUPARQUET_TEST_CACHE")
+    if not cache:
+        root = tmp_path_factory.mktemp(name) / "data"
+        make(root)
+        return root
+    root = Path(cache) / name / "data"
+    if not (root.parent / ".complete").exists():
+        make(root)
+        (root.parent / ".complete").touch()
+    return root
+
+
 @pytest.fixture(scope="session")
 def synth_root(tmp_path_factory) -> Path:
     """A small synthetic dataset with images and lidar: 2 scenes x 6 samples."""
     from nuparquet.synth import synthesize
 
-    root = tmp_path_factory.mktemp("synth") / "data"
-    synthesize(root, scenes=2, samples_per_scene=6, with_images=True, with_lidar=True, seed=7, version=SYNTH_VERSION)
-    return root
+    return generated_root(tmp_path_factory, "synth", lambda root: synthesize(
+        root, scenes=2, samples_per_scene=6, with_images=True, with_lidar=True, seed=7, version=SYNTH_VERSION))
 
 
 @pytest.fixture(scope="session")
@@ -116,10 +132,9 @@ def lyft_rig_root(tmp_path_factory) -> Path:
     no radar. One scene x 4 samples, with images and lidar files."""
     from nuparquet.synth import synthesize
 
-    root = tmp_path_factory.mktemp("lyft-rig") / "data"
-    synthesize(root, scenes=1, samples_per_scene=4, with_images=True, with_lidar=True, seed=11,
-               version=LYFT_RIG_VERSION, rig="lyft")
-    return root
+    return generated_root(tmp_path_factory, "lyft-rig", lambda root: synthesize(
+        root, scenes=1, samples_per_scene=4, with_images=True, with_lidar=True, seed=11, version=LYFT_RIG_VERSION,
+        rig="lyft"))
 
 
 @pytest.fixture(scope="session")
@@ -142,10 +157,9 @@ def irregular_root(tmp_path_factory) -> Path:
     and IRREGULAR_EMPTY_VERSION beside IRREGULAR_VERSION."""
     from nuparquet.synth import synthesize
 
-    root = tmp_path_factory.mktemp("irregular") / "data"
-    synthesize(root, scenes=2, samples_per_scene=9, with_images=True, with_lidar=True, seed=5,
-               version=IRREGULAR_VERSION, profile="irregular")
-    return root
+    return generated_root(tmp_path_factory, "irregular", lambda root: synthesize(
+        root, scenes=2, samples_per_scene=9, with_images=True, with_lidar=True, seed=5, version=IRREGULAR_VERSION,
+        profile="irregular"))
 
 
 @pytest.fixture(scope="session")
