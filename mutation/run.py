@@ -51,8 +51,9 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
     "mosaic": (["nuparquet/render/plan.py", "nuparquet/render/mosaic.py"],
                ["tests/render/test_plan.py", "tests/parity/test_mosaic_devkit.py", "tests/render/test_render.py",
                 "-k", "(mosaic or plan or keyframe) and not 12.0 and not 2.0", "-m", "not real"]),
-    "video": (["nuparquet/render/video.py"], ["tests/render/test_video_content.py", "tests/render/test_video.py",
-                                              "-k", "writer or frames_come_back or even_sizes"]),
+    "video": (["nuparquet/render/video.py"], ["tests/render/test_video_content.py", "-k", "not rendered_video",
+                                              "tests/render/test_video.py::test_video_writer_rejects_frames_of_another_size",
+                                              "tests/render/test_video.py::test_video_writer_pads_odd_sizes_and_writes_browser_playable_h264"]),
 }
 DEFAULT_BUDGET_S = 900
 

@@ -78,3 +78,95 @@ def test_a_rendered_video_shows_the_camera_images_in_the_devkits_sample_order(ir
         errors = [np.abs(frame[:225].astype(int) - image).mean() for image in images]
         assert int(np.argmin(errors)) == k and errors[k] < 4, (k, errors)
         assert np.abs(frame[225].astype(int) - frame[224].astype(int)).mean() < 4  # replicated, not black
+
+
+# --- the writer's small contract (each line below once let a plausible bug through) ---------------------------
+
+from fractions import Fraction  # noqa: E402
+
+from nuparquet.render.video import frame_rate, pad_to_even  # noqa: E402
+
+
+@pytest.mark.parametrize("height, width", [(3, 5), (3, 4), (2, 5), (2, 4)])
+def test_pad_to_even_replicates_the_last_row_and_column_only_where_odd(height, width):
+    image = np.arange(height * width * 3, dtype=np.uint8).reshape(height, width, 3)
+    padded = pad_to_even(image)
+    assert padded.shape == (height + height % 2, width + width % 2, 3)
+    np.testing.assert_array_equal(padded[:height, :width], image)  # nothing added at the top or left
+    if height % 2:
+        np.testing.assert_array_equal(padded[height, :width], image[-1])
+    if width % 2:
+        np.testing.assert_array_equal(padded[:height, width], image[:, -1])
+    if not (height % 2 or width % 2):
+        assert padded is image
+
+
+def test_frame_rate_is_exact_for_ntsc_rates_and_refuses_non_positive_ones():
+    assert frame_rate(12) == Fraction(12) and frame_rate(0.5) == Fraction(1, 2)
+    assert frame_rate(30000 / 1001) == Fraction(30000, 1001)
+    assert frame_rate(1 / 1002) == Fraction(1, 1001)  # denominators are bounded by NTSC's 1001
+    for fps in (0, -2.0, float("nan")):
+        with pytest.raises(ValueError, match="fps must be positive"):
+            frame_rate(fps)
+
+
+def test_writer_defaults_crf_bounds_nested_output_and_frame_count(tmp_path):
+    path = tmp_path / "a" / "b" / "x.mp4"  # parents are created
+    with VideoWriter(path, width=16, height=16) as video:  # default rate: 2 fps
+        for _ in range(3):
+            video.write(np.zeros((16, 16, 3), np.uint8))
+        assert video.frames_written == 3
+    with av.open(str(path)) as container:
+        assert float(container.streams.video[0].average_rate) == 2.0
+    VideoWriter(tmp_path / "ok.mp4", width=16, height=16, crf=51).abort()
+    for crf in (52, -1):
+        with pytest.raises(ValueError, match=f"crf must be in 0..51, got {crf}"):
+            VideoWriter(tmp_path / "bad.mp4", width=16, height=16, crf=crf)
+
+
+def test_writer_accepts_frames_already_padded_and_names_a_wrong_size(tmp_path):
+    with VideoWriter(tmp_path / "p.mp4", width=15, height=9) as video:
+        video.write(np.zeros((9, 15, 3), np.uint8))
+        video.write(np.zeros((10, 16, 3), np.uint8))  # the padded size is accepted too
+        with pytest.raises(ValueError, match="frame of size 50x40 written to a 15x9 video"):
+            video.write(np.zeros((40, 50, 3), np.uint8))
+
+
+def test_colours_are_bgr_and_frames_are_timed_at_the_frame_rate(tmp_path):
+    path = tmp_path / "c.mp4"
+    blue_bgr = np.zeros((32, 32, 3), np.uint8)
+    blue_bgr[..., 0] = 200
+    with VideoWriter(path, width=32, height=32, fps=4, crf=0) as video:
+        for _ in range(3):
+            video.write(blue_bgr)
+    with av.open(str(path)) as container:
+        frames = list(container.decode(video=0))
+    assert [round(float(f.time), 6) for f in frames] == [0.0, 0.25, 0.5]
+    pixel = frames[0].to_ndarray(format="bgr24")[16, 16].astype(int)
+    assert pixel[0] > 150 and pixel[2] < 60  # blue stays blue (not swapped to red)
+
+
+def test_crf_and_preset_reach_the_encoder(tmp_path):
+    rng = np.random.default_rng(0)
+    frames = [rng.integers(0, 255, (64, 64, 3), dtype=np.uint8) for _ in range(4)]
+    sizes = {}
+    for crf, preset in ((0, "medium"), (51, "medium"), (30, "ultrafast"), (30, "veryslow")):
+        path = tmp_path / f"{crf}-{preset}.mp4"
+        with VideoWriter(path, width=64, height=64, crf=crf, preset=preset) as video:
+            for frame in frames:
+                video.write(frame)
+        sizes[crf, preset] = path.stat().st_size
+    assert sizes[0, "medium"] > 5 * sizes[51, "medium"]
+    assert sizes[30, "ultrafast"] != sizes[30, "veryslow"]
+
+
+def test_abort_then_close_leaves_nothing_and_close_twice_is_harmless(tmp_path):
+    video = VideoWriter(tmp_path / "a.mp4", width=16, height=16)
+    video.write(np.zeros((16, 16, 3), np.uint8))
+    video.abort()
+    video.close()
+    assert list(tmp_path.iterdir()) == []
+    with VideoWriter(tmp_path / "b.mp4", width=16, height=16) as video:
+        video.write(np.zeros((16, 16, 3), np.uint8))
+    video.close()
+    assert [p.name for p in tmp_path.iterdir()] == ["b.mp4"]
