@@ -73,6 +73,8 @@ def test_view_points_projects_by_default_and_refuses_views_over_4x4():
     for shape in ((5, 4), (4, 5), (5, 5)):
         with pytest.raises(ValueError, match=rf"at most 4x4, got \({shape[0]}, {shape[1]}\)"):
             geometry.view_points(points, np.eye(*shape))
+    with pytest.raises(ValueError, match=r"at most 4x4, got \(5, 4\)$"):  # a stack: the view's own shape
+        geometry.view_points(points[:1], np.tile(np.eye(5, 4), (1, 1, 1)))
 
 
 def test_view_points_with_one_point_per_view_of_a_stack():
