@@ -215,3 +215,16 @@ def test_distance_to_ego_is_null_without_a_reference_keyframe(synth_root, tmp_pa
     convert(tmp_path / "data", SYNTH_VERSION, tmp_path / "out")
     distance = read(tmp_path / "out", "annotations")["distance_to_ego_m"]
     assert distance.null_count() == len(distance) and not distance.is_nan().any()
+
+
+def test_rows_are_stored_in_the_documented_order(case):
+    """Row order is what lets a scene filter skip row groups: instances by (scene, first timestamp, token),
+    annotations by (scene, timestamp, instance, token), scenes by (name, token). Checked against Python sorting
+    of the rows as stored."""
+    _, _, out, _ = case
+    for dataset, keys in (("instances", ("scene_name", "first_timestamp", "token")),
+                          ("annotations", ("scene_name", "timestamp", "instance_token", "token")),
+                          ("scenes", ("name", "token"))):
+        files = sorted((out / dataset).glob("*.parquet"))
+        rows = [tuple(r) for f in files for r in pl.read_parquet(f).select(keys).iter_rows()]
+        assert rows == sorted(rows), dataset
