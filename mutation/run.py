@@ -29,9 +29,9 @@ REPO = Path(__file__).resolve().parent.parent
 STAGING = REPO / ".mutation"
 MUTMUT = [sys.executable, "-m", "mutmut"]
 
-# Groups whose tests parse JSON with DuckDB (a thread pool): their mutants are forked from a fork server that
+# Groups whose tests parse JSON with DuckDB (a thread pool; conversions in fixtures): their mutants are forked from a fork server that
 # never ran a test, since a process forked while DuckDB's threads run can hang.
-FORKSERVER_GROUPS = {"reader", "builders"}
+FORKSERVER_GROUPS = {"reader", "builders", "projection"}
 
 # group -> (modules to mutate, pytest arguments selecting the fast tests that exercise them)
 GROUPS: dict[str, tuple[list[str], list[str]]] = {
