@@ -31,7 +31,7 @@ MUTMUT = [sys.executable, "-m", "mutmut"]
 
 # Groups whose tests parse JSON with DuckDB (a thread pool; conversions in fixtures): their mutants are forked from a fork server that
 # never ran a test, since a process forked while DuckDB's threads run can hang.
-FORKSERVER_GROUPS = {"reader", "builders", "projection"}
+FORKSERVER_GROUPS = {"reader", "builders", "projection", "mosaic"}
 
 # group -> (modules to mutate, pytest arguments selecting the fast tests that exercise them)
 GROUPS: dict[str, tuple[list[str], list[str]]] = {
