@@ -202,7 +202,32 @@ def test_problems_are_listed_all_at_once_with_a_bound(root, capsys):
     code, message = validate(root, capsys)
     assert code == 1
     assert message.count("does not resolve to a calibrated_sensor record") == 50
-    assert f"{len(records) - 50} more like the above" in message
+    assert f"sample_data.json: ... {len(records) - 50} more like the above" in message  # names the file
+    assert f"\n{len(records)} problems found" in message  # the summary counts the ones not listed too
+
+
+def test_exactly_the_bound_of_problems_lists_them_all_without_a_summary(root, capsys):
+    records = load(root, "sample_data")
+    for r in records[:50]:
+        r["calibrated_sensor_token"] = "0" * 32
+    save(root, "sample_data", records)
+    code, message = validate(root, capsys)
+    assert code == 1
+    assert message.count("does not resolve to a calibrated_sensor record") == 50
+    assert "more like the above" not in message and "\n50 problems found" in message
+
+
+def test_more_warnings_than_the_bound_stay_warnings(root, tmp_path, capsys):
+    """60 near-unit quaternions: 50 warnings listed and a summary line that is a warning too, not an error."""
+    records = load(root, "ego_pose")
+    assert len(records) > 60
+    for r in records[:60]:
+        r["rotation"] = [x * 0.99997 for x in r["rotation"]]
+    save(root, "ego_pose", records)
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 0, message
+    warnings = json.loads((tmp_path / "out" / "manifest.json").read_text())["warnings"]
+    assert len(warnings) == 51 and any("10 more like the above" in w for w in warnings)
 
 
 def test_missing_sensor_files_are_not_an_error(root, tmp_path, capsys):
