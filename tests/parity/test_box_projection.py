@@ -409,3 +409,25 @@ def test_frames_without_intrinsic_get_no_boxes_and_unknown_visibility_is_rejecte
     assert empty.corners_px.shape == (0, 8, 2) and empty.to_polars().height == 0
     with pytest.raises(ValueError, match="visibility"):
         project_boxes(frames, annotations, samples, visibility="some")
+
+
+def test_projected_boxes_as_a_dataframe_hold_every_field_under_its_name_and_type():
+    """`ProjectedBoxes.to_polars`: one column per field, named as the field, with the documented dtype, holding
+    the arrays' values (a box straddling the near plane, so both visibility flags vary)."""
+    import dataclasses
+
+    frames, annotations, samples = small_tables(frame_timestamp=2000, is_key_frame=True)
+    projected = project_boxes(frames, annotations, samples, visibility="none")
+    df = projected.to_polars()
+    names = [f.name for f in dataclasses.fields(projected)]
+    assert df.columns == names and df.height == len(projected) > 0
+    dtypes = {"frame_index": pl.Int64, "interpolated": pl.Boolean, "in_front": pl.Boolean, "visible": pl.Boolean,
+              "distance_m": pl.Float64, "corners_camera_m": pl.Array(pl.Float64, (8, 3)),
+              "corners_px": pl.Array(pl.Float64, (8, 2)), "depths": pl.Array(pl.Float64, 8),
+              "corner_visible": pl.Array(pl.Boolean, 8), "center_ego_m": pl.Array(pl.Float64, 3),
+              "center_camera_m": pl.Array(pl.Float64, 3)}
+    for name in names:
+        assert df.schema[name] == dtypes.get(name, pl.String), name
+        values = getattr(projected, name)
+        column = df[name].to_numpy() if df.schema[name] != pl.String else np.array(df[name].to_list())
+        np.testing.assert_array_equal(column.reshape(values.shape), values, err_msg=name)
