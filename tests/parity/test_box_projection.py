@@ -431,3 +431,22 @@ def test_projected_boxes_as_a_dataframe_hold_every_field_under_its_name_and_type
         values = getattr(projected, name)
         column = df[name].to_numpy() if df.schema[name] != pl.String else np.array(df[name].to_list())
         np.testing.assert_array_equal(column.reshape(values.shape), values, err_msg=name)
+
+
+def test_depth_limits_are_strict_like_the_devkit():
+    """devkit box_in_image: a corner counts as visible only at depth > 1 m and a box needs every corner at
+    depth > 0.1 m. Boxes whose back faces lie exactly at 1.0 m and at 0.1 m (exact in floating point: the
+    camera looks along ego x with a rotation of 0/+-1 entries) sit on those limits."""
+    frames, annotations, samples = small_tables(frame_timestamp=2000, is_key_frame=True)
+    annotations = annotations.filter(pl.col("sample_token") == "s1").head(2).with_columns(
+        translation=pl.Series([[1.5, 0.0, 1.5], [0.225, 0.0, 1.5]], dtype=pl.Array(pl.Float64, 3)),  # 0.225 - 0.125 == 0.1
+        size=pl.Series([[0.5, 1.0, 0.5], [0.5, 0.25, 0.5]], dtype=pl.Array(pl.Float64, 3)),
+        rotation=pl.Series([IDENTITY, IDENTITY], dtype=pl.Array(pl.Float64, 4)))
+    projected = project_boxes(frames, annotations, samples, visibility="none")
+    at_one, at_tenth = (np.flatnonzero(projected.annotation_token == t)[0] for t in annotations["token"])
+    np.testing.assert_array_equal(np.sort(np.unique(projected.depths[at_one])), [1.0, 2.0])
+    np.testing.assert_array_equal(np.sort(np.unique(projected.depths[at_tenth])), [0.1, 0.35])
+    assert (projected.corner_visible[at_one] == (projected.depths[at_one] == 2.0)).all()  # 1.0 m: not visible
+    assert projected.in_front[at_one] and not projected.in_front[at_tenth]  # 0.1 m: not in front
+    kept = project_boxes(frames, annotations, samples, visibility="any")
+    assert set(kept.annotation_token) == {annotations["token"][0]}
