@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 DEVKIT_STAMP := $(VENV)/.devkit
 
-.PHONY: demo test bench clean venv docs
+.PHONY: demo test bench clean venv docs mutation
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,8 +25,15 @@ demo: $(STAMP)
 
 # Tests run on every core (up to 4): the suite is ~8 minutes on one core of the 2-core CI machine, ~4 on two.
 # --dist loadgroup keeps the tests marked xdist_group("ray") on one worker: one local Ray session, not four.
+# Where ../shared is present, a skipped parity/devkit test fails the run (tests/conftest.py, pytest_sessionfinish).
 test: $(DEVKIT_STAMP)
 	$(BIN)/python -m pytest -q -n auto --maxprocesses=4 --dist loadgroup
+
+# Mutation testing of the core modules (mutmut 3), group by group within a time budget each; see MUTATION.md.
+# Not part of `make test`. MUTATION_ARGS, e.g. "geometry mosaic --budget-s 300", picks groups and the budget.
+mutation: $(DEVKIT_STAMP)
+	$(BIN)/pip install --quiet -e '.[test,mutation]'
+	$(BIN)/python mutation/run.py $(MUTATION_ARGS)
 
 bench: $(DEVKIT_STAMP)
 	$(BIN)/python benchmarks/run_all.py
@@ -35,4 +42,4 @@ docs: $(STAMP)
 	$(BIN)/python -m nuparquet.schemas --docs docs/schemas.md
 
 clean:
-	rm -rf $(VENV) demo-out
+	rm -rf $(VENV) demo-out .mutation

@@ -296,7 +296,7 @@ def _check_manifest(manifest: Any, where: str) -> dict:
     if not isinstance(manifest, dict) or manifest.get("format") != FORMAT_NAME:
         raise FormatError(f"{where}: not a nuparquet output ({MANIFEST} does not say \"format\": \"{FORMAT_NAME}\")")
     version = manifest.get("format_version")
-    if not isinstance(version, int):
+    if isinstance(version, bool) or not isinstance(version, int):  # JSON true is a Python int
         raise FormatError(f"{where}: {MANIFEST} has no integer format_version")
     if version > FORMAT_VERSION:
         raise FormatError(

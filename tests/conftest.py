@@ -3,6 +3,7 @@ datasets, and their conversions. Conversions are session-scoped: every test read
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -15,6 +16,51 @@ SYNTH_VERSION = "v1.0-synth"
 NUSCENES_CHANNELS = {"CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_BACK_RIGHT", "CAM_BACK", "CAM_BACK_LEFT", "CAM_FRONT_LEFT",
                      "LIDAR_TOP", "RADAR_FRONT", "RADAR_FRONT_LEFT", "RADAR_FRONT_RIGHT", "RADAR_BACK_LEFT",
                      "RADAR_BACK_RIGHT"}
+
+
+# --- no skipped parity tests where they can run ---------------------------------------------------------------
+# Parity tests (tests/parity/, anything using the devkit, anything marked devkit or real) may skip only where
+# ../shared is absent (a user's fresh clone). Where it is present (CI, the developers' machines) a skip of one
+# of them fails the run: the controller sees every report, with or without pytest-xdist.
+
+PARITY_DIR = REPO / "tests" / "parity"
+_parity_skips: list[str] = []
+
+
+def _shared_present() -> bool:
+    return (EXTRACT_ROOT / EXTRACT_VERSION).is_dir()
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        names = getattr(item, "fixturenames", ())
+        if "devkit" in names or Path(str(item.path)).is_relative_to(PARITY_DIR):
+            item.add_marker(pytest.mark.devkit)
+        if "extract_root" in names:
+            item.add_marker(pytest.mark.real)
+
+
+def pytest_runtest_logreport(report):
+    if report.skipped and not hasattr(report, "wasxfail") and ("devkit" in report.keywords or "real" in report.keywords):
+        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+        _parity_skips.append(f"{report.nodeid}: {reason}")
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_sessionfinish(session, exitstatus):
+    if hasattr(session.config, "workerinput"):  # an xdist worker: its reports reach the controller
+        return
+    if _parity_skips and _shared_present() and session.exitstatus == pytest.ExitCode.OK:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    if _parity_skips and _shared_present():
+        terminalreporter.section("parity tests skipped although ../shared is present", red=True)
+        for line in _parity_skips:
+            terminalreporter.write_line(line, red=True)
+        terminalreporter.write_line(f"error: {len(_parity_skips)} parity/devkit test(s) skipped: the run fails "
+                                    "(they may skip only where ../shared is absent)", red=True)
 
 
 @pytest.fixture(scope="session")
@@ -31,6 +77,22 @@ def extract_out(extract_root, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("extract") / "out"
     convert(extract_root, EXTRACT_VERSION, out)
     return out
+
+
+def generated_root(tmp_path_factory, name: str, make) -> Path:
+    """A dataroot written by `make(root)` (the generator): in a fresh temporary directory, or, when
+    NUPARQUET_TEST_CACHE names a directory (the mutation runs, which start pytest once per mutant), made once
+    there and reused. The generator is deterministic and never mutated, so the cache cannot go stale within a run."""
+    cache = os.environ.get("NUPARQUET_TEST_CACHE")
+    if not cache:
+        root = tmp_path_factory.mktemp(name) / "data"
+        make(root)
+        return root
+    root = Path(cache) / name / "data"
+    if not (root.parent / ".complete").exists():
+        make(root)
+        (root.parent / ".complete").touch()
+    return root
 
 
 @pytest.fixture(scope="session")
@@ -57,9 +119,8 @@ def synth_root(tmp_path_factory) -> Path:
     """A small synthetic dataset with images and lidar: 2 scenes x 6 samples."""
     from nuparquet.synth import synthesize
 
-    root = tmp_path_factory.mktemp("synth") / "data"
-    synthesize(root, scenes=2, samples_per_scene=6, with_images=True, with_lidar=True, seed=7, version=SYNTH_VERSION)
-    return root
+    return generated_root(tmp_path_factory, "synth", lambda root: synthesize(
+        root, scenes=2, samples_per_scene=6, with_images=True, with_lidar=True, seed=7, version=SYNTH_VERSION))
 
 
 @pytest.fixture(scope="session")
@@ -73,8 +134,11 @@ def synth_out(synth_root, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def devkit():
-    """The nuscenes-devkit module (test-only reference implementation)."""
-    return pytest.importorskip("nuscenes.nuscenes")
+    """The nuscenes-devkit module (test-only reference implementation). Not installed is a failure, never a
+    skip: `make test` installs it, and a parity test that silently stops running hides regressions."""
+    import nuscenes.nuscenes
+
+    return nuscenes.nuscenes
 
 
 LYFT_RIG_VERSION = "v1.0-lyft-rig"
@@ -87,10 +151,9 @@ def lyft_rig_root(tmp_path_factory) -> Path:
     no radar. One scene x 4 samples, with images and lidar files."""
     from nuparquet.synth import synthesize
 
-    root = tmp_path_factory.mktemp("lyft-rig") / "data"
-    synthesize(root, scenes=1, samples_per_scene=4, with_images=True, with_lidar=True, seed=11,
-               version=LYFT_RIG_VERSION, rig="lyft")
-    return root
+    return generated_root(tmp_path_factory, "lyft-rig", lambda root: synthesize(
+        root, scenes=1, samples_per_scene=4, with_images=True, with_lidar=True, seed=11, version=LYFT_RIG_VERSION,
+        rig="lyft"))
 
 
 @pytest.fixture(scope="session")
@@ -127,3 +190,38 @@ def devkit_maps(map_root) -> dict:
     from nuscenes.map_expansion.map_api import NuScenesMap
 
     return {p.stem: NuScenesMap(str(map_root), p.stem) for p in sorted((map_root / "maps" / "expansion").glob("*.json"))}
+
+
+IRREGULAR_VERSION = "v1.0-irregular"
+IRREGULAR_EMPTY_VERSION = IRREGULAR_VERSION + "-test"  # same tables, empty annotation tables
+
+
+@pytest.fixture(scope="session")
+def irregular_root(tmp_path_factory) -> Path:
+    """The generator's irregular profile (`synth.irregular`): 2 scenes x 9 samples with images and lidar, tracks
+    with 1-3 s gaps, hills, boxes 0.05-1.5 m in front of CAM_FRONT, clock ties, a late first CAM_FRONT frame,
+    and IRREGULAR_EMPTY_VERSION beside IRREGULAR_VERSION."""
+    from nuparquet.synth import synthesize
+
+    return generated_root(tmp_path_factory, "irregular", lambda root: synthesize(
+        root, scenes=2, samples_per_scene=9, with_images=True, with_lidar=True, seed=5, version=IRREGULAR_VERSION,
+        profile="irregular"))
+
+
+@pytest.fixture(scope="session")
+def irregular_out(irregular_root, tmp_path_factory) -> Path:
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp("irregular-out") / "out"
+    convert(irregular_root, IRREGULAR_VERSION, out)
+    return out
+
+
+@pytest.fixture(scope="session")
+def irregular_empty_out(irregular_root, tmp_path_factory) -> Path:
+    """The conversion of the version folder whose sample_annotation and instance tables are empty."""
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp("irregular-empty-out") / "out"
+    convert(irregular_root, IRREGULAR_EMPTY_VERSION, out)
+    return out

@@ -13,6 +13,7 @@ import pytest
 
 import nuparquet
 from nuparquet import queries
+from nuparquet.cli.main import main
 from nuparquet.dataset import Dataset, QueryError
 from nuparquet.errors import FormatError, UsageError
 from nuparquet.schemas import FORMAT_VERSION
@@ -106,6 +107,22 @@ def test_open_a_newer_format_version_asks_to_upgrade(tmp_path, extract_out):
 def test_open_an_older_format_version_asks_to_convert_again(tmp_path, extract_out):
     with pytest.raises(FormatError, match=rf"format {FORMAT_VERSION - 1}, older.*convert"):
         nuparquet.open(_with_manifest(tmp_path, extract_out, format_version=FORMAT_VERSION - 1))
+
+
+@pytest.mark.parametrize("format_version", ["1", 1.0, None, True, [1]])
+def test_open_a_non_integer_format_version_is_a_format_error(tmp_path, synth_out, format_version, capsys):
+    out = _with_manifest(tmp_path, synth_out, format_version=format_version)
+    with pytest.raises(FormatError, match="no integer format_version"):
+        nuparquet.open(out)
+    assert main(["info", str(out)]) == 1 and "no integer format_version" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("datasets", [{}, [], None, "frames"])
+def test_open_a_manifest_without_datasets_is_a_format_error(tmp_path, synth_out, datasets, capsys):
+    out = _with_manifest(tmp_path, synth_out, datasets=datasets)
+    with pytest.raises(FormatError, match="lists no datasets"):
+        nuparquet.open(out)
+    assert main(["info", str(out)]) == 1 and "lists no datasets" in capsys.readouterr().err
 
 
 def test_open_a_manifest_that_is_not_json_is_a_format_error(tmp_path):

@@ -36,6 +36,10 @@ def register(sub) -> None:
                    help="leave out the CAN bus expansion (by default can_bus/ holds every scene's files but the last's)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0); same seed, same dataset")
     p.add_argument("--version", default="v1.0-synth", help="version folder name (default v1.0-synth)")
+    p.add_argument("--profile", choices=("regular", "irregular"), default="regular",
+                   help="regular (default), or irregular: the cases regular data lacks, for tests (tracks with "
+                   "1-3 s gaps, hills, boxes and lidar points just in front of CAM_FRONT, frames on the 10 Hz "
+                   "clock, a late first CAM_FRONT frame, and a VERSION-test folder with empty annotation tables)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
@@ -52,6 +56,7 @@ def run(args) -> int:
     dataroot = synthesize(args.out, scenes=args.scenes, samples_per_scene=args.samples_per_scene,
                           with_images=args.with_images, with_lidar=args.with_lidar, seed=args.seed,
                           version=args.version, with_can_bus=args.can_bus,
+                          profile=args.profile,
                           on_progress=bars(not args.quiet))
     files = [kind for kind, on in (("images", args.with_images), ("lidar/radar", args.with_lidar)) if on]
     print(f"wrote {dataroot / args.version}: {args.scenes} scenes x {args.samples_per_scene} samples"

@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 
 from nuparquet.errors import UsageError
+from nuparquet.synth import irregular
 from nuparquet.synth.plan import plan_logs
 from nuparquet.synth.sensors import SceneSensors
 from nuparquet.progress import OnProgress, Reporter
@@ -47,7 +48,8 @@ CATEGORY_LABEL_INDEX = np.array([c.index for c in CATEGORIES])  # position in CA
 
 def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images: bool = False,
                with_lidar: bool = False, seed: int = 0, version: str = "v1.0-synth",
-               on_progress: OnProgress | None = None, rig: str = "nuscenes", with_can_bus: bool = True) -> Path:
+               on_progress: OnProgress | None = None, rig: str = "nuscenes", with_can_bus: bool = True,
+               profile: str = "regular") -> Path:
     """Write a synthetic nuScenes-format dataroot and return its path (`out_dir`).
 
     scenes: number of scenes (named scene-0001, ...), spread over logs of several locations.
@@ -60,6 +62,9 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     with_can_bus: write the CAN bus expansion (`can_bus/scene-XXXX_<message>.json`) of every scene but the last
     (a scene without CAN bus data, as some real scenes are); see `synth.can_bus`.
     on_progress: receives a `nuparquet.progress.Progress` event per scene written (None: silent).
+    profile: "regular", or "irregular" for the test cases regular data lacks (gapped tracks, hills, boxes
+    just in front of a camera, clock ties, a late first camera frame, and a `<version>-test` folder with empty
+    annotation tables; `synth.irregular`).
 
     The tables are written to a temporary sibling and renamed to `out_dir/<version>` when complete; an
     existing `out_dir/<version>` is replaced.
@@ -67,6 +72,8 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     _check_arguments(scenes, samples_per_scene, seed, version)
     if rig not in RIGS:
         raise UsageError(f"rig must be one of {', '.join(RIGS)}, got {rig!r}")
+    if profile not in irregular.PROFILES:
+        raise UsageError(f"profile must be one of {', '.join(irregular.PROFILES)}, got {profile!r}")
     dataroot = Path(out_dir)
     dataroot.mkdir(parents=True, exist_ok=True)
     table_dir = dataroot / version
@@ -81,7 +88,8 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     try:
         _write_tables_and_files(dataroot, partial_dir, logs, seed, scenes, samples_per_scene,
                                 images=with_images, point_clouds=with_lidar, can_bus=with_can_bus,
-                                on_progress=on_progress, roads=roads, version=version)
+                                on_progress=on_progress, roads=roads, version=version,
+                                irregular_profile=profile == "irregular")
     except BaseException:  # interrupted or failed: leave nothing that could pass for a complete version folder
         shutil.rmtree(partial_dir, ignore_errors=True)
         raise
@@ -91,12 +99,14 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     if table_dir.exists():
         shutil.rmtree(table_dir)
     os.replace(partial_dir, table_dir)
+    if profile == "irregular":
+        irregular.write_empty_annotation_version(dataroot, version)
     return dataroot
 
 
 def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, scenes: int, samples_per_scene: int,
                             *, images: bool, point_clouds: bool, can_bus: bool, on_progress: OnProgress | None,
-                            roads: dict[str, list], version: str = "v1.0-synth") -> None:
+                            roads: dict[str, list], version: str = "v1.0-synth", irregular_profile: bool = False) -> None:
     """Generate the scenes one by one (one scene in memory at a time) and stream them into the tables."""
     writers = {name: TableWriter(table_dir / f"{name}.json") for name in TABLES}
     task = "synth" + (" (with sensor files)" if images or point_clouds else "")
@@ -113,8 +123,12 @@ def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, sc
             for scene_index, start_us in zip(log.scene_indices, log.scene_start_us):
                 # One generator per scene: its random draws do not depend on the other scenes.
                 rng = np.random.default_rng([seed, 1, scene_index])
-                world = build_scene(rng, make_timeline(rng, start_us, samples_per_scene, log.rig.channels),
-                                    log.location.drives_on_right)
+                timeline = make_timeline(rng, start_us, samples_per_scene, log.rig.channels)
+                if irregular_profile:
+                    timeline = irregular.irregular_timeline(timeline, log.rig.channels, scene_index)
+                world = build_scene(rng, timeline, log.location.drives_on_right)
+                if irregular_profile:
+                    world = irregular.irregular_world(irregular.scene_rng(seed, scene_index), world, log.rig)
                 tokens = SceneTokens.draw(rng, world, len(log.rig.channels))
                 roads.setdefault(log.location.name, []).append(world.road)
                 filenames = frame_filenames(world, log.logfile, log.rig.channels)

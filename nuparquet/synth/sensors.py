@@ -96,7 +96,8 @@ class SceneSensors:
             t0, t1 = tl.sample_timestamp_us[k - 1], tl.sample_timestamp_us[k]
             t = min(max(int(tl.frame_timestamp_us[frame]), t0), t1)
             amount = (t - t0) / (t1 - t0)
-            has_prev = w.annotation_has_prev[ann]  # the track's previous annotation is in sample k - 1
+            # Interpolated only when the track's previous annotation is in sample k - 1 (not across a gap).
+            has_prev = w.annotation_has_prev[ann] & (w.annotation_sample[ann - 1] == k - 1)
             prev = ann[has_prev] - 1
             center = center.copy()
             rotation = rotation.copy()

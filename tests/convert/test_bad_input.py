@@ -8,6 +8,7 @@ import math
 import shutil
 from pathlib import Path
 
+import polars as pl
 import pytest
 
 from conftest import SYNTH_VERSION
@@ -139,6 +140,26 @@ def test_dangling_foreign_key_names_file_record_and_token(root, tmp_path, capsys
     assert code == 1 and f"{table}.json[{index}]" in message
 
 
+def _empty_means_none(table: str, field: str) -> bool:
+    from nuparquet.schemas import table_schemas
+
+    return next(f for f in table_schemas()[table].fields if f.name == field).empty_ok
+
+
+@pytest.mark.parametrize("table,field", [(t, f) for t, f in FOREIGN_KEYS if f not in ("attribute_tokens", "log_tokens")
+                                         and not _empty_means_none(t, f)])
+def test_empty_string_foreign_key_outside_prev_next_is_dangling(root, capsys, table, field):
+    """"" means "none" only where the schema says so (prev/next, visibility_token); elsewhere, e.g. an
+    annotation's instance_token, it is a reference to nothing."""
+    records = load(root, table)
+    index = len(records) // 2 if table not in ("scene", "map") else 0
+    records[index][field] = ""
+    save(root, table, records)
+    code, message = validate(root, capsys)
+    assert code == 1
+    assert f"{table}.json[{index}] token={records[index]['token']}: {field} '' does not resolve" in message
+
+
 @pytest.mark.parametrize("bad", [[math.nan, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 0.0], [1.0, 1.0, 0.0, 0.0]])
 def test_bad_quaternion(root, tmp_path, capsys, bad):
     records = load(root, "ego_pose")
@@ -157,6 +178,22 @@ def test_count_field_disagreeing_with_the_records(root, tmp_path, capsys):
     assert code == 1 and f"scene.json[0] token={records[0]['token']}: nbr_samples" in message
 
 
+def test_count_field_on_a_record_nothing_refers_to(root, capsys):
+    """An instance with nbr_annotations 3 that no annotation names (its first/last point at another instance's
+    annotations, so only the count is wrong); and a scene claiming one sample fewer than it has."""
+    instances = load(root, "instance")
+    lonely = dict(instances[0], token="e" * 32, nbr_annotations=3)
+    save(root, "instance", instances + [lonely])
+    scenes = load(root, "scene")
+    scenes[0]["nbr_samples"] -= 1
+    save(root, "scene", scenes)
+    code, message = validate(root, capsys)
+    assert code == 1
+    assert (f"instance.json[{len(instances)}] token={'e' * 32}: nbr_annotations is 3 but 0 sample_annotation "
+            "records refer to it") in message
+    assert f"scene.json[0] token={scenes[0]['token']}: nbr_samples is {scenes[0]['nbr_samples']} but" in message
+
+
 def test_problems_are_listed_all_at_once_with_a_bound(root, capsys):
     records = load(root, "sample_data")
     for r in records:
@@ -165,7 +202,32 @@ def test_problems_are_listed_all_at_once_with_a_bound(root, capsys):
     code, message = validate(root, capsys)
     assert code == 1
     assert message.count("does not resolve to a calibrated_sensor record") == 50
-    assert f"{len(records) - 50} more like the above" in message
+    assert f"sample_data.json: ... {len(records) - 50} more like the above" in message  # names the file
+    assert f"\n{len(records)} problems found" in message  # the summary counts the ones not listed too
+
+
+def test_exactly_the_bound_of_problems_lists_them_all_without_a_summary(root, capsys):
+    records = load(root, "sample_data")
+    for r in records[:50]:
+        r["calibrated_sensor_token"] = "0" * 32
+    save(root, "sample_data", records)
+    code, message = validate(root, capsys)
+    assert code == 1
+    assert message.count("does not resolve to a calibrated_sensor record") == 50
+    assert "more like the above" not in message and "\n50 problems found" in message
+
+
+def test_more_warnings_than_the_bound_stay_warnings(root, tmp_path, capsys):
+    """60 near-unit quaternions: 50 warnings listed and a summary line that is a warning too, not an error."""
+    records = load(root, "ego_pose")
+    assert len(records) > 60
+    for r in records[:60]:
+        r["rotation"] = [x * 0.99997 for x in r["rotation"]]
+    save(root, "ego_pose", records)
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 0, message
+    warnings = json.loads((tmp_path / "out" / "manifest.json").read_text())["warnings"]
+    assert len(warnings) == 51 and any("10 more like the above" in w for w in warnings)
 
 
 def test_missing_sensor_files_are_not_an_error(root, tmp_path, capsys):
@@ -214,9 +276,38 @@ def test_failed_overwrite_keeps_the_previous_output(root, tmp_path, monkeypatch)
     assert (out / "manifest.json").read_text() == before
 
 
+def test_successful_overwrite_leaves_the_new_output_and_nothing_of_the_old(irregular_root, tmp_path):
+    """Convert the annotated version, then --overwrite with the version whose annotation tables are empty: the
+    annotations are gone (counted from the JSON), a file only the old output had is gone, the files are those of
+    a fresh conversion, and no temporary sibling is left."""
+    from conftest import IRREGULAR_EMPTY_VERSION, IRREGULAR_VERSION
+
+    out, fresh = tmp_path / "out", tmp_path / "fresh"
+    assert main(["convert", str(irregular_root), "--version", IRREGULAR_VERSION, "--out", str(out), "--quiet"]) == 0
+    old_annotations = len(json.loads((irregular_root / IRREGULAR_VERSION / "sample_annotation.json").read_text()))
+    assert pl.read_parquet(out / "annotations" / "*.parquet").height == old_annotations > 0
+    (out / "annotations" / "stale-part.parquet").write_bytes(b"old")
+    assert main(["convert", str(irregular_root), "--version", IRREGULAR_EMPTY_VERSION, "--out", str(out),
+                 "--overwrite", "--quiet"]) == 0
+    assert json.loads((out / "manifest.json").read_text())["source"]["version"] == IRREGULAR_EMPTY_VERSION
+    assert not (out / "annotations" / "stale-part.parquet").exists()
+    assert pl.read_parquet(out / "annotations" / "*.parquet").height == 0
+    assert main(["convert", str(irregular_root), "--version", IRREGULAR_EMPTY_VERSION, "--out", str(fresh),
+                 "--quiet"]) == 0
+    listing = lambda root: sorted(str(p.relative_to(root)) for p in root.rglob("*"))  # noqa: E731
+    assert listing(out) == listing(fresh)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fresh", "out"]
+
+
 @pytest.mark.parametrize("table,field,value,expected", [
     ("sample_annotation", "size", [1.0, "x", 2.0], "must be a list of numbers"),
     ("sample_annotation", "translation", [1.0, 2.0], "must have 3 numbers"),
+    ("sample_annotation", "translation", [1.0, 2.0, 3.0, 4.0], "must have 3 numbers"),  # too long, too
+    ("ego_pose", "rotation", [1.0, 0.0, 0.0, 0.0, 0.0], "must have 4 numbers"),
+    ("calibrated_sensor", "camera_intrinsic", [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]],
+     "must have 3x3 numbers or be []"),
+    ("calibrated_sensor", "camera_intrinsic", [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
+     "must have 3x3 numbers or be []"),
     ("calibrated_sensor", "camera_intrinsic", [[1.0, 0.0], [0.0, 1.0]], "must have 3x3 numbers or be []"),
     ("sample_data", "is_key_frame", "yes", "must be a boolean"),
     ("sensor", "channel", 5, "must be a string"),

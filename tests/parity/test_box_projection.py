@@ -22,8 +22,8 @@ from nuparquet.projection.lidar import project_points
 
 os.environ.setdefault("MPLBACKEND", "Agg")  # the devkit's explorer imports pyplot; never open a window
 
-EXTRACT_VERSION = "v1.0-mini-extract"
-SYNTH_VERSION = "v1.0-synth"
+from conftest import EXTRACT_VERSION, IRREGULAR_VERSION, SYNTH_VERSION
+
 PARITY_SCENE = "scene-0916"  # busy parking lot: ~1400 camera frames, ~85k (frame, box) pairs
 CORNER_TOLERANCE_PX = 1e-6
 # The devkit rounds lidar points to float32 after every transform step: at ~1e3 m global coordinates that is
@@ -61,7 +61,7 @@ def assert_boxes_match_devkit(nusc, frames: pl.DataFrame, annotations, samples) 
     passes_all = ours.corner_visible.all(axis=1) & ours.in_front
 
     ours_rows, devkit_corners_px, devkit_depths = [], [], []
-    counts = {"frames": 0, "none": 0, "any": 0, "all": 0, "sweeps": 0}
+    counts = {"frames": 0, "none": 0, "any": 0, "all": 0, "sweeps": 0, "near_in_view": 0}
     for frame in frames.select("token", "width", "height", "is_key_frame").iter_rows(named=True):
         # get_sample_data(token, level) filters get_sample_data(token, NONE) by box_in_image(box, K, size, level):
         # one devkit call per frame and level-wise filtering is the same computation at a third of the cost.
@@ -76,6 +76,10 @@ def assert_boxes_match_devkit(nusc, frames: pl.DataFrame, annotations, samples) 
             counts["any" if level == BoxVisibility.ANY else "all"] += len(devkit_set)
         for box in boxes:
             corners_camera = box.corners()
+            centre_px = view_points(box.center[:, None], intrinsic, normalize=True)[:2, 0]
+            if ((corners_camera[2] > 0.1).all() and (corners_camera[2] <= 1.0).all()
+                    and 0 < centre_px[0] < imsize[0] and 0 < centre_px[1] < imsize[1]):
+                counts["near_in_view"] += 1  # in front and in view, yet dropped: corners count beyond 1 m only
             ours_rows.append(row_of[frame["token"], box.token])
             devkit_corners_px.append(view_points(corners_camera, intrinsic, normalize=True)[:2].T)
             devkit_depths.append(corners_camera[2])
@@ -151,7 +155,8 @@ def assert_lidar_matches_devkit(nusc, monkeypatch, out: Path, dataroot: Path, sc
     global_from_ego, ego_from_lidar = sensor_poses(lidar_frames)
     cameras_df = frames.filter(pl.col("modality") == "camera")
     cameras = cameras_from_frames(cameras_df)  # once for every image
-    counts = {"images": 0, "points": 0, "boundary_points": 0, "max_error_px": 0.0, "max_depth_error_m": 0.0}
+    counts = {"images": 0, "points": 0, "boundary_points": 0, "max_error_px": 0.0, "max_depth_error_m": 0.0,
+              "near_points": 0}
     for index_of_camera, camera in enumerate(cameras_df.iter_rows(named=True)):
         row = lidar_of_sample[camera["sample_token"]]
         lidar = lidar_frames.row(row, named=True)
@@ -169,6 +174,9 @@ def assert_lidar_matches_devkit(nusc, monkeypatch, out: Path, dataroot: Path, sc
             & (devkit_uv[:, 1] > 1) & (devkit_uv[:, 1] < height - 1)
         )
         np.testing.assert_array_equal(devkit_uv[devkit_keep], devkit_kept_uv)  # we recorded the right call
+        counts["near_points"] += int(((devkit_depth_m > 0.1) & (devkit_depth_m <= 1.0) & (devkit_uv[:, 0] > 1)
+                                      & (devkit_uv[:, 0] < width - 1) & (devkit_uv[:, 1] > 1)
+                                      & (devkit_uv[:, 1] < height - 1)).sum())  # in view, dropped by min_dist
 
         # Points either side of a filter edge only by the devkit's float32 rounding may differ; no others.
         differ = np.setxor1d(index, np.flatnonzero(devkit_keep))
@@ -233,29 +241,31 @@ def test_lidar_points_in_keyframe_images_equal_devkit_map_pointcloud_to_image(
 # ---------------------------------------------------------------------------------------------- synthetic data
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="module", params=["synth", "irregular"])
 def synth(request, devkit):
-    try:
-        from nuparquet.synth import synthesize  # noqa: F401 - being written in parallel; skip until it lands
-    except ImportError:
-        pytest.skip("nuparquet.synth.synthesize is not available yet")
+    """The regular synthetic dataset, and the irregular one (boxes and lidar points 0.05-1.5 m in front of
+    CAM_FRONT, tracks with gaps that get_boxes must not interpolate across, hills)."""
+    if request.param == "irregular":
+        root, out = request.getfixturevalue("irregular_root"), request.getfixturevalue("irregular_out")
+        return root, out, load_devkit(devkit, root, IRREGULAR_VERSION)
     root, out = request.getfixturevalue("synth_root"), request.getfixturevalue("synth_out")
     return root, out, load_devkit(devkit, root, SYNTH_VERSION)
 
 
 @pytest.mark.devkit
 def test_synthetic_boxes_equal_devkit_get_sample_data(synth):
-    _, out, nusc = synth
+    root, out, nusc = synth
     counts = assert_boxes_match_devkit(nusc, *read_out(out))
     assert counts["frames"] > 0 and counts["any"] > 0
+    if IRREGULAR_VERSION in {p.name for p in root.iterdir()}:
+        assert counts["near_in_view"] >= 2  # the boxes 0.5 and 0.8 m in front of CAM_FRONT were compared
 
 
 @pytest.mark.devkit
 def test_synthetic_sweep_boxes_equal_devkit_get_boxes(synth):
     _, out, nusc = synth
     frames, annotations, samples = read_out(out)
-    if frames["is_key_frame"].all():
-        pytest.skip("the synthetic dataset has no camera sweeps")
+    assert not frames["is_key_frame"].all()  # the generator writes sweeps: a regression there must fail, not skip
     assert assert_sweep_boxes_match_devkit_get_boxes(nusc, frames, annotations, samples) > 0
 
 
@@ -264,6 +274,8 @@ def test_synthetic_lidar_points_equal_devkit_map_pointcloud_to_image(synth, monk
     root, out, nusc = synth
     counts = assert_lidar_matches_devkit(nusc, monkeypatch, out, root, None)
     assert counts["images"] > 0
+    if IRREGULAR_VERSION in {p.name for p in root.iterdir()}:
+        assert counts["near_points"] > 50  # points on the boxes just in front of CAM_FRONT, nearer than 1 m
 
 
 # ---------------------------------------------------------------------------------- get_boxes on small tables
@@ -397,3 +409,44 @@ def test_frames_without_intrinsic_get_no_boxes_and_unknown_visibility_is_rejecte
     assert empty.corners_px.shape == (0, 8, 2) and empty.to_polars().height == 0
     with pytest.raises(ValueError, match="visibility"):
         project_boxes(frames, annotations, samples, visibility="some")
+
+
+def test_projected_boxes_as_a_dataframe_hold_every_field_under_its_name_and_type():
+    """`ProjectedBoxes.to_polars`: one column per field, named as the field, with the documented dtype, holding
+    the arrays' values (a box straddling the near plane, so both visibility flags vary)."""
+    import dataclasses
+
+    frames, annotations, samples = small_tables(frame_timestamp=2000, is_key_frame=True)
+    projected = project_boxes(frames, annotations, samples, visibility="none")
+    df = projected.to_polars()
+    names = [f.name for f in dataclasses.fields(projected)]
+    assert df.columns == names and df.height == len(projected) > 0
+    dtypes = {"frame_index": pl.Int64, "interpolated": pl.Boolean, "in_front": pl.Boolean, "visible": pl.Boolean,
+              "distance_m": pl.Float64, "corners_camera_m": pl.Array(pl.Float64, (8, 3)),
+              "corners_px": pl.Array(pl.Float64, (8, 2)), "depths": pl.Array(pl.Float64, 8),
+              "corner_visible": pl.Array(pl.Boolean, 8), "center_ego_m": pl.Array(pl.Float64, 3),
+              "center_camera_m": pl.Array(pl.Float64, 3)}
+    for name in names:
+        assert df.schema[name] == dtypes.get(name, pl.String), name
+        values = getattr(projected, name)
+        column = df[name].to_numpy() if df.schema[name] != pl.String else np.array(df[name].to_list())
+        np.testing.assert_array_equal(column.reshape(values.shape), values, err_msg=name)
+
+
+def test_depth_limits_are_strict_like_the_devkit():
+    """devkit box_in_image: a corner counts as visible only at depth > 1 m and a box needs every corner at
+    depth > 0.1 m. Boxes whose back faces lie exactly at 1.0 m and at 0.1 m (exact in floating point: the
+    camera looks along ego x with a rotation of 0/+-1 entries) sit on those limits."""
+    frames, annotations, samples = small_tables(frame_timestamp=2000, is_key_frame=True)
+    annotations = annotations.filter(pl.col("sample_token") == "s1").head(2).with_columns(
+        translation=pl.Series([[1.5, 0.0, 1.5], [0.225, 0.0, 1.5]], dtype=pl.Array(pl.Float64, 3)),  # 0.225 - 0.125 == 0.1
+        size=pl.Series([[0.5, 1.0, 0.5], [0.5, 0.25, 0.5]], dtype=pl.Array(pl.Float64, 3)),
+        rotation=pl.Series([IDENTITY, IDENTITY], dtype=pl.Array(pl.Float64, 4)))
+    projected = project_boxes(frames, annotations, samples, visibility="none")
+    at_one, at_tenth = (np.flatnonzero(projected.annotation_token == t)[0] for t in annotations["token"])
+    np.testing.assert_array_equal(np.sort(np.unique(projected.depths[at_one])), [1.0, 2.0])
+    np.testing.assert_array_equal(np.sort(np.unique(projected.depths[at_tenth])), [0.1, 0.35])
+    assert (projected.corner_visible[at_one] == (projected.depths[at_one] == 2.0)).all()  # 1.0 m: not visible
+    assert projected.in_front[at_one] and not projected.in_front[at_tenth]  # 0.1 m: not in front
+    kept = project_boxes(frames, annotations, samples, visibility="any")
+    assert set(kept.annotation_token) == {annotations["token"][0]}

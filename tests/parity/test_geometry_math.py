@@ -7,8 +7,7 @@ import pytest
 
 from nuparquet import geometry, quaternions
 
-pyquaternion = pytest.importorskip("pyquaternion")
-Quaternion = pyquaternion.Quaternion
+from pyquaternion import Quaternion  # a devkit dependency: missing is a failure, never a skip
 
 N = 500
 
@@ -150,6 +149,27 @@ def test_view_points_equals_devkit_for_perspective_and_orthographic_views(rng):
         expected = view_points(points_camera.T, view, normalize=normalize).T
         projected = geometry.view_points(points_camera, view, normalize=normalize)
         np.testing.assert_allclose(projected, expected, rtol=1e-13, atol=1e-9)
+
+
+def test_view_points_with_3x4_and_4x4_views_adds_the_translation_before_normalising(rng):
+    """A projection matrix K [R | t] (3x4) and its 4x4 padding: the fourth column must be added before the
+    division by depth (not after, not dropped)."""
+    from nuscenes.utils.geometry_utils import view_points
+
+    intrinsic = np.array([[1266.4, 0.0, 816.3], [0.0, 1266.4, 491.5], [0.0, 0.0, 1.0]])
+    rotation = Quaternion(axis=[0.1, 1.0, 0.2], angle=0.05).rotation_matrix
+    projection = intrinsic @ np.c_[rotation, [0.4, -0.3, 2.5]]  # (3, 4)
+    points_camera = rng.uniform([-20, -10, 0.5], [20, 10, 80], size=(N, 3))
+    for view in (projection, np.r_[projection, [[0.0, 0.0, 0.0, 1.0]]]):
+        for normalize in (True, False):
+            expected = view_points(points_camera.T, view, normalize=normalize).T
+            projected = geometry.view_points(points_camera, view, normalize=normalize)
+            np.testing.assert_allclose(projected, expected, rtol=1e-12, atol=1e-9)
+    # Independently: the pinhole projection of the moved points.
+    moved = points_camera @ rotation.T + [0.4, -0.3, 2.5]
+    uv = moved @ intrinsic.T
+    np.testing.assert_allclose(geometry.view_points(points_camera, projection, normalize=True)[:, :2],
+                               uv[:, :2] / uv[:, 2:3], rtol=1e-12)
 
 
 def test_view_points_takes_one_intrinsic_per_box(rng):

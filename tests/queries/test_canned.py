@@ -319,3 +319,27 @@ def test_scene_argument_restricts_every_query_to_that_scene(extract_out):
 def test_summary_rejects_unknown_sections(extract_out):
     with pytest.raises(ValueError, match="unknown section"):
         queries.summary(nuparquet.open(extract_out), sections=["nope"])
+
+
+def test_a_list_of_scenes_restricts_every_query_to_those_scenes(case):
+    """The list form of `scene` (as `stats --scene A --scene B`): counts equal plain Python over those scenes
+    only, and every per-scene section holds exactly them."""
+    source, ds = case
+    names = sorted(s["name"] for s in source.t["scene"])
+    chosen = [names[-1], names[0]]  # unsorted, first and last: not a prefix of the sorted names
+    results = queries.summary(ds, scene=chosen, sections=queries.SECTIONS + queries.EXTRA_SECTIONS)
+    results = dict(zip(results, pl.collect_all(list(results.values()))))
+    assert sorted(results["scenes"]["name"].to_list()) == sorted(chosen)
+    for name in ("ego_speed", "class_distribution_by_scene", "channel_rates_by_scene", "ego_motion"):
+        assert set(results[name]["scene_name"]) == set(chosen), name
+    members = [a for a in source.annotations if a["scene_name"] in chosen]
+    assert results["class_distribution"]["num_annotations"].sum() == len(members)
+    expected = Counter(a["category"] for a in members)
+    assert dict(zip(results["class_distribution"]["category_name"], results["class_distribution"]["num_annotations"])) \
+        == dict(expected)
+    frames = Counter(source.channel[sd["token"]]["channel"] for sd in source.t["sample_data"]
+                     if source.scene_of_sample[sd["sample_token"]]["name"] in chosen)
+    assert dict(zip(results["channel_rates"]["channel"].cast(pl.String), results["channel_rates"]["num_frames"])) \
+        == dict(frames)
+    one = queries.summary(ds, scene=[names[0]], sections=["class_distribution"])["class_distribution"].collect()
+    assert one["num_annotations"].sum() == sum(a["scene_name"] == names[0] for a in source.annotations)

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import polars as pl
+import pytest
 
 from nuparquet.render.mosaic import compose, mosaic_size, tile_origins
-from nuparquet.render.plan import camera_rows_per_output
+from nuparquet.render.plan import camera_rows_per_output, tile_size
 
 
 def test_rows_of_different_lengths_size_the_picture_by_the_longest_and_centre_the_shorter():
@@ -50,3 +51,17 @@ def test_keyframe_mosaic_has_one_output_per_sample_in_time_order_with_each_camer
     # Columns follow the layout order (B, A, C); C has no frames; the sweep of A (row 1) is never used.
     assert rows.tolist() == [[3, 0, -1], [4, 2, -1]]
     assert times.tolist() == [90.0, 190.0]  # each sample's earliest keyframe
+
+
+def test_compose_returns_a_uint8_picture_and_names_a_tile_of_the_wrong_size():
+    tiles = [np.full((2, 3, 3), 7, np.uint8), None]
+    assert compose(tiles, (2,), 3, 2).dtype == np.uint8
+    with pytest.raises(ValueError, match="tile is 4x2, expected 3x2"):
+        compose([np.zeros((2, 4, 3), np.uint8), None], (2,), 3, 2)
+
+
+def test_tile_size_is_the_largest_camera_scaled_and_rounded_at_least_two_pixels():
+    cameras = pl.DataFrame({"width": [1600, 1224, 2048], "height": [900, 1024, 864]})
+    assert tile_size(cameras, 0.5) == (1024, 512)  # widest 2048, tallest 1024: from different cameras
+    assert tile_size(cameras, 0.1005) == (206, 103)  # 205.8 and 102.9: rounded, not truncated
+    assert tile_size(cameras, 0.0001) == (2, 2)

@@ -1,0 +1,152 @@
+"""`make mutation`: mutmut 3 over nuparquet's core modules, one group of modules at a time, each against only
+the fast test files that exercise it, within a time budget per group.
+
+    python mutation/run.py                      # every group, the default budget each
+    python mutation/run.py geometry mosaic      # some groups
+    python mutation/run.py --budget-s 600 projection
+
+Each group runs in its own staging copy (`.mutation/<group>/`: the package, tests, schemas and a pyproject.toml
+whose [tool.mutmut] names the group's modules and tests), so groups never share mutmut state. Generated test
+datasets are made once for all mutants (NUPARQUET_TEST_CACHE, see tests/conftest.py). When a budget runs out,
+mutmut is stopped; the mutants it finished keep their results. Each group ends with mutmut's own figures
+(`export-cicd-stats`) and the list of surviving mutants, printed and written to `.mutation/<group>/survivors.txt`.
+The results are summarised by hand in MUTATION.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+STAGING = REPO / ".mutation"
+MUTMUT = [sys.executable, "-m", "mutmut"]
+
+# Groups whose tests parse JSON with DuckDB (a thread pool; conversions in fixtures): their mutants are forked from a fork server that
+# never ran a test, since a process forked while DuckDB's threads run can hang.
+FORKSERVER_GROUPS = {"reader", "builders", "projection", "mosaic"}
+
+# group -> (modules to mutate, pytest arguments selecting the fast tests that exercise them)
+GROUPS: dict[str, tuple[list[str], list[str]]] = {
+    "geometry": (["nuparquet/geometry.py"], [
+        "tests/parity/test_geometry_math.py", "tests/test_geometry_contract.py", "tests/test_camera.py",
+        *(f"tests/parity/test_box_projection.py::{name}" for name in (  # the small get_boxes tables
+            "test_sweep_box_is_interpolated_for_instances_in_both_samples_and_dropped_when_only_in_previous",
+            "test_sweep_time_is_clamped_to_the_two_samples",
+            "test_keyframe_and_first_sample_sweep_use_their_sample_boxes_unchanged",
+            "test_duplicate_instance_in_previous_sample_gives_one_box_from_the_last_like_devkit_dict"))]),
+    "projection": (["nuparquet/projection/boxes.py", "nuparquet/projection/lidar.py",
+                    "nuparquet/projection/frames.py"],
+                   # the irregular fixture holds every case of the regular one and more: [synth] is left out
+                   ["tests/parity/test_box_projection.py", "tests/render/test_render.py", "-m", "not real",
+                    "-k", "irregular or not synthetic"]),
+    "reader": (["nuparquet/sources/tables.py", "nuparquet/validate.py"],
+               ["tests/convert/test_bad_input.py", "tests/sources/test_json_records.py", "-m", "not real",
+                "-k", "not successful_overwrite"]),
+    "builders": (["nuparquet/convert/builders/annotations.py", "nuparquet/convert/builders/scenes.py",
+                  "nuparquet/convert/builders/instances.py", "nuparquet/convert/builders/frames.py",
+                  "nuparquet/convert/builders/common.py"],
+                 ["tests/parity/test_derived_datasets.py", "tests/convert/test_empty_annotations.py", "-m",
+                  "not real", "-k", "not synth"]),
+    "mosaic": (["nuparquet/render/plan.py", "nuparquet/render/mosaic.py"],
+               ["tests/render/test_plan.py", "tests/parity/test_mosaic_devkit.py", "tests/render/test_render.py",
+                "-k", "(mosaic or plan or keyframe) and not 12.0 and not 2.0", "-m", "not real"]),
+    "video": (["nuparquet/render/video.py"], ["tests/render/test_video_content.py", "-k", "not rendered_video",
+                                              "tests/render/test_video.py::test_video_writer_rejects_frames_of_another_size",
+                                              "tests/render/test_video.py::test_video_writer_pads_odd_sizes_and_writes_browser_playable_h264"]),
+}
+DEFAULT_BUDGET_S = 900
+
+
+def stage(group: str) -> Path:
+    """A fresh copy of what the group's tests need, with the group's mutmut configuration."""
+    modules, test_args = GROUPS[group]
+    where = STAGING / group
+    if where.exists():
+        shutil.rmtree(where)
+    where.mkdir(parents=True)
+    for name in ("nuparquet", "tests", "schemas"):
+        shutil.copytree(REPO / name, where / name, ignore=shutil.ignore_patterns("__pycache__"))
+    pyproject = (REPO / "pyproject.toml").read_text()
+    pyproject += (
+        "\n[tool.mutmut]\n"
+        f"source_paths = {json.dumps(['nuparquet'])}\n"
+        f"only_mutate = {json.dumps(modules)}\n"
+        f"also_copy = {json.dumps(['schemas'])}\n"
+        f"pytest_add_cli_args_test_selection = {json.dumps(test_args)}\n"
+        f"pytest_add_cli_args = {json.dumps(['-p', 'no:cacheprovider', '-p', 'no:xdist', '-q'])}\n"
+        # Fixtures (conversions, devkit loads) are rebuilt in every mutant's process but counted in one test's
+        # time only: a constant keeps slow set-ups from passing for endless loops.
+        "timeout_constant = 30.0\n"
+        + ('process_isolation = "forkserver"\n' if group in FORKSERVER_GROUPS else "")
+    )
+    (where / "pyproject.toml").write_text(pyproject)
+    return where
+
+
+def run_group(group: str, budget_s: float, max_children: int) -> dict:
+    where = stage(group)
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # the staged copy, not a worktree
+    env.update(NUPARQUET_TEST_CACHE=str(STAGING / "cache"), MPLBACKEND="Agg")
+    started = time.monotonic()
+    log = open(where / "mutmut.log", "w")  # noqa: SIM115 - closed below; mutmut's progress is one long line
+    process = subprocess.Popen(MUTMUT + ["run", "--max-children", str(max_children)], cwd=where, env=env,
+                               stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        process.wait(timeout=budget_s)
+        finished = True
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGTERM)  # our own process group only
+        try:
+            process.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+        finished = False
+    elapsed = time.monotonic() - started
+    log.close()
+    subprocess.run(MUTMUT + ["export-cicd-stats"], cwd=where, env=env, check=False, capture_output=True)
+    stats_file = where / "mutants" / "mutmut-cicd-stats.json"
+    stats = json.loads(stats_file.read_text()) if stats_file.exists() else {}
+    survivors = subprocess.run(MUTMUT + ["results"], cwd=where, env=env, capture_output=True, text=True).stdout
+    (where / "survivors.txt").write_text(survivors)
+    with open(where / "survivors.diff", "w") as diffs:  # each survivor's change, for MUTATION.md
+        for line in survivors.splitlines():
+            name = line.split(":")[0].strip()
+            if line.strip().endswith("survived"):
+                shown = subprocess.run(MUTMUT + ["show", name], cwd=where, env=env, capture_output=True, text=True)
+                changed = [d for d in shown.stdout.splitlines()
+                           if d[:1] in "+-" and not d.startswith(("+++", "---"))]
+                diffs.write(f"## {name}\n" + "\n".join(changed) + "\n")
+    return {"group": group, "finished": finished, "elapsed_s": round(elapsed), "stats": stats,
+            "survivors": [line.strip() for line in survivors.splitlines() if line.strip()]}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("groups", nargs="*", metavar="GROUP",
+                        help=f"groups to run (default all): {', '.join(GROUPS)}")
+    parser.add_argument("--budget-s", type=float, default=DEFAULT_BUDGET_S, help="time budget per group, seconds")
+    parser.add_argument("--max-children", type=int, default=2, help="mutants tested in parallel (default 2)")
+    args = parser.parse_args(argv)
+    unknown = [g for g in args.groups if g not in GROUPS]
+    if unknown:
+        parser.error(f"unknown group(s) {', '.join(unknown)}; valid: {', '.join(GROUPS)}")
+    results = []
+    for group in args.groups or list(GROUPS):
+        result = run_group(group, args.budget_s, args.max_children)
+        results.append(result)
+        print(json.dumps(result, indent=1), flush=True)
+    (STAGING / "summary.json").write_text(json.dumps(results, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
