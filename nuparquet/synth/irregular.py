@@ -17,7 +17,7 @@ What changes, scene by scene (its own seeded generator; the regular draws are un
   (`NEAR_BOX_DEPTHS_M`) with many lidar points on them: boxes and points closer than the devkit's 1 m
   `box_in_image` / `min_dist` limits and its 0.1 m `in_front` limit.
 - A second version folder `<version>-test` holds the same tables with empty `sample_annotation` and
-  `instance` tables, as nuScenes v1.0-test has.
+  `instance` tables and no lidarseg/panoptic index tables, as nuScenes v1.0-test has.
 """
 
 from __future__ import annotations
@@ -185,6 +185,8 @@ def write_empty_annotation_version(dataroot: Path, version: str) -> str:
     shutil.rmtree(partial, ignore_errors=True)
     partial.mkdir()
     for table in sorted((dataroot / version).glob("*.json")):
+        if table.stem in ("lidarseg", "panoptic"):  # point labels are annotations too: v1.0-test has none
+            continue
         empty = table.stem in ("sample_annotation", "instance")
         (partial / table.name).write_text(json.dumps([]) if empty else table.read_text())
     if target.exists():
