@@ -49,11 +49,11 @@ def _read(dataset_dir: Path, layer: str, location: str, columns: list[str]):
     return dataset.to_table(columns=columns, filter=pc.field("location") == location)
 
 
-@dataclass
-class _Layer:
-    tokens: np.ndarray  # (R,) str
-    geometry: np.ndarray  # (R,) shapely (None: no geometry)
-    _tree: STRtree | None = None
+class _Indexed:
+    """Geometry with an STRtree built on first use (most queries touch a few layers)."""
+
+    geometry: np.ndarray
+    _tree: STRtree | None
 
     @property
     def tree(self) -> STRtree:
@@ -63,18 +63,19 @@ class _Layer:
 
 
 @dataclass
-class _Parts:
+class _Layer(_Indexed):
+    tokens: np.ndarray  # (R,) str
+    geometry: np.ndarray  # (R,) shapely (None: no geometry)
+    _tree: STRtree | None = None
+
+
+@dataclass
+class _Parts(_Indexed):
     """Polygons of a layer as the devkit walks them one by one (drivable_area: each polygon of each record)."""
 
     owner: np.ndarray  # (K,) record index
     geometry: np.ndarray  # (K,)
     _tree: STRtree | None = None
-
-    @property
-    def tree(self) -> STRtree:
-        if self._tree is None:
-            self._tree = STRtree(self.geometry)
-        return self._tree
 
 
 @dataclass

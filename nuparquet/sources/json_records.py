@@ -47,6 +47,25 @@ class Columns:
     key_orders: dict[int, list[str]] = field(default_factory=dict)  # global record index -> its key order
 
 
+def range_facts(columns: Columns, start: int, stop: int) -> dict:
+    """What records [start, stop) of `columns` need to come back exactly, renumbered from `start`: their
+    `int_values` (integers among floats) and `key_orders` (another key order), each only when not empty. For a file
+    typed together with others (one CAN bus message type over many scenes, the layers of one map)."""
+    facts: dict = {}
+    ints = {}
+    for name, positions in columns.int_values.items():
+        local = [[p[0] - start, p[1]] if isinstance(p, list) else p - start for p in positions
+                 if start <= (p[0] if isinstance(p, list) else p) < stop]
+        if local:
+            ints[name] = local
+    if ints:
+        facts["int_values"] = ints
+    orders = {str(i - start): keys for i, keys in columns.key_orders.items() if start <= i < stop}
+    if orders:
+        facts["key_orders"] = orders
+    return facts
+
+
 def _kind(values: list) -> tuple[str, bool]:
     """The field's kind, and whether it holds JSON integers among floats (scalars or list elements)."""
     types = set(map(type, values)) - {type(None)}

@@ -8,6 +8,7 @@ import pyarrow as pa
 from nuparquet.convert.registry import BuildContext, Builder, needs_folder
 from nuparquet.problems import ProblemsFound
 from nuparquet.sources import can_bus as source
+from nuparquet.sources.json_records import range_facts
 
 FILE_KIND = {source.META: "can_bus_meta", source.ROUTE: "can_bus_route"}
 
@@ -41,17 +42,7 @@ def _file_entries(read: source.Read, dataset: str, kind: str) -> list[dict]:
         entry = {"path": file.name, "kind": kind, "dataset": dataset, "scene": file.scene, "keys": columns.keys}
         if columns.json_fields:
             entry["json_fields"] = columns.json_fields
-        ints = {}
-        for name, positions in columns.int_values.items():
-            local = [[p[0] - start, p[1]] if isinstance(p, list) else p - start for p in positions
-                     if start <= (p[0] if isinstance(p, list) else p) < stop]
-            if local:
-                ints[name] = local
-        if ints:
-            entry["int_values"] = ints
-        orders = {str(i - start): keys for i, keys in columns.key_orders.items() if start <= i < stop}
-        if orders:
-            entry["key_orders"] = orders
+        entry |= range_facts(columns, start, stop)
         entries.append(entry)
     return entries
 

@@ -16,6 +16,7 @@ from nuparquet.map.centerlines import discretize_lanes
 from nuparquet.map.geo import geometry_columns, with_geo_metadata
 from nuparquet.problems import Problem, ProblemsFound
 from nuparquet.sources import map_expansion as source
+from nuparquet.sources.json_records import range_facts
 
 CENTERLINE_RESOLUTION_M = 0.5  # the devkit's get_closest_lane resolution
 FILE_KIND = "map_expansion"
@@ -116,17 +117,7 @@ def _record_facts(entries, layer, columns, struct_fields, starts, counts) -> Non
             facts["json_fields"] = columns.json_fields
         if struct_fields:
             facts["struct_fields"] = struct_fields
-        ints = {}
-        for name, positions in columns.int_values.items():
-            local = [[p[0] - start, p[1]] if isinstance(p, list) else p - start for p in positions
-                     if start <= (p[0] if isinstance(p, list) else p) < stop]
-            if local:
-                ints[name] = local
-        if ints:
-            facts["int_values"] = ints
-        orders = {str(i - start): keys for i, keys in columns.key_orders.items() if start <= i < stop}
-        if orders:
-            facts["key_orders"] = orders
+        facts |= range_facts(columns, start, stop)
         entry["layers"][layer] = facts
 
 
