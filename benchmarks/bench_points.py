@@ -9,7 +9,7 @@ lidar keyframes of real scene i % 2 under the name scene-i): real clouds, a volu
 dominate. The files stay in the page cache for every contender alike.
 
 Measured, each in a fresh process (wall time, peak RSS; the figure used is timed in-process around the work):
-- ours: `nuparquet.convert.builders.points.run_scene_tasks(tasks, jobs)` — what `convert --sensors lidar
+- ours: `nuparquet.convert.builders.points.run_scene_tasks(tasks, directory, options)` — what `convert --sensors lidar
   --jobs N` runs after the tables: per scene, read every .pcd.bin, check it, build the Arrow columns
   (dictionary-encoded token/scene/channel, timestamp, point_index, x/y/z/intensity, ring, null labels) and
   write one zstd Parquet part, whole frames per row group;
@@ -68,11 +68,13 @@ def _tasks(out: str, scenes: int, directory: str):
 
 def child_convert(out: str, scenes: str, jobs: str, directory: str) -> None:
     from nuparquet.convert.builders.points import run_scene_tasks
+    from nuparquet.convert.options import ConvertOptions
 
     tasks = _tasks(out, int(scenes), directory)
     Path(directory).mkdir(parents=True, exist_ok=True)
+    options = ConvertOptions(version=VERSION, out=directory, jobs=int(jobs))  # the engine: serial for 1 job, else processes
     start, cpu = time.perf_counter(), time.process_time()
-    summaries = run_scene_tasks(tasks, int(jobs), lambda s: None)
+    summaries = run_scene_tasks(tasks, Path(directory), options, lambda scene: None)
     elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu  # cpu: this process only (not workers)
     input_bytes = sum((EXTRACT / f).stat().st_size for t in tasks for f in t.frames["filename"])
     print(json.dumps({"in_process_s": elapsed, "in_process_cpu_s": cpu, "points": sum(s.rows for s in summaries),

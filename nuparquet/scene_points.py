@@ -74,6 +74,12 @@ class SceneSummary:
                       "pcd_layout": None if layout is None else tuple(tuple(pair) for pair in layout)})
 
 
+def convert_unit(unit, part: Path) -> dict:
+    """The scale-out engine's task (`nuparquet.engine`): the scene `unit.args` (a SceneTask) into the part folder
+    `part`, as `points.parquet`; its summary as JSON. Here, not in the builder, so a worker imports only this."""
+    return convert_scene(dataclasses.replace(unit.args, path=str(Path(part) / "points.parquet"))).to_json()
+
+
 def convert_scene(task: SceneTask) -> SceneSummary:
     """Read the scene's files in order and write the part file `task.path`."""
     summary = SceneSummary(task.part)

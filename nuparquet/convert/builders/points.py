@@ -16,7 +16,6 @@ of scenes.
 
 from __future__ import annotations
 
-import dataclasses
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -31,7 +30,7 @@ from nuparquet.engine import EngineOptions, WorkUnit, move_parts, run_units
 from nuparquet.problems import Problem, ProblemsFound
 from nuparquet.progress import Progress
 from nuparquet.scene_points import (
-    LABELS, SceneSummary, SceneTask, convert_scene, layout_text, lidar_schema, radar_schema,
+    LABELS, SceneSummary, SceneTask, convert_unit, layout_text, lidar_schema, radar_schema,
 )
 
 
@@ -49,16 +48,11 @@ def run_scene_tasks(tasks: list[SceneTask], directory: Path, options: ConvertOpt
     if engine.engine == "process" and (options.workers <= 1 or len(tasks) <= 1):
         engine.engine = "serial"  # one job: no worker process to start
     parts_dir = directory.parent / f".{directory.name}.parts"
-    outcomes = run_units(_convert_unit, [WorkUnit(task.scene_name, task) for task in tasks], parts_dir=parts_dir,
+    outcomes = run_units(convert_unit, [WorkUnit(task.scene_name, task) for task in tasks], parts_dir=parts_dir,
                          options=engine, on_progress=_forward(on_done))
     move_parts(outcomes, parts_dir, directory, name=lambda index, unit, filename: part_name(index))
     shutil.rmtree(parts_dir, ignore_errors=True)
     return [SceneSummary.from_json(outcome.value) for outcome in outcomes]
-
-
-def _convert_unit(unit: WorkUnit, part: Path) -> dict:
-    """The engine's task: one scene's points into its part folder (a top-level function, pickled to workers)."""
-    return convert_scene(dataclasses.replace(unit.args, path=str(Path(part) / "points.parquet"))).to_json()
 
 
 def _forward(on_done: Callable[[str], None]) -> Callable[[Progress], None]:
