@@ -36,7 +36,7 @@ from nuparquet.progress import OnProgress, Reporter
 
 def run_units(task: Task, units: Sequence[WorkUnit], *, parts_dir: Path, options: EngineOptions | None = None,
               committed: Mapping[str, Any] | None = None, on_progress: OnProgress | None = None,
-              label: str = "scenes") -> list[UnitOutcome]:
+              label: str = "scenes", preload: Sequence[str] = ()) -> list[UnitOutcome]:
     """Run `task(unit, part_folder)` for every unit on `options.engine`; return the outcomes in unit order.
 
     Args:
@@ -46,6 +46,8 @@ def run_units(task: Task, units: Sequence[WorkUnit], *, parts_dir: Path, options
         committed: with `options.resume`, units already committed by an earlier run (name -> the value their
             task returned then): skipped, reported as resumed with that value.
         on_progress: one "scene" unit per finished unit; the task is named `label`.
+        preload: modules the process pool's workers may import once in a forkserver (only modules that start no
+            thread pool at import: numpy, pyarrow, the task's own light module); empty: spawn.
 
     Raises:
         UsageError: bad options, duplicate unit names, Ray asked for but not installed.
@@ -79,7 +81,7 @@ def run_units(task: Task, units: Sequence[WorkUnit], *, parts_dir: Path, options
             reporter.advance(len(units) - len(todo), step="resumed")
         if todo:
             jobs = [(units[i], part_dir(parts_dir, units[i].name)) for i in todo]
-            finished = BACKENDS[options.engine](task, jobs, options)
+            finished = BACKENDS[options.engine](task, jobs, options, preload)
             try:
                 for job_index, outcome in finished:
                     outcomes[todo[job_index]] = outcome

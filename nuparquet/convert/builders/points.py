@@ -49,7 +49,7 @@ def run_scene_tasks(tasks: list[SceneTask], directory: Path, options: ConvertOpt
         engine.engine = "serial"  # one job: no worker process to start
     parts_dir = directory.parent / f".{directory.name}.parts"
     outcomes = run_units(convert_unit, [WorkUnit(task.scene_name, task) for task in tasks], parts_dir=parts_dir,
-                         options=engine, on_progress=_forward(on_done))
+                         options=engine, on_progress=_forward(on_done), preload=("nuparquet.scene_points",))
     move_parts(outcomes, parts_dir, directory, name=lambda index, unit, filename: part_name(index))
     shutil.rmtree(parts_dir, ignore_errors=True)
     return [SceneSummary.from_json(outcome.value) for outcome in outcomes]
