@@ -223,7 +223,8 @@ class Dataset:
         that order) or of a `scene` (optionally one `channel`), reading only their row groups.
 
         Returns (N, 5) float32 [x, y, z, intensity, ring] in the sensor frame, exactly as stored (the devkit's
-        `LidarPointCloud.from_file(...).points` is the first 4 columns transposed); with `columns`, a polars
+        `LidarPointCloud.from_file(...).points` is the first 4 columns transposed), column-major (each column
+        contiguous; `np.ascontiguousarray` for row-major); with `columns`, a polars
         DataFrame of those columns (e.g. ``["x", "y", "z", "lidarseg_label", "panoptic_label"]``)."""
         from nuparquet import frame_points
 

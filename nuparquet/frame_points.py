@@ -174,17 +174,20 @@ def select_points(index: RowGroupIndex, tokens: str | Sequence[str] | None = Non
 
 
 def lidar_array(table: pa.Table) -> np.ndarray:
-    """(N, 5) float32 [x, y, z, intensity, ring] from lidar_points rows (ring NaN where the files had none)."""
-    out = np.empty((table.num_rows, len(LIDAR_ARRAY_COLUMNS)), dtype=np.float32)
+    """(N, 5) float32 [x, y, z, intensity, ring] from lidar_points rows (ring NaN where the files had none).
+
+    Column-major (each column contiguous, the devkit's (4, N) `points` layout transposed): the columns are copied
+    whole instead of strided into rows, twice as fast; `np.ascontiguousarray` gives the row-major copy."""
+    out = np.empty((len(LIDAR_ARRAY_COLUMNS), table.num_rows), dtype=np.float32)
     for j, name in enumerate(LIDAR_ARRAY_COLUMNS):
         column = table.column(name)
         if column.null_count:
             column = column.cast(pa.float32()).fill_null(np.nan)
         offset = 0
         for chunk in column.chunks:  # one chunk per frame: written in place, no combined temporary
-            out[offset:offset + len(chunk), j] = chunk.to_numpy(zero_copy_only=False)
+            out[j, offset:offset + len(chunk)] = chunk.to_numpy(zero_copy_only=False)
             offset += len(chunk)
-    return out
+    return out.T
 
 
 def radar_fields(index: RowGroupIndex) -> list[str]:
