@@ -24,6 +24,7 @@ import shapely
 
 from nuparquet.frame_boxes import FrameBoxes
 from nuparquet.palette import category_rgb
+from nuparquet.quaternions import heading_from_quaternions
 from nuparquet.render.plan import TileLoad
 from nuparquet.render.points import CloudReader
 
@@ -147,18 +148,14 @@ class MapRaster:
                               borderMode=cv2.BORDER_CONSTANT, borderValue=BACKGROUND_BGR)
 
 
-def _yaw(rotation_wxyz: np.ndarray) -> np.ndarray:
-    w, x, y, z = rotation_wxyz.T
-    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-
-
-def footprints(translation_m: np.ndarray, size_wlh_m: np.ndarray, rotation_wxyz: np.ndarray) -> np.ndarray:
-    """(B, 5, 2) global footprint corners (front-left, front-right, rear-right, rear-left) then the front centre."""
-    yaw = _yaw(rotation_wxyz)
+def footprints(translation_m: np.ndarray, size_wlh_m: np.ndarray, heading_rad: np.ndarray) -> np.ndarray:
+    """(B, 5, 2) global footprint corners (front-left, front-right, rear-right, rear-left) then the front centre,
+    of boxes whose x axis points at `heading_rad` (B,)."""
+    heading = np.asarray(heading_rad, dtype=np.float64)
     half_l, half_w = size_wlh_m[:, 1] / 2, size_wlh_m[:, 0] / 2
     local = np.stack([np.c_[half_l, half_w], np.c_[half_l, -half_w], np.c_[-half_l, -half_w], np.c_[-half_l, half_w],
                       np.c_[half_l, np.zeros_like(half_l)]], axis=1)  # (B, 5, 2) box frame, x forward
-    c, s = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+    c, s = np.cos(heading)[:, None], np.sin(heading)[:, None]
     x = c * local[..., 0] - s * local[..., 1] + translation_m[:, None, 0]
     y = s * local[..., 0] + c * local[..., 1] + translation_m[:, None, 1]
     return np.stack([x, y], axis=-1)
@@ -234,7 +231,7 @@ class BevTile:
         if hi == lo:
             return
         boxes = self.boxes.take(slice(lo, hi))
-        corners = footprints(boxes.translation_m, boxes.size_wlh_m, boxes.rotation_wxyz)
+        corners = footprints(boxes.translation_m, boxes.size_wlh_m, heading_from_quaternions(boxes.rotation_wxyz))
         px = np.round(_apply(to_pixel, corners.reshape(-1, 2)) * 8).astype(np.int32).reshape(-1, 5, 2)
         centres = np.round(_apply(to_pixel, boxes.translation_m[:, :2]) * 8).astype(np.int32)
         names = boxes.category_name
@@ -248,15 +245,11 @@ class BevTile:
     def _draw_ego(self, image: np.ndarray, ego_xy: np.ndarray, ego_yaw: float, to_pixel: np.ndarray) -> None:
         length, width = EGO_SIZE_LW_M
         corners = footprints(np.array([[ego_xy[0], ego_xy[1], 0.0]]), np.array([[width, length, 1.5]]),
-                             _quaternion_from_yaw(np.array([ego_yaw])))[0]
+                             np.array([ego_yaw]))[0]
         px = np.round(_apply(to_pixel, corners) * 8).astype(np.int32)
         cv2.fillPoly(image, [px[:4]], EGO_BGR, lineType=cv2.LINE_AA, shift=3)
         tip = np.round(_apply(to_pixel, corners[4:5])).astype(np.int32)[0]
         cv2.circle(image, (int(tip[0]), int(tip[1])), 2, (0, 0, 255), -1)
-
-
-def _quaternion_from_yaw(yaw: np.ndarray) -> np.ndarray:
-    return np.c_[np.cos(yaw / 2), np.zeros_like(yaw), np.zeros_like(yaw), np.sin(yaw / 2)]
 
 
 LEGEND = tuple((layer.replace("_", " "), color) for layer, color, _ in MAP_STYLE)

@@ -73,13 +73,21 @@ def _location_column(maps: list[source.MapRead], counts: list[int]) -> pa.Array:
                                           pa.array([m.location for m in maps], pa.string())).cast(pa.string())
 
 
-def _layer_table(maps, layer, entries) -> tuple[pa.Table | None, list[Problem]]:
-    typed, problems = source.layer_columns(maps, layer)
-    if typed is None:
-        return None, problems
+def _typed(maps, layer, entries, records_of=None) -> tuple[pa.Table | None, list[int], list[Problem]]:
+    """Layer `layer` of every map typed together (from `records_of`, per-lane stand-in records of the same maps,
+    when the layer is a dict), its record count per map, and what export needs recorded per file."""
+    typed, problems = source.layer_columns(records_of or maps, layer)
     counts = [len(m.data[layer]) for m in maps]
+    if typed is None:
+        return None, counts, problems
     _record_facts(entries, layer, typed.columns, typed.struct_fields, typed.starts, counts)
-    table = typed.columns.table
+    return typed.columns.table, counts, problems
+
+
+def _layer_table(maps, layer, entries) -> tuple[pa.Table | None, list[Problem]]:
+    table, counts, problems = _typed(maps, layer, entries)
+    if table is None:
+        return None, problems
     table = table.add_column(0, "location", _location_column(maps, counts))
     geometries = np.concatenate([m.geometry[layer] for m in maps]) if maps else np.empty(0, object)
     wkb, bbox = geometry_columns(geometries)
@@ -94,12 +102,9 @@ def _dict_layer_table(maps, layer, entries) -> tuple[pa.Table | None, list[Probl
         values = m.data[layer]
         records = [{"paths": v} for v in values.values()] if layer == "arcline_path_3" else list(values.values())
         fake.append(source.MapRead(m.location, m.path, {layer: records}))
-    typed, problems = source.layer_columns(fake, layer)
-    if typed is None:
+    table, counts, problems = _typed(maps, layer, entries, records_of=fake)
+    if table is None:
         return None, problems
-    counts = [len(m.data[layer]) for m in maps]
-    _record_facts(entries, layer, typed.columns, typed.struct_fields, typed.starts, counts)
-    table = typed.columns.table
     if table.num_columns == 0:
         table = pa.table({"incoming": pa.array([], pa.list_(pa.string())), "outgoing": pa.array([], pa.list_(pa.string()))}) \
             if layer == "connectivity" else pa.table({"paths": pa.array([], pa.string())})
