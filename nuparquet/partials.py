@@ -16,6 +16,13 @@ def partial_path(target: Path) -> Path:
     return target.parent / f".{target.name}.partial-{os.getpid()}"
 
 
+def write_text_atomic(target: Path, text: str) -> None:
+    """`target` holds `text` whole or keeps what it held: written to this process's partial, then renamed."""
+    partial = partial_path(target)
+    partial.write_text(text)
+    os.replace(partial, target)
+
+
 def remove_stale(target: Path, kinds: tuple[str, ...] = ("partial", "replaced")) -> list[Path]:
     """Remove `.<target name>.<kind>-<pid>` beside `target` for every pid that is not a running process (and this
     process's own, left by an earlier attempt); returns what was removed."""

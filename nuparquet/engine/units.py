@@ -21,6 +21,7 @@ from typing import Any, Callable
 from urllib.parse import quote
 
 from nuparquet.errors import InputError, NuparquetError
+from nuparquet.partials import write_text_atomic
 
 
 @dataclass(frozen=True)
@@ -84,10 +85,7 @@ def _marker(parts_dir: Path, unit_name: str) -> Path:
 
 def write_marker(parts_dir: Path, outcome: UnitOutcome) -> None:
     """Record that `outcome`'s unit is complete (written to a temporary name, then renamed)."""
-    marker = _marker(parts_dir, outcome.name)
-    partial = marker.with_name(marker.name + ".partial")
-    partial.write_text(json.dumps(asdict(outcome)))
-    os.replace(partial, marker)
+    write_text_atomic(_marker(parts_dir, outcome.name), json.dumps(asdict(outcome)))
 
 
 def read_marker(parts_dir: Path, unit_name: str) -> UnitOutcome | None:

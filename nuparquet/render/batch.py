@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -32,6 +31,7 @@ from nuparquet.engine import (
     EngineOptions, UnitOutcome, WorkUnit, check_engine, move_parts, part_name, raise_failures, run_units,
 )
 from nuparquet.errors import QueryError, UsageError
+from nuparquet.partials import write_text_atomic
 from nuparquet.progress import OnProgress
 from nuparquet.render.options import ALL_CHANNELS, SUMMARY_NAME, RenderOptions, SceneSelection
 
@@ -127,9 +127,7 @@ def _previous_summary(out_dir: Path) -> dict:
 
 
 def _write_json(path: Path, value: dict) -> None:
-    partial = path.with_name(f".{path.name}.partial-{os.getpid()}")
-    partial.write_text(json.dumps(value, indent=2, sort_keys=True) + "\n")
-    os.replace(partial, path)
+    write_text_atomic(path, json.dumps(value, indent=2, sort_keys=True) + "\n")
 
 
 def _check(dataset, options: RenderOptions, selection: SceneSelection) -> None:
