@@ -77,12 +77,16 @@ class RowGroupIndex:
     def groups_for_scene(self, scene: str) -> np.ndarray:
         return (self.scene_min <= scene) & (scene <= self.scene_max)
 
-    def read_group(self, g: int, columns: Sequence[str]) -> pa.Table:
-        """Row group `g` (an index into this table of groups)."""
+    def _parquet(self, g: int) -> pq.ParquetFile:
+        """The open file of row group `g` (opened once: its footer is parsed once)."""
         path = self.paths[int(self.file[g])]
         if path not in self._files:
             self._files[path] = pq.ParquetFile(path)
-        return self._files[path].read_row_group(int(self.group[g]), columns=list(columns))
+        return self._files[path]
+
+    def read_group(self, g: int, columns: Sequence[str]) -> pa.Table:
+        """Row group `g` (an index into this table of groups)."""
+        return self._parquet(g).read_row_group(int(self.group[g]), columns=list(columns))
 
     def read_groups(self, wanted: np.ndarray, columns: Sequence[str]) -> pa.Table | None:
         """The rows of the wanted row groups (files in order, groups in order)."""
@@ -126,10 +130,8 @@ class RowGroupIndex:
             stop = start
             while stop < len(groups) and self.file[groups[stop]] == self.file[groups[start]]:
                 stop += 1
-            path = self.paths[int(self.file[groups[start]])]
-            if path not in self._files:
-                self._files[path] = pq.ParquetFile(path)
-            tables.append(self._files[path].read_row_groups(self.group[groups[start:stop]].tolist(), columns=list(columns)))
+            tables.append(self._parquet(groups[start]).read_row_groups(self.group[groups[start:stop]].tolist(),
+                                                                        columns=list(columns)))
             start = stop
         return pa.concat_tables(tables)
 
