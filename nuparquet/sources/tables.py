@@ -39,6 +39,8 @@ from nuparquet.sources.table_diagnostics import (
 )
 from nuparquet.sources.table_types import to_schema_types
 
+READ_THREADS = 2  # tables parsed at once (each also runs its strict-JSON scan on a thread of its own)
+
 
 @dataclass
 class SourceTable:
@@ -85,20 +87,26 @@ def read_tables(
     tables: dict[str, SourceTable] = {}
     problems: list[Problem] = []
     files: dict[str, dict] = {}
-    for name, schema in table_schemas().items():
-        path = folder / schema.source
-        if on_table:
-            on_table(name)
-        if not path.is_file():
-            if not schema.optional:
-                problems.append(Problem(schema.source, f"table {name} is missing (expected {path})"))
-            continue
-        stat = path.stat()
-        files[schema.source] = {"bytes": stat.st_size, "mtime": stat.st_mtime}
-        table, table_problems = _read_one(con, path, schema)
-        problems += table_problems
-        if table is not None:
-            tables[name] = table
+    present = {name: folder / schema.source for name, schema in table_schemas().items()
+               if (folder / schema.source).is_file()}
+    # DuckDB parses one JSON array on one core: two tables are read at once (largest first, so the big three
+    # spread over both), each on its own cursor. Results are taken in schema order: the same problems, same order.
+    with ThreadPoolExecutor(READ_THREADS) as pool:
+        reading = {name: pool.submit(_read_one_on, con, path, table_schemas()[name])
+                   for name, path in sorted(present.items(), key=lambda item: -item[1].stat().st_size)}
+        for name, schema in table_schemas().items():
+            if on_table:
+                on_table(name)
+            if name not in present:
+                if not schema.optional:
+                    problems.append(Problem(schema.source, f"table {name} is missing (expected {folder / schema.source})"))
+                continue
+            stat = present[name].stat()
+            files[schema.source] = {"bytes": stat.st_size, "mtime": stat.st_mtime}
+            table, table_problems = reading[name].result()
+            problems += table_problems
+            if table is not None:
+                tables[name] = table
     con.close()
     known = {s.source for s in table_schemas().values()}
     for path in sorted(p for p in folder.glob("*.json") if p.name not in known):  # T4: object_ann, vehicle_state, ...
@@ -145,6 +153,12 @@ def _first_chars(path: Path, n: int = 2) -> str:
 
 def _sql_path(path: Path) -> str:
     return "'" + str(path).replace("'", "''") + "'"
+
+
+def _read_one_on(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tuple[SourceTable | None, list[Problem]]:
+    """`_read_one` on a cursor of its own (a DuckDB connection serves one thread at a time)."""
+    with con.cursor() as cursor:
+        return _read_one(cursor, path, schema)
 
 
 def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tuple[SourceTable | None, list[Problem]]:
@@ -202,15 +216,20 @@ def _read_checked(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) ->
     float_fields = [f.name for f in floats_seen if not layouts_.all_integral(con, objects, json_path(f.name))]
     for f in floats_seen:  # an integer may be written as a float, but must be a usable one (and not a huge integer)
         problems += diagnose_unusable_floats(con, objects, file, f)
-    for f in scalars:
-        if f.type == "int64" and "UBIGINT" in seen[f.name]:
-            problems += diagnose_beyond_int64(con, objects, file, f)
+    wrong_kinds = []
     for f in scalars:
         allowed = set(_allowed_kinds(f))
         if f.name in present and not seen[f.name] <= allowed:
-            problems += diagnose_scalar(con, objects, file, f, allowed)
-    if problems:
-        return None, problems
+            wrong_kinds += diagnose_scalar(con, objects, file, f, allowed)
+
+    def beyond_int64() -> list[Problem]:
+        # json_type says UBIGINT for every non-negative integer, so this search reads the whole file once per field:
+        # it runs only on a path that already failed (pass 2 refuses a value beyond int64 with a bare cast error).
+        return [p for f in scalars if f.type == "int64" and "UBIGINT" in seen[f.name]
+                for p in diagnose_beyond_int64(con, objects, file, f)]
+
+    if problems or wrong_kinds:
+        return None, problems + beyond_int64() + wrong_kinds
 
     # pass 2: a plain typed read; pass 1 proved every value has a type that converts losslessly.
     fields = [f for f in schema.fields if f.name in present]
@@ -220,12 +239,13 @@ def _read_checked(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) ->
     src = f"read_json({_sql_path(path)}, format='array', records=true, maximum_object_size=1073741824"
     try:
         raw = con.sql(f"SELECT * FROM {src}, columns={spec})").to_arrow_table()
-    except duckdb.Error as exc:  # a list field of the wrong shape: name the records
+    except duckdb.Error as exc:  # an integer beyond int64, or a list field of the wrong shape: name the records
+        problems = beyond_int64()
         try:
-            problems = [p for f in fields if f.type.startswith(("list", "fixed_size_list"))
-                        for p in diagnose_field(con, src, file, f)]
+            problems += [p for f in fields if f.type.startswith(("list", "fixed_size_list"))
+                         for p in diagnose_field(con, src, file, f)]
         except duckdb.Error:  # the diagnosis reads the same way and fails the same way (a duplicate key)
-            problems = []
+            pass
         return None, problems or [_duckdb_problem(con, objects, file, exc)]
     table, problems = to_schema_types(raw, schema, file, float_fields)
     if problems:
