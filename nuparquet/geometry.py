@@ -219,7 +219,7 @@ def interp_two_points(t, t0, t1, c0, c1) -> np.ndarray:
     """
     t, t0, t1 = (np.asarray(a, dtype=np.float64)[:, None] for a in (t, t0, t1))
     c0, c1 = np.asarray(c0, dtype=np.float64), np.asarray(c1, dtype=np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # the end cases are taken from c0, c1
         slope = (c1 - c0) / (t1 - t0)
         inside = slope * (t - t0) + c0
     return np.where(t == t1, c1, np.where(t == t0, c0, inside))

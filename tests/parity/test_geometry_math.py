@@ -228,3 +228,62 @@ def test_heading_equals_devkit_quaternion_yaw_and_yaw_for_rotations_about_z(rng)
     about_z = np.stack([np.cos(yaw / 2), np.zeros(N), np.zeros(N), np.sin(yaw / 2)], axis=1)
     np.testing.assert_allclose(quaternions.yaw_from_quaternions(about_z), yaw, rtol=0, atol=1e-12)
     np.testing.assert_allclose(quaternions.heading_from_quaternions(about_z), yaw, rtol=0, atol=1e-12)
+
+
+def devkit_point_counts(corners_boxes: list, points: np.ndarray) -> list[int]:
+    from nuscenes.utils.data_classes import Box
+    from nuscenes.utils.geometry_utils import points_in_box
+
+    return [int(points_in_box(Box(center, wlh, Quaternion(q)), points.T).sum()) for center, wlh, q in corners_boxes]
+
+
+def test_count_points_in_boxes_equals_devkit_points_in_box_faces_included(rng):
+    """Rotated boxes (their axis-aligned bounds hold points outside them), points exactly on faces and corners of
+    an axis-aligned box (the devkit's `>= 0` and `<= |edge|^2`), a box beyond every point's x, and a last box with
+    no point (the counts keep one entry per box)."""
+    boxes = [(rng.uniform(-20, 20, 3), rng.uniform(1, 5, 3), random_quaternions(rng, 1)[0]) for _ in range(30)]
+    boxes.append(((0.0, 0.0, 0.0), (2.0, 4.0, 2.0), (1.0, 0.0, 0.0, 0.0)))  # x in [-2, 2], y and z in [-1, 1]
+    boxes.append(((1000.0, 0.0, 0.0), (1.0, 1.0, 1.0), (1.0, 0.0, 0.0, 0.0)))  # beyond every point
+    boxes.append(((-500.0, 0.0, 0.0), (1.0, 1.0, 1.0), (1.0, 0.0, 0.0, 0.0)))  # before every point, and last
+    on_faces = np.array([[2.0, 1.0, 1.0], [-2.0, -1.0, -1.0], [2.0, 0.0, 0.0], [-2.0, 0.5, 0.5], [0.0, 1.0, 0.0],
+                         [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [2.0 + 1e-12, 0.0, 0.0]])
+    points = np.concatenate([rng.uniform(-25, 25, (4000, 3)), on_faces])
+    corners = geometry.box_corners(np.array([b[0] for b in boxes]), np.array([b[1] for b in boxes]),
+                                   np.array([b[2] for b in boxes]))
+    got = geometry.count_points_in_boxes(corners, points)
+    expected = devkit_point_counts(boxes, points)
+    assert got.dtype == np.int64 and got.tolist() == expected
+    assert expected[30] >= 8 and expected[-2:] == [0, 0]  # the face points count; the far boxes hold none
+    no_points = geometry.count_points_in_boxes(corners, np.zeros((0, 3)))
+    assert no_points.dtype == np.int64 and no_points.tolist() == [0] * len(boxes)
+
+
+def test_interp_two_points_returns_the_end_values_exactly_like_np_interp():
+    """At t == t1 the formula c0 + slope * (t1 - t0) rounds away from c1 for these values, and at t == t0 a
+    difference that overflows makes it NaN: numpy returns the end values themselves, so must we."""
+    t0, t1 = 516068585547878, 516068585840847
+    c0, c1 = -33.93479912248731, 46.99254132161326
+    assert (c1 - c0) / (t1 - t0) * (t1 - t0) + c0 != c1  # the case this test is about
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nor a warning about the overflow, as np.interp gives none
+        got = geometry.interp_two_points(np.array([t1, t0, t0 + 5]), np.array([t0] * 3), np.array([t1] * 3),
+                                         np.array([[c0], [-1e308], [c0]]), np.array([[c1], [1e308], [c1]]))
+    expected = [np.interp(t1, [t0, t1], [c0, c1]), np.interp(t0, [t0, t1], [-1e308, 1e308]),
+                np.interp(t0 + 5, [t0, t1], [c0, c1])]
+    assert got[:, 0].tolist() == expected
+
+
+def test_equal_sample_times_interpolate_and_slerp_without_warnings():
+    """Two samples at the same time (t0 == t1): the centre is c1 and the slerp amount 1, with no division
+    warning (x/0 and 0/0 are computed and discarded)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        centres = geometry.interp_two_points(np.array([7, 7]), np.array([7, 7]), np.array([7, 7]),
+                                             np.array([[1.0, 2.0], [3.0, 3.0]]), np.array([[5.0, 2.0], [3.0, 3.0]]))
+        amounts = geometry.slerp_amount(np.array([7, 5]), np.array([7, 3]), np.array([7, 7]))
+    assert centres.tolist() == [[5.0, 2.0], [3.0, 3.0]]
+    assert amounts.dtype == np.float64 and amounts.tolist() == [1.0, 0.5]
