@@ -145,17 +145,23 @@ class MapLayers:
     def layers_on_point(self, x, y, layer_names: tuple[str, ...] | list[str] | None = None) -> dict[str, np.ndarray]:
         """{layer: (N,) token of the first record containing each point, '' where none}."""
         x, y = np.atleast_1d(np.asarray(x, np.float64)), np.atleast_1d(np.asarray(y, np.float64))
-        points = shapely.points(x, y)
-        out = {}
-        for layer in layer_names or POLYGON_LAYERS:
+        layer_names = layer_names or POLYGON_LAYERS
+        for layer in layer_names:
             if layer not in LOOKUP_POLYGON_LAYERS:  # lane_connector: an extension (the devkit refuses it)
                 raise ValueError(f"{layer} is not a polygon layer")  # lane_connector: an extension (the devkit refuses it)
+        # The points go in the tree and each polygon asks which of them it contains (the converse of `within`):
+        # GEOS prepares the query geometry, and a prepared polygon tests a point in O(log vertices), where a point
+        # asking polygons tests each in O(vertices) (a city's drivable area has thousands: 1.2M annotation
+        # centres took 36 s that way).
+        point_tree = STRtree(shapely.points(x, y))
+        out = {}
+        for layer in layer_names:
             parts = self.parts[layer]
-            found = np.full(len(points), np.iinfo(np.int64).max)
+            found = np.full(len(x), np.iinfo(np.int64).max)
             if len(parts.geometry):
-                point_i, part_i = parts.tree.query(points, predicate="within")
+                part_i, point_i = point_tree.query(parts.geometry, predicate="contains")
                 np.minimum.at(found, point_i, parts.owner[part_i])
-            tokens = np.full(len(points), "", dtype=object)
+            tokens = np.full(len(x), "", dtype=object)
             hit = found < np.iinfo(np.int64).max
             tokens[hit] = self.layers[layer].tokens[found[hit]]
             out[layer] = tokens
