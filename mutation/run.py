@@ -4,6 +4,7 @@ the fast test files that exercise it, within a time budget per group.
     python mutation/run.py                      # every group, the default budget each
     python mutation/run.py geometry mosaic      # some groups
     python mutation/run.py --budget-s 600 projection
+    python mutation/run.py geometry --again 'nuparquet.geometry.x_slerp_amount*'   # re-run some mutants
 
 Each group runs in its own staging copy (`.mutation/<group>/`: the package, tests, schemas and a pyproject.toml
 whose [tool.mutmut] names the group's modules and tests), so groups never share mutmut state. Generated test
@@ -71,14 +72,17 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
 DEFAULT_BUDGET_S = 900
 
 
-def stage(group: str) -> Path:
-    """A fresh copy of what the group's tests need, with the group's mutmut configuration."""
+def stage(group: str, keep_results: bool = False) -> Path:
+    """A fresh copy of what the group's tests need, with the group's mutmut configuration. With `keep_results`
+    the code and tests are refreshed but mutmut's results (`mutants/`) stay: mutmut regenerates the mutants of
+    changed modules, and a run of named mutants updates only theirs."""
     modules, test_args = GROUPS[group]
     where = STAGING / group
-    if where.exists():
+    if where.exists() and not keep_results:
         shutil.rmtree(where)
-    where.mkdir(parents=True)
+    where.mkdir(parents=True, exist_ok=True)
     for name in ("nuparquet", "tests", "schemas"):
+        shutil.rmtree(where / name, ignore_errors=True)
         shutil.copytree(REPO / name, where / name, ignore=shutil.ignore_patterns("__pycache__"))
     pyproject = (REPO / "pyproject.toml").read_text()
     pyproject += (
@@ -97,13 +101,13 @@ def stage(group: str) -> Path:
     return where
 
 
-def run_group(group: str, budget_s: float, max_children: int) -> dict:
-    where = stage(group)
+def run_group(group: str, budget_s: float, max_children: int, mutants: list[str] | None = None) -> dict:
+    where = stage(group, keep_results=bool(mutants))
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # the staged copy, not a worktree
     env.update(NUPARQUET_TEST_CACHE=str(STAGING / "cache"), MPLBACKEND="Agg")
     started = time.monotonic()
     log = open(where / "mutmut.log", "w")  # noqa: SIM115 - closed below; mutmut's progress is one long line
-    process = subprocess.Popen(MUTMUT + ["run", "--max-children", str(max_children)], cwd=where, env=env,
+    process = subprocess.Popen(MUTMUT + ["run", "--max-children", str(max_children), *(mutants or [])], cwd=where, env=env,
                                stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
     try:
         process.wait(timeout=budget_s)
@@ -131,8 +135,10 @@ def run_group(group: str, budget_s: float, max_children: int) -> dict:
                 changed = [d for d in shown.stdout.splitlines()
                            if d[:1] in "+-" and not d.startswith(("+++", "---"))]
                 diffs.write(f"## {name}\n" + "\n".join(changed) + "\n")
-    return {"group": group, "finished": finished, "elapsed_s": round(elapsed), "stats": stats,
-            "survivors": [line.strip() for line in survivors.splitlines() if line.strip()]}
+    result = {"group": group, "finished": finished, "elapsed_s": round(elapsed), "stats": stats,
+              "again": mutants or [], "survivors": [line.strip() for line in survivors.splitlines() if line.strip()]}
+    (where / "result.json").write_text(json.dumps(result, indent=1))
+    return result
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -141,16 +147,25 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"groups to run (default all): {', '.join(GROUPS)}")
     parser.add_argument("--budget-s", type=float, default=DEFAULT_BUDGET_S, help="time budget per group, seconds")
     parser.add_argument("--max-children", type=int, default=2, help="mutants tested in parallel (default 2)")
+    parser.add_argument("--again", nargs="+", metavar="NAME",
+                        help="with one GROUP: re-run only these mutants (mutmut names or globs, e.g. "
+                             "'nuparquet.geometry.x_slerp_amount*') against the current code and tests, keeping the "
+                             "group's other results")
     args = parser.parse_args(argv)
+    if args.again and len(args.groups) != 1:
+        parser.error("--again needs exactly one GROUP")
     unknown = [g for g in args.groups if g not in GROUPS]
     if unknown:
         parser.error(f"unknown group(s) {', '.join(unknown)}; valid: {', '.join(GROUPS)}")
     results = []
     for group in args.groups or list(GROUPS):
-        result = run_group(group, args.budget_s, args.max_children)
+        result = run_group(group, args.budget_s, args.max_children, args.again)
         results.append(result)
         print(json.dumps(result, indent=1), flush=True)
-    (STAGING / "summary.json").write_text(json.dumps(results, indent=1))
+    # the last result of every group run so far, whichever invocation ran it
+    summary = [json.loads((STAGING / g / "result.json").read_text()) for g in GROUPS
+               if (STAGING / g / "result.json").is_file()]
+    (STAGING / "summary.json").write_text(json.dumps(summary, indent=1))
     return 0
 
 

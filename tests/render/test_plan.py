@@ -6,7 +6,7 @@ import numpy as np
 import polars as pl
 import pytest
 
-from nuparquet.render.mosaic import compose, mosaic_size, tile_origins
+from nuparquet.render.mosaic import compose, match_frames_by_time, mosaic_size, tile_origins, time_steps_us
 from nuparquet.render.plan import camera_rows_per_output, tile_size
 
 
@@ -65,3 +65,45 @@ def test_tile_size_is_the_largest_camera_scaled_and_rounded_at_least_two_pixels(
     assert tile_size(cameras, 0.5) == (1024, 512)  # widest 2048, tallest 1024: from different cameras
     assert tile_size(cameras, 0.1005) == (206, 103)  # 205.8 and 102.9: rounded, not truncated
     assert tile_size(cameras, 0.0001) == (2, 2)
+
+
+def test_time_steps_follow_the_devkit_clock_until_it_passes_the_last_sample():
+    """devkit render_scene: from the first keyframe, add 1/freq s while the time is before the last one."""
+    assert time_steps_us(1_000_000, 2_000_000, 10.0).tolist() == [1_000_000.0 + 100_000 * k for k in range(1, 11)]
+    assert time_steps_us(0, 1, 2.0).tolist() == [500_000.0]
+    none = time_steps_us(5, 5, 2.0)
+    assert none.dtype == np.float64 and len(none) == 0
+
+
+def test_match_frames_by_time_with_no_frame_one_frame_ties_and_the_start_index():
+    assert match_frames_by_time(np.array([]), 0, np.array([1.0, 2.0])).tolist() == [-1, -1]
+    assert match_frames_by_time(np.array([5.0]), 0, np.array([1.0, 10.0])).tolist() == [0, 0]
+    # the first frame at or after each time (a tie shows the frame at that time), never before start_index, and
+    # the last frame once every frame is older
+    got = match_frames_by_time(np.array([10.0, 20.0, 30.0]), 1, np.array([5.0, 20.0, 21.0, 99.0]))
+    assert got.dtype == np.int64 and got.tolist() == [1, 1, 2, 2]
+
+
+def test_all_frames_mosaic_matches_each_camera_on_the_clock():
+    """Clock 4 Hz from s1 (t = 0) to s2 (t = 1 s): 0.25, 0.5, 0.75, 1.0 s. A starts at its s1 keyframe; B has no
+    s1 keyframe and starts at its first row; C has no frame (its tiles stay empty, and D after it is still
+    filled); D has one frame."""
+    rows = [  # channel, sample, timestamp (us), keyframe; sorted by channel then time
+        ("A", "s1", 0, True), ("A", "s2", 400_000, False), ("A", "s2", 1_000_000, True),
+        ("B", "s2", 500_000, False), ("B", "s2", 900_000, True),
+        ("D", "s1", 0, True),
+    ]
+    cameras = pl.DataFrame(rows, schema=["channel", "sample_token", "timestamp", "is_key_frame"], orient="row")
+    samples = pl.DataFrame({"token": ["s1", "s2"], "timestamp": [0, 1_000_000]})
+    times, got = camera_rows_per_output(cameras, samples, ["B", "C", "A", "D"], mosaic=True, all_frames=True, fps=4.0)
+    assert times.dtype == np.float64 and times.tolist() == [250_000.0, 500_000.0, 750_000.0, 1_000_000.0]
+    assert got.dtype == np.int64
+    assert got.tolist() == [[3, -1, 1, 5], [3, -1, 2, 5], [4, -1, 2, 5], [4, -1, 2, 5]]
+
+
+def test_output_times_are_float64_microseconds_for_one_camera_and_the_keyframe_mosaic():
+    one, _ = camera_rows_per_output(_cameras().filter(pl.col("channel") == "A"), pl.DataFrame(), ["A"],
+                                    mosaic=False, all_frames=True, fps=12.0)
+    samples = pl.DataFrame({"token": ["s2", "s1"], "timestamp": [200, 100]})
+    keyframes, _ = camera_rows_per_output(_cameras(), samples, ["A", "B"], mosaic=True, all_frames=False, fps=2.0)
+    assert one.dtype == np.float64 and keyframes.dtype == np.float64
