@@ -10,6 +10,8 @@ import re
 import shutil
 from pathlib import Path
 
+from nuparquet.errors import UsageError
+
 
 def partial_path(target: Path) -> Path:
     """This process's hidden partial for `target`."""
@@ -50,3 +52,13 @@ def _alive(pid: int) -> bool:
     except PermissionError:  # another user's process
         return True
     return True
+
+
+def check_apart(out: Path | str, source: Path | str, *, what: str = "the input") -> None:
+    """Refuse an output that is, contains or lies inside `source` (`convert D --out D --overwrite` would delete
+    the dataroot; `export-json OUT --out OUT` would replace the Parquet)."""
+    out_path, source_path = Path(out).absolute().resolve(), Path(source).absolute().resolve()
+    if out_path == source_path or source_path in out_path.parents or out_path in source_path.parents:
+        relation = ("is" if out_path == source_path else
+                    "is inside" if source_path in out_path.parents else "contains")
+        raise UsageError(f"{out} {relation} {what} {source}; write the output somewhere else")

@@ -133,16 +133,6 @@ def check_target(out: Path | str, *, overwrite: bool) -> Path:
     return out
 
 
-def check_apart(out: Path | str, source: Path | str, *, what: str = "the input") -> None:
-    """Refuse an output that is, contains or lies inside `source` (`convert D --out D --overwrite` would delete
-    the dataroot; `export-json OUT --out OUT` would replace the Parquet)."""
-    out_path, source_path = Path(out).absolute().resolve(), Path(source).absolute().resolve()
-    if out_path == source_path or source_path in out_path.parents or out_path in source_path.parents:
-        relation = ("is" if out_path == source_path else
-                    "is inside" if source_path in out_path.parents else "contains")
-        raise UsageError(f"{out} {relation} {what} {source}; write the output somewhere else")
-
-
 @contextlib.contextmanager
 def atomic_directory(out: Path, *, overwrite: bool) -> Iterator[Path]:
     """Yield a temporary sibling of `out` to write into; on success it replaces `out` by renames."""

@@ -139,7 +139,7 @@ def _check(dataset, options: RenderOptions, selection: SceneSelection) -> None:
         cameras = ", ".join([*dataset.channels.get("cameras", []), ALL_CHANNELS])
         raise UsageError(f"unknown channel {options.channel!r}; valid channels: {cameras}")
     if not dataset.is_remote:
-        from nuparquet.convert.write import check_apart
+        from nuparquet.partials import check_apart
 
         check_apart(Path(selection.out_dir), dataset.root, what="the converted dataset")
 

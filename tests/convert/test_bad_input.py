@@ -249,7 +249,7 @@ def _replace_builder(monkeypatch, name: str, build) -> None:
     """Swap one registered builder's build function (the conversion reads the registry at call time)."""
     import dataclasses
 
-    import nuparquet.convert as convert_module
+    import nuparquet.convert.pipeline as convert_module
     from nuparquet.convert import registry
 
     builders = tuple(dataclasses.replace(b, build=build) if b.name == name else b for b in registry.BUILDERS)
@@ -374,7 +374,7 @@ def test_an_output_that_appears_during_the_conversion_is_never_replaced(root, tm
         (out / "theirs.txt").write_text("someone else's")
         return original(ctx)
 
-    import nuparquet.convert as convert_module
+    import nuparquet.convert.pipeline as convert_module
     from nuparquet.convert import registry
 
     original = next(b.build for b in registry.BUILDERS if b.name == "instances")

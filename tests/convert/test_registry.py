@@ -11,7 +11,7 @@ import polars as pl
 import pyarrow.parquet as pq
 import pytest
 
-import nuparquet.convert as convert_module
+import nuparquet.convert.pipeline as convert_module
 from conftest import SYNTH_VERSION
 from nuparquet.convert import convert, registry
 from nuparquet.convert.registry import Builder
