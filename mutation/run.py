@@ -5,6 +5,7 @@ the fast test files that exercise it, within a time budget per group.
     python mutation/run.py geometry mosaic      # some groups
     python mutation/run.py --budget-s 600 projection
     python mutation/run.py geometry --again 'nuparquet.geometry.x_slerp_amount*'   # re-run some mutants
+    python mutation/run.py reader builders --sample 300 --seed 0                  # a random sample of each group
 
 Each group runs in its own staging copy (`.mutation/<group>/`: the package, tests, schemas and a pyproject.toml
 whose [tool.mutmut] names the group's modules and tests), so groups never share mutmut state. Generated test
@@ -19,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import random
 import shutil
 import signal
 import subprocess
@@ -101,10 +103,27 @@ def stage(group: str, keep_results: bool = False) -> Path:
     return where
 
 
-def run_group(group: str, budget_s: float, max_children: int, mutants: list[str] | None = None) -> dict:
+def all_mutants(where: Path, env: dict) -> list[str]:
+    """Every mutant of a staged group, generated if need be (a run of a name matching no mutant generates them
+    and tests none)."""
+    listed = subprocess.run(MUTMUT + ["results", "--all", "true"], cwd=where, env=env, capture_output=True, text=True)
+    if not listed.stdout.strip():
+        subprocess.run(MUTMUT + ["run", "nuparquet.no_such_module.x_none__mutmut_0"], cwd=where, env=env,
+                       capture_output=True, check=False)
+        listed = subprocess.run(MUTMUT + ["results", "--all", "true"], cwd=where, env=env, capture_output=True,
+                                text=True)
+    return [line.split(":")[0].strip() for line in listed.stdout.splitlines() if "__mutmut_" in line]
+
+
+def run_group(group: str, budget_s: float, max_children: int, mutants: list[str] | None = None,
+              sample: int | None = None, seed: int = 0) -> dict:
     where = stage(group, keep_results=bool(mutants))
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # the staged copy, not a worktree
     env.update(NUPARQUET_TEST_CACHE=str(STAGING / "cache"), MPLBACKEND="Agg")
+    if sample:  # a uniform random sample of the group's mutants, the same for the same seed and code
+        names = sorted(all_mutants(where, env))
+        mutants = sorted(random.Random(seed).sample(names, min(sample, len(names))))
+        (where / "sample.txt").write_text("\n".join(mutants) + "\n")
     started = time.monotonic()
     log = open(where / "mutmut.log", "w")  # noqa: SIM115 - closed below; mutmut's progress is one long line
     process = subprocess.Popen(MUTMUT + ["run", "--max-children", str(max_children), *(mutants or [])], cwd=where, env=env,
@@ -136,7 +155,8 @@ def run_group(group: str, budget_s: float, max_children: int, mutants: list[str]
                            if d[:1] in "+-" and not d.startswith(("+++", "---"))]
                 diffs.write(f"## {name}\n" + "\n".join(changed) + "\n")
     result = {"group": group, "finished": finished, "elapsed_s": round(elapsed), "stats": stats,
-              "again": mutants or [], "survivors": [line.strip() for line in survivors.splitlines() if line.strip()]}
+              "sample": {"size": len(mutants), "seed": seed} if sample else None,
+              "again": [] if sample else (mutants or []), "survivors": [line.strip() for line in survivors.splitlines() if line.strip()]}
     (where / "result.json").write_text(json.dumps(result, indent=1))
     return result
 
@@ -151,6 +171,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="with one GROUP: re-run only these mutants (mutmut names or globs, e.g. "
                              "'nuparquet.geometry.x_slerp_amount*') against the current code and tests, keeping the "
                              "group's other results")
+    parser.add_argument("--sample", type=int, metavar="N",
+                        help="test a uniform random sample of N mutants of each group (a 2-core machine cannot run "
+                             "the reader's or the builders' ~1,100 mutants in a session); the score is then an "
+                             "estimate over the sample")
+    parser.add_argument("--seed", type=int, default=0, help="seed of --sample (default 0)")
     args = parser.parse_args(argv)
     if args.again and len(args.groups) != 1:
         parser.error("--again needs exactly one GROUP")
@@ -159,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown group(s) {', '.join(unknown)}; valid: {', '.join(GROUPS)}")
     results = []
     for group in args.groups or list(GROUPS):
-        result = run_group(group, args.budget_s, args.max_children, args.again)
+        result = run_group(group, args.budget_s, args.max_children, args.again, args.sample, args.seed)
         results.append(result)
         print(json.dumps(result, indent=1), flush=True)
     # the last result of every group run so far, whichever invocation ran it
