@@ -10,7 +10,8 @@ import pytest
 
 from nuparquet.camera import Cameras
 from nuparquet.projection import lidar
-from nuparquet.projection.boxes import camera_rows, project_boxes
+from nuparquet.frame_boxes import frame_boxes
+from nuparquet.projection.boxes import boxes_in_cameras, camera_rows, corner_visibility, project_boxes
 from nuparquet.projection.frames import (
     MATRIX_COLUMNS, POSE_COLUMNS, cameras_from_frames, pose_columns, sensor_poses,
 )
@@ -129,3 +130,27 @@ def test_lidar_for_cameras_pairs_camera_keyframes_with_the_first_lidar_keyframe_
     got = lidar.lidar_for_cameras(cameras, lidar_rows)
     assert got.dtype == np.int64
     assert got.tolist() == [1, 0, -1, -1, 0]
+
+
+def test_corner_visibility_uses_the_devkit_strict_depth_limits():
+    """box_in_image: a corner counts only deeper than 1 m (1.0 exactly is not), a box is in front only if every
+    corner is deeper than 0.1 m (0.1 exactly is not); pixels are all inside the image here."""
+    corners_px = np.full((3, 8, 2), [800.0, 450.0])
+    depths = np.array([[1.0] * 8, [1.5] + [1.0] * 7, [1.5] * 7 + [0.1]])
+    corner_visible, in_front, visible = corner_visibility(identity_camera().take([0, 0, 0]), corners_px, depths)
+    assert corner_visible.tolist() == [[False] * 8, [True] + [False] * 7, [True] * 7 + [False]]
+    assert in_front.tolist() == [True, True, False] and visible.tolist() == [False, True, False]
+
+
+def test_boxes_in_cameras_moves_the_centre_into_the_ego_frame_and_the_camera():
+    """The ego at global x = 5 looking along +x; a box at global x = 15 is 10 m ahead: ego (10, 0, 0), camera
+    (x right, y down, z forward) (0, 0, 10)."""
+    frames = camera_frame(ego_translation=[[5.0, 0.0, 0.0]])
+    annotations, samples = one_box(15.0)
+    boxes = frame_boxes(frames, annotations, samples)
+    seen = boxes_in_cameras(cameras_from_frames(frames).take(boxes.frame_index), boxes)
+    np.testing.assert_allclose(seen.center_ego_m, [[10.0, 0.0, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(seen.center_camera_m, [[0.0, 0.0, 10.0]], atol=1e-12)
+    # corners: length 4 along ego x (camera z), width 2 along ego y (camera -x), height 1.5 (camera -y)
+    np.testing.assert_allclose(np.sort(np.unique(seen.corners_camera_m[0, :, 2])), [8.0, 12.0], atol=1e-12)
+    np.testing.assert_allclose(np.sort(np.unique(seen.corners_camera_m[0, :, 0])), [-1.0, 1.0], atol=1e-12)
