@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -446,7 +447,7 @@ def test_a_duplicate_key_in_a_record_is_named_by_its_0_based_index_and_token(roo
 @pytest.mark.parametrize("table, index, field, value, message", [
     ("sample_data", 3, "width", 2**70, "field 'width' must be an integer within the 64-bit range, got 1180591620717411303424"),
     ("sample_data", 3, "width", 2**64 - 1, "field 'width' must be an integer within the 64-bit range, got 18446744073709551615"),
-    ("sample", 1, "timestamp", 2**70, "field 'timestamp' must be an integer within the 64-bit range"),
+    ("sample", 1, "timestamp", 2**70, "field 'timestamp' must be an integer within the 64-bit range, got 1180591620717411303424"),
     ("sample_data", 4, "timestamp", 2**63, "field 'timestamp' must be an integer within the 64-bit range, got 9223372036854775808"),
     ("ego_pose", 2, "timestamp", math.nan, "field 'timestamp' must be an integer within the 64-bit range, got NaN"),
     ("sample_data", 5, "height", -1, "height -1 must be >= 0"),
@@ -463,10 +464,11 @@ def test_values_that_cannot_be_kept_or_used_are_named_by_validate_and_convert(ro
     records[index][field] = value
     save(root, table, records)
     where = f"{table}.json[{index}] token={records[index]['token']}: {message}"
+    where = re.compile(re.escape(where) + "$", re.M)  # the whole message ("must be finite", not "... and >= 0")
     code, out = validate(root, capsys)
-    assert code == 1 and where in out
+    assert code == 1 and re.search(where, out)
     code, out = convert(root, tmp_path, capsys)
-    assert code == 1 and where in out
+    assert code == 1 and re.search(where, out)
 
 
 @pytest.mark.parametrize("value", [1e21, 2**63 - 1])

@@ -78,3 +78,29 @@ def test_problems_name_the_file_and_the_record_within_it():
     records = [{"a": 1.0}] * 3 + [{"a": 1.0}, {"a": "x"}]
     _, problems = to_columns(records, Located(["first.json", "second.json"], [0, 3]), "message")
     assert (problems[0].file, problems[0].index) == ("second.json", 1)
+
+
+def test_an_extra_table_that_is_not_json_is_named_with_the_parser_s_reason(tmp_path):
+    from nuparquet.sources.tables import read_extra_table
+
+    path = tmp_path / "object_ann.json"
+    path.write_text('[{"token": "a",}]')
+    table, problems = read_extra_table(path)
+    assert table is None and len(problems) == 1
+    assert problems[0].file == "object_ann.json"
+    assert problems[0].message.startswith("not valid JSON (Expecting property name enclosed in double quotes")
+
+
+def test_an_extra_table_names_a_record_by_its_0_based_index_and_keeps_each_record_s_key_order(tmp_path):
+    from nuparquet.sources.tables import read_extra_table
+
+    path = tmp_path / "vehicle_state.json"
+    path.write_text(json.dumps([{"token": "a", "speed": 1.0}, {"token": "b"}]))
+    table, problems = read_extra_table(path)
+    assert table is None
+    assert [(p.file, p.index, p.message) for p in problems] == [
+        ("vehicle_state.json", 1, "record lacks speed (the first record has token, speed)")]
+    path.write_text(json.dumps([{"token": "a", "speed": 1.0}, {"speed": 2.0, "token": "b"}]))
+    table, problems = read_extra_table(path)
+    assert problems == [] and table.name == "vehicle_state"
+    assert table.inferred["key_orders"] == {"1": ["speed", "token"]} and table.inferred["keys"] == ["token", "speed"]
