@@ -1,33 +1,106 @@
-"""Print the figures and surviving mutants of the last `mutation/run.py` runs as Markdown (for MUTATION.md).
+"""The figures and surviving mutants of the last `mutation/run.py` runs, as the Markdown of MUTATION.md.
 
     python mutation/report.py [GROUP ...]
 
-Reads `.mutation/<group>/mutants/mutmut-cicd-stats.json` (mutmut's own figures) and `survivors.diff`.
+For each group staged under `.mutation/<group>/`, mutmut's own status of every mutant (`mutmut results --all
+true`), restricted to the group's sample when the run sampled (`sample.txt`), and mutmut's `export-cicd-stats`
+figures. Each surviving mutant is shown with its change and the judgement recorded in `mutation/judgements.toml`
+(equivalent, with why; or killed since by a named test, checked by hand; or left). The score is
+
+    (killed + timeout + segfault + killed since) / (checked - equivalent)
+
+where a timeout (an endless loop) and a segfault (the test process crashed) are detections, and "checked" counts
+every mutant the run reached.
 """
 
 from __future__ import annotations
 
 import json
+import subprocess
 import sys
+import tomllib
+from collections import Counter
 from pathlib import Path
 
-STAGING = Path(__file__).resolve().parent.parent / ".mutation"
+REPO = Path(__file__).resolve().parent.parent
+STAGING = REPO / ".mutation"
+JUDGEMENTS = Path(__file__).resolve().parent / "judgements.toml"
+MUTMUT = [sys.executable, "-m", "mutmut"]
+DETECTED = ("killed", "timeout", "segfault")
+
+
+def statuses(where: Path) -> dict[str, str]:
+    listed = subprocess.run(MUTMUT + ["results", "--all", "true"], cwd=where, capture_output=True, text=True).stdout
+    return {line.split(": ")[0].strip(): line.split(": ")[1].strip() for line in listed.splitlines() if ": " in line}
+
+
+def change(where: Path, name: str) -> str:
+    shown = subprocess.run(MUTMUT + ["show", name], cwd=where, capture_output=True, text=True).stdout
+    lines = [d[1:].strip() for d in shown.splitlines() if d[:1] in "+-" and not d.startswith(("+++", "---"))]
+    old = [d[1:].strip() for d in shown.splitlines() if d.startswith("-") and not d.startswith("---")]
+    new = [d[1:].strip() for d in shown.splitlines() if d.startswith("+") and not d.startswith("+++")]
+    return f"`{' / '.join(old)}` -> `{' / '.join(new)}`" if lines else "(no diff)"
+
+
+def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
+    where = STAGING / group
+    status = statuses(where)
+    sample = (where / "sample.txt").read_text().split() if (where / "sample.txt").is_file() else None
+    considered = {n: s for n, s in status.items() if sample is None or n in sample}
+    counts = Counter(considered.values())
+    checked = sum(v for k, v in counts.items() if k != "not checked")
+    detected = sum(counts[k] for k in DETECTED)
+    lines, equivalent, killed_since, left = [], 0, 0, 0
+    for name, state in sorted(considered.items()):
+        if state in DETECTED or state == "not checked":
+            continue
+        verdict = judgements.get(name.split(".")[-1]) or judgements.get(name)
+        if verdict and verdict.startswith("equivalent"):
+            equivalent += 1
+        elif verdict and verdict.startswith("killed"):
+            killed_since += 1
+        else:
+            left += 1
+        lines.append(f"- `{name.split('.')[-1]}` ({state}): {change(where, name)}  \n  "
+                     + (f"**{verdict.split(':')[0]}**:{verdict.split(':', 1)[1]}" if verdict and ":" in verdict
+                        else "**not equivalent, left**"))
+    denominator = checked - equivalent
+    figures = {"group": group, "mutants": len(status), "sample": len(sample) if sample else None,
+               "checked": checked, "not_checked": counts["not checked"], "killed": counts["killed"],
+               "timeout": counts["timeout"], "segfault": counts["segfault"], "survived": counts["survived"],
+               "no_tests": counts["no tests"], "equivalent": equivalent, "killed_since": killed_since, "left": left,
+               "score_tool": detected / denominator if denominator else None,
+               "score_now": (detected + killed_since) / denominator if denominator else None}
+    return "\n".join(lines), figures
 
 
 def main(groups: list[str]) -> int:
-    groups = groups or sorted(p.name for p in STAGING.iterdir() if (p / "survivors.txt").exists())
+    judgements = tomllib.loads(JUDGEMENTS.read_text()) if JUDGEMENTS.is_file() else {}
+    flat = {name: verdict for table in judgements.values() for name, verdict in table.items()}
+    groups = groups or [p.name for p in sorted(STAGING.iterdir()) if (p / "mutants").is_dir()]
+    rows, sections = [], []
     for group in groups:
-        where = STAGING / group
-        stats = json.loads((where / "mutants" / "mutmut-cicd-stats.json").read_text())
-        print(f"### {group}\n")
-        print("| " + " | ".join(stats) + " |")
-        print("|" + "---|" * len(stats))
-        print("| " + " | ".join(str(v) for v in stats.values()) + " |\n")
-        diff = (where / "survivors.diff").read_text() if (where / "survivors.diff").exists() else ""
-        for block in diff.split("## ")[1:]:
-            name, *lines = block.strip().splitlines()
-            print(f"- `{name.split('.')[-1]}`: " + " / ".join(f"`{line.strip()}`" for line in lines if line.startswith("+")))
-        print()
+        text, figures = group_report(group, flat)
+        rows.append(figures)
+        sections.append(f"### {group}\n\n{text or '(none)'}\n")
+    print("| group | mutants | sample | checked | killed | timeout | segfault | survived | no tests | equivalent "
+          "| killed since | left | score (tool run) | score now |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for f in rows:
+        score = lambda v: f"**{v:.1%}**" if v is not None else "—"  # noqa: E731
+        print(f"| {f['group']} | {f['mutants']} | {f['sample'] or 'all'} | {f['checked']} | {f['killed']} | "
+              f"{f['timeout']} | {f['segfault']} | {f['survived']} | {f['no_tests']} | {f['equivalent']} | "
+              f"{f['killed_since']} | {f['left']} | {score(f['score_tool'])} | {score(f['score_now'])} |")
+    total = {k: sum(f[k] for f in rows) for k in ("checked", "killed", "timeout", "segfault", "equivalent",
+                                                   "killed_since")}
+    denominator = total["checked"] - total["equivalent"]
+    if denominator:
+        detected = total["killed"] + total["timeout"] + total["segfault"]
+        print(f"\nAll groups: {detected} detected by the tool run of {denominator} non-equivalent checked mutants "
+              f"= **{detected / denominator:.1%}**; with the {total['killed_since']} killed since: "
+              f"**{(detected + total['killed_since']) / denominator:.1%}**.\n")
+    print("\n".join(sections))
+    (STAGING / "report.json").write_text(json.dumps(rows, indent=1))
     return 0
 
 
