@@ -489,4 +489,21 @@ def test_a_field_differing_from_another_only_in_case_is_named_with_its_record(ro
     save(root, "sample", records)
     code, out = convert(root, tmp_path, capsys)
     assert code == 1 and "Traceback" not in out
-    assert f"sample.json[1] token={records[1]['token']}: fields 'token' and 'Token' differ only in case" in out
+    assert (f"sample.json[1] token={records[1]['token']}: fields 'token' and 'Token' differ only in case; Parquet "
+            "columns as DuckDB and Spark read them cannot hold both (rename one)\n") in out
+
+
+def test_a_missing_version_folder_lists_the_folders_holding_json(tmp_path):
+    from nuparquet.errors import UsageError
+    from nuparquet.sources.tables import version_dir
+
+    (tmp_path / "v1.0-mini").mkdir()
+    (tmp_path / "v1.0-mini" / "scene.json").write_text("[]")
+    (tmp_path / "maps").mkdir()  # a folder without JSON tables is not a version
+    (tmp_path / "samples.json").write_text("[]")  # nor is a file
+    with pytest.raises(UsageError) as error:
+        version_dir(tmp_path, "v1.0-trainval")
+    assert str(error.value) == f"version folder {tmp_path / 'v1.0-trainval'} does not exist; versions found: v1.0-mini"
+    with pytest.raises(UsageError) as error:
+        version_dir(tmp_path / "maps", "v1.0-trainval")
+    assert str(error.value) == f"version folder {tmp_path / 'maps' / 'v1.0-trainval'} does not exist"

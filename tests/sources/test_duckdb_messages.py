@@ -6,7 +6,8 @@ from __future__ import annotations
 import duckdb
 import pytest
 
-from nuparquet.sources.tables import _duckdb_message
+from nuparquet.problems import Problem
+from nuparquet.sources.tables import _duckdb_message, _duckdb_problem
 
 
 @pytest.mark.parametrize("raw, shown", [
@@ -16,3 +17,13 @@ from nuparquet.sources.tables import _duckdb_message
 ])
 def test_duckdb_errors_are_shown_as_their_first_line_without_the_prefix(raw, shown):
     assert _duckdb_message(duckdb.Error(raw)) == shown
+
+
+def test_a_record_duckdb_names_gets_its_0_based_index_and_no_token_when_the_lookup_fails():
+    """DuckDB counts records from 1; when the token cannot be looked up (here: the source is gone) the problem
+    still names the record, without a token."""
+    exc = duckdb.InvalidInputException('Invalid Input Error: JSON transform error in file "x.json", in record/value 3: '
+                                       "Failed to cast value to numerical: 9223372036854775808")
+    objects = "read_json_objects('/nonexistent/x.json', format='array')"
+    got = _duckdb_problem(duckdb.connect(), objects, "x.json", exc)
+    assert got == Problem("x.json", "record Failed to cast value to numerical: 9223372036854775808", 2, None)
