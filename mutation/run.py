@@ -56,7 +56,7 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
     "reader": (["nuparquet/sources/tables.py", "nuparquet/validate.py"],
                ["tests/convert/test_bad_input.py", "tests/sources/test_json_records.py",
                 "tests/convert/test_real_layouts.py", "tests/convert/test_timestamp_units.py",
-                "tests/sources/test_duckdb_messages.py", "-m", "not real",
+                "tests/sources/test_duckdb_messages.py", "tests/sources/test_tables.py", "-m", "not real",
                 "-k", "not successful_overwrite"]),
     "builders": (["nuparquet/convert/builders/annotations.py", "nuparquet/convert/builders/scenes.py",
                   "nuparquet/convert/builders/instances.py", "nuparquet/convert/builders/frames.py",

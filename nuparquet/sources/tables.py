@@ -165,8 +165,8 @@ def _read_one(con: duckdb.DuckDBPyConnection, path: Path, schema: Schema) -> tup
     file = path.name
     head = _first_chars(path)
     if not head.startswith("["):
-        what = "a JSON object" if head.startswith("{") else ("empty" if not head else f"starts with {head[:1]!r}")
-        return None, [Problem(file, f"expected a JSON array of records, but the file is {what}")]
+        what = "is a JSON object" if head.startswith("{") else ("is empty" if not head else f"starts with {head[:1]!r}")
+        return None, [Problem(file, f"expected a JSON array of records, but the file {what}")]
     if head == "[]":
         empty = pa.table({f.name: pa.array([], f.arrow_type) for f in schema.fields})
         return SourceTable(schema.name, path, empty, schema.names), []
