@@ -54,7 +54,7 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
     for name, state in sorted(considered.items()):
         if state in DETECTED or state == "not checked":
             continue
-        verdict = judgements.get(name.split(".")[-1]) or judgements.get(name)
+        verdict = judgements.get(name) or judgements.get(name.split(".")[-1])  # a full name wins (short ones repeat across modules)
         if verdict and verdict.startswith("equivalent"):
             equivalent += 1
         elif verdict and verdict.startswith("killed"):
