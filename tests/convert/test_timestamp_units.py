@@ -51,3 +51,30 @@ def test_wrong_units_are_named_and_nothing_crashes(pristine, tmp_path, capsys, u
 def test_plausible_microseconds_give_no_warning(pristine, capsys):
     assert main(["validate", str(pristine), "--version", V, "--quiet"]) == 0
     assert "warning" not in capsys.readouterr().out
+
+
+def test_the_unit_guess_at_its_limits():
+    """Plausible microseconds lie in [2000, 2100); beyond, the most telling end of the range (the high one when it
+    is too high) is classed: > 100x the upper limit nanoseconds, between 1e-5 and 1e-2 of the lower limit
+    milliseconds, below 1e-5 of it seconds, anything else another unit. Each message is a warning."""
+    import polars as pl
+
+    from nuparquet.validate import PLAUSIBLE_TIMESTAMP_US, _timestamp_units
+
+    low, high = PLAUSIBLE_TIMESTAMP_US
+    cases = {
+        "ns": ([low + 1, high * 100 + 1], "nanoseconds"),  # only the high end is wrong: it decides
+        "ms": ([low // 100 - 1, low // 100 - 1], "milliseconds"),
+        "s": ([low // 100_000 - 1, low // 100_000 - 1], "seconds"),
+        "other": ([500_000_000_000_000, 500_000_000_000_000], "another unit"),  # half the lower limit
+        "fine": ([low, high], None),
+    }
+    frames = {name: pl.DataFrame({"timestamp": values}) for name, (values, _) in cases.items()}
+    warnings = _timestamp_units(frames, {name: f"{name}.json" for name in cases})
+    got = {w.file: w for w in warnings}
+    assert set(got) == {f"{name}.json" for name, (_, unit) in cases.items() if unit}
+    for name, (values, unit) in cases.items():
+        if unit:
+            assert got[f"{name}.json"].warning
+            assert got[f"{name}.json"].message == (f"timestamp values {values[0]:g}..{values[1]:g} are not microseconds "
+                                                   f"between 2000 and 2100 (they look like {unit}); converted as they are")
