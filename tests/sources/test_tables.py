@@ -57,3 +57,52 @@ def test_a_dataroot_whose_path_holds_a_quote_reads_like_any_other(synth_root, tm
     assert result.problems == []
     expected = len(json.loads((root / SYNTH_VERSION / "sample_data.json").read_text()))
     assert result.tables["sample_data"].table.num_rows == expected
+
+
+def test_a_missing_table_is_named_and_every_other_table_is_still_read(synth_root, tmp_path):
+    folder = tmp_path / SYNTH_VERSION
+    shutil.copytree(synth_root / SYNTH_VERSION, folder)
+    (folder / "attribute.json").unlink()  # the first table of the schema order
+    (folder / "object_ann.json").write_text(json.dumps([{"token": "oa0", "bbox": [1, 2, 3, 4]}]))
+    seen = []
+    result = read_tables(tmp_path, SYNTH_VERSION, on_table=seen.append)
+    assert result.problems == [Problem("attribute.json",
+                                       f"table attribute is missing (expected {folder / 'attribute.json'})")]
+    present = {name for name, s in table_schemas().items() if (folder / s.source).is_file()}
+    assert set(result.tables) == present | {"object_ann"}
+    assert seen[-1] == "object_ann" and seen[:len(table_schemas())] == list(table_schemas())
+    stat = (folder / "scene.json").stat()
+    assert result.files["scene.json"] == {"bytes": stat.st_size, "mtime": stat.st_mtime}
+    assert result.files["object_ann.json"]["bytes"] == (folder / "object_ann.json").stat().st_size
+    assert "attribute.json" not in result.files
+
+
+def test_a_required_field_missing_from_every_record_is_named(tmp_path):
+    path = tmp_path / "attribute.json"
+    path.write_text(json.dumps([{"token": "a", "description": "d"}, {"token": "b", "description": "e"}]))
+    assert read(path) == (None, [Problem("attribute.json", "required field 'name' is missing from every record")])
+
+
+def test_every_integer_field_that_cannot_be_kept_is_named_not_only_the_last(synth_root, tmp_path):
+    records = json.loads((synth_root / SYNTH_VERSION / "sample_data.json").read_text())
+    records[3]["width"] = 2**70
+    records[4]["timestamp"] = 2**70
+    path = tmp_path / "sample_data.json"
+    path.write_text(json.dumps(records))
+    table, problems = read(path, "sample_data")
+    assert table is None
+    assert [(p.index, p.message.split(" must")[0]) for p in problems] == [(4, "field 'timestamp'"), (3, "field 'width'")]
+
+
+def test_an_integer_field_of_fractions_only_is_a_float_column_without_hidden_marks(synth_root, tmp_path):
+    """No record holds an integer there, so no record needs its JSON type remembered: the table holds exactly
+    the schema's columns."""
+    records = json.loads((synth_root / SYNTH_VERSION / "sample_data.json").read_text())
+    for r in records:
+        r["width"] = 0.5
+    path = tmp_path / "sample_data.json"
+    path.write_text(json.dumps(records))
+    table, problems = read(path, "sample_data")
+    assert problems == [] and table.float_fields == ["width"]
+    assert table.table.column_names == list(records[0])
+    assert table.table.column("width").type == pa.float64()
