@@ -104,5 +104,16 @@ def test_an_integer_field_of_fractions_only_is_a_float_column_without_hidden_mar
     path.write_text(json.dumps(records))
     table, problems = read(path, "sample_data")
     assert problems == [] and table.float_fields == ["width"]
-    assert table.table.column_names == list(records[0])
+    assert table.table.column_names == list(records[0]) and table.layouts == []  # one layout: none listed
     assert table.table.column("width").type == pa.float64()
+
+
+def test_null_in_an_optional_field_is_a_null_value(synth_root, tmp_path):
+    records = json.loads((synth_root / SYNTH_VERSION / "sample_data.json").read_text())
+    records[2]["height"] = None
+    path = tmp_path / "sample_data.json"
+    path.write_text(json.dumps(records))
+    table, problems = read(path, "sample_data")
+    assert problems == []
+    heights = table.table.column("height").to_pylist()
+    assert heights[2] is None and heights[:2] == [r["height"] for r in records[:2]]
