@@ -63,8 +63,9 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
                   "nuparquet/convert/builders/common.py"],
                  # the irregular fixture only: it holds the regular one's cases and more, and the real extract's
                  # devkit load would add ~3 s to every mutant
-                 ["tests/parity/test_derived_datasets.py", "tests/convert/test_empty_annotations.py", "-m",
-                  "not real", "-k", "not synth and not extract"]),
+                 ["tests/parity/test_derived_datasets.py", "tests/convert/test_empty_annotations.py",
+                  "tests/convert/test_real_layouts.py::test_lyft_frames_give_non_images_zero_size_and_annotations_no_visibility",
+                  "-m", "not real", "-k", "not synth and not extract"]),
     "mosaic": (["nuparquet/render/plan.py", "nuparquet/render/mosaic.py"],
                ["tests/render/test_plan.py", "tests/parity/test_mosaic_devkit.py", "tests/render/test_render.py",
                 "-k", "(mosaic or plan or keyframe) and not 12.0 and not 2.0", "-m", "not real"]),

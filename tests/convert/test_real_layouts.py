@@ -122,6 +122,7 @@ def test_lyft_frames_give_non_images_zero_size_and_annotations_no_visibility(lyf
     by_modality = frames.group_by(pl.col("modality").cast(pl.String)).agg(pl.col("width").max(), pl.col("height").min())
     sizes = {r["modality"]: (r["width"], r["height"]) for r in by_modality.iter_rows(named=True)}
     assert sizes["lidar"] == (0, 0) and sizes["radar"] == (0, 0) and sizes["camera"] == (1600, 900)
+    assert frames.schema["width"] == pl.Int64 and frames.schema["height"] == pl.Int64  # integers again in frames
     annotations = pl.read_parquet(tmp_path / "out" / "annotations")
     assert annotations["visibility_level"].is_null().all() and annotations["visibility_name"].is_null().all()
     table = pl.read_parquet(tmp_path / "out" / "tables" / "sample_data")

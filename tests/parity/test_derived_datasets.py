@@ -219,12 +219,23 @@ def test_distance_to_ego_is_null_without_a_reference_keyframe(synth_root, tmp_pa
 
 def test_rows_are_stored_in_the_documented_order(case):
     """Row order is what lets a scene filter skip row groups: instances by (scene, first timestamp, token),
-    annotations by (scene, timestamp, instance, token), scenes by (name, token). Checked against Python sorting
-    of the rows as stored."""
+    annotations by (scene, timestamp, instance, token), frames by (scene, channel, timestamp, token), scenes by
+    (name, token). Checked against Python sorting of the rows as stored."""
     _, _, out, _ = case
     for dataset, keys in (("instances", ("scene_name", "first_timestamp", "token")),
+                          ("frames", ("scene_name", "channel", "timestamp", "token")),
                           ("annotations", ("scene_name", "timestamp", "instance_token", "token")),
                           ("scenes", ("name", "token"))):
         files = sorted((out / dataset).glob("*.parquet"))
         rows = [tuple(r) for f in files for r in pl.read_parquet(f).select(keys).iter_rows()]
         assert rows == sorted(rows), dataset
+
+
+def test_a_track_of_one_annotation_has_length_zero(case):
+    """An instance annotated once has no path: track_length_m is 0.0 (not null, not a step of its own)."""
+    _, version, out, _ = case
+    instances = pl.read_parquet(out / "instances")
+    single = instances.filter(pl.col("nbr_annotations") == 1)
+    if version == IRREGULAR_VERSION:
+        assert single.height > 0  # the fixture's single-annotation tracks
+    assert single["track_length_m"].to_list() == [0.0] * single.height
