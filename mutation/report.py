@@ -4,8 +4,9 @@
 
 For each group staged under `.mutation/<group>/`, mutmut's own status of every mutant (`mutmut results --all
 true`), restricted to the group's sample when the run sampled (`sample.txt`), and mutmut's `export-cicd-stats`
-figures. Each surviving mutant is shown with its change and the judgement recorded in `mutation/judgements.toml`
-(equivalent, with why; or killed since by a named test, checked by hand; or left). The score is
+figures. A first-run survivor that a re-check (`run.py GROUP --recheck NAMES`, `.mutation/<group>-recheck/`) kills
+counts as killed since; each remaining survivor is shown with its change and the judgement recorded in
+`mutation/judgements.toml` (equivalent, with why; or killed by a named test, checked by hand; or left). The score is
 
     (killed + timeout + segfault + killed since) / (checked - equivalent)
 
@@ -50,9 +51,17 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
     counts = Counter(considered.values())
     checked = sum(v for k, v in counts.items() if k != "not checked")
     detected = sum(counts[k] for k in DETECTED)
+    # the verdicts of a re-check (`run.py GROUP --recheck NAMES`: every selected test, current tests) replace the
+    # first run's for the mutants it ran
+    recheck_dir = STAGING / f"{group}-recheck"
+    rechecked = {n: s for n, s in statuses(recheck_dir).items() if s != "not checked"} if recheck_dir.is_dir() else {}
     lines, equivalent, killed_since, left = [], 0, 0, 0
-    for name, state in sorted(considered.items()):
-        if state in DETECTED or state == "not checked":
+    for name, first in sorted(considered.items()):
+        if first in DETECTED or first == "not checked":
+            continue
+        state = rechecked.get(name, first)
+        if state in DETECTED:
+            killed_since += 1
             continue
         verdict = judgements.get(name) or judgements.get(name.split(".")[-1])  # a full name wins (short ones repeat across modules)
         if verdict and verdict.startswith("equivalent"):
@@ -61,6 +70,7 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
             killed_since += 1
         else:
             left += 1
+        state = f"{first}, re-checked: {state}" if name in rechecked else state
         lines.append(f"- `{name.split('.')[-1]}` ({state}): {change(where, name)}  \n  "
                      + (f"**{verdict.split(':')[0]}**:{verdict.split(':', 1)[1]}" if verdict and ":" in verdict
                         else "**not equivalent, left**"))

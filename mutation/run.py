@@ -76,12 +76,12 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
 DEFAULT_BUDGET_S = 900
 
 
-def stage(group: str, keep_results: bool = False) -> Path:
+def stage(group: str, keep_results: bool = False, where: Path | None = None) -> Path:
     """A fresh copy of what the group's tests need, with the group's mutmut configuration. With `keep_results`
     the code and tests are refreshed but mutmut's results (`mutants/`) stay: mutmut regenerates the mutants of
     changed modules, and a run of named mutants updates only theirs."""
     modules, test_args = GROUPS[group]
-    where = STAGING / group
+    where = where or STAGING / group
     if where.exists() and not keep_results:
         shutil.rmtree(where)
     where.mkdir(parents=True, exist_ok=True)
@@ -117,9 +117,38 @@ def all_mutants(where: Path, env: dict) -> list[str]:
     return [line.split(":")[0].strip() for line in listed.stdout.splitlines() if "__mutmut_" in line]
 
 
+def recheck_stage(group: str, env: dict) -> Path:
+    """`.mutation/<group>-recheck/`: the group with the current code and tests, its mutants generated and mutmut's
+    stats collected, then every function mapped to every selected test.
+
+    mutmut maps a function to the tests during which it ran, and a module-scoped fixture runs in the first test that
+    uses it: a builder called while a fixture converts a dataset is mapped to that one test, and its mutants are
+    run against it alone (`path_lengths` mutants survived while `test_scenes_and_instances_from_the_json` checks
+    every track length). A re-check runs each named mutant against the whole selection instead (pytest -x stops
+    at the first failure)."""
+    where = stage(group, where=STAGING / f"{group}-recheck")
+    subprocess.run(MUTMUT + ["run", "nuparquet.no_such_module.x_none__mutmut_0"], cwd=where, env=env,
+                   capture_output=True, check=False)  # generates the mutants and collects the stats
+    stats_file = where / "mutants" / "mutmut-stats.json"
+    stats = json.loads(stats_file.read_text())
+    every_test = sorted(stats["duration_by_test"])
+    functions = set(stats["tests_by_mangled_function_name"])
+    listed = subprocess.run(MUTMUT + ["results", "--all", "true"], cwd=where, env=env, capture_output=True, text=True)
+    functions |= {line.split(":")[0].strip().partition("__mutmut_")[0] for line in listed.stdout.splitlines()
+                  if "__mutmut_" in line}
+    stats["tests_by_mangled_function_name"] = {name: every_test for name in sorted(functions)}
+    stats_file.write_text(json.dumps(stats))
+    return where
+
+
 def run_group(group: str, budget_s: float, max_children: int, mutants: list[str] | None = None,
-              sample: int | None = None, seed: int = 0) -> dict:
-    where = stage(group, keep_results=bool(mutants))
+              sample: int | None = None, seed: int = 0, recheck: bool = False) -> dict:
+    if recheck:
+        env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+        env.update(NUPARQUET_TEST_CACHE=str(STAGING / "cache"), MPLBACKEND="Agg")
+        where = recheck_stage(group, env)
+    else:
+        where = stage(group, keep_results=bool(mutants))
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # the staged copy, not a worktree
     env.update(NUPARQUET_TEST_CACHE=str(STAGING / "cache"), MPLBACKEND="Agg")
     if sample:  # a uniform random sample of the group's mutants, the same for the same seed and code
@@ -173,20 +202,25 @@ def main(argv: list[str] | None = None) -> int:
                         help="with one GROUP: re-run only these mutants (mutmut names or globs, e.g. "
                              "'nuparquet.geometry.x_slerp_amount*') against the current code and tests, keeping the "
                              "group's other results")
+    parser.add_argument("--recheck", nargs="+", metavar="NAME",
+                        help="with one GROUP: re-run these mutants (names or globs) against every selected test, in "
+                             "a separate staging copy (.mutation/GROUP-recheck), leaving the group's results as they "
+                             "are; mutation/report.py then takes the re-checked verdicts")
     parser.add_argument("--sample", type=int, metavar="N",
                         help="test a uniform random sample of N mutants of each group (a 2-core machine cannot run "
                              "the reader's or the builders' ~1,100 mutants in a session); the score is then an "
                              "estimate over the sample")
     parser.add_argument("--seed", type=int, default=0, help="seed of --sample (default 0)")
     args = parser.parse_args(argv)
-    if args.again and len(args.groups) != 1:
-        parser.error("--again needs exactly one GROUP")
+    if (args.again or args.recheck) and len(args.groups) != 1:
+        parser.error("--again and --recheck need exactly one GROUP")
     unknown = [g for g in args.groups if g not in GROUPS]
     if unknown:
         parser.error(f"unknown group(s) {', '.join(unknown)}; valid: {', '.join(GROUPS)}")
     results = []
     for group in args.groups or list(GROUPS):
-        result = run_group(group, args.budget_s, args.max_children, args.again, args.sample, args.seed)
+        result = run_group(group, args.budget_s, args.max_children, args.recheck or args.again, args.sample, args.seed,
+                           recheck=bool(args.recheck))
         results.append(result)
         print(json.dumps(result, indent=1), flush=True)
     # the last result of every group run so far, whichever invocation ran it
