@@ -82,9 +82,13 @@ def main() -> None:
         bench_data.render_out()
     info = machine()
     load_start = load_average()
-    results = []
+    results, failed = [], []
     for name in wanted:
-        results.append(BENCHMARKS[name](args))
+        try:
+            results.append(BENCHMARKS[name](args))
+        except Exception as exc:  # one broken benchmark must not lose the others' figures
+            log(f"{name} FAILED: {exc}")
+            failed.append(f"{name}: {str(exc).splitlines()[0]}")
     rows = [row for result in results for row in result["rows"]]
     table = markdown_table(rows)
     elapsed = time.perf_counter() - start
@@ -92,10 +96,11 @@ def main() -> None:
               f"--devkit-repeats {args.devkit_repeats}`, {elapsed / 60:.1f} min)\n\n{machine_markdown(info)}\n"
               f"- load average at start {load_start}, at end {load_average()} (the machine is shared)\n")
     report = (f"{header}\n{table}\n\nCommands (each a fresh process; medians of the repeats):\n\n"
-              f"{commands_markdown(results)}\n")
+              f"{commands_markdown(results)}\n" + "".join(f"\n**Failed**: {line}\n" for line in failed))
     path = write_results({"started_utc": started.isoformat(), "elapsed_s": elapsed, "machine": info,
                           "load_average": {"start": load_start, "end": load_average()},
-                          "repeats": args.repeats, "devkit_repeats": args.devkit_repeats, "benchmarks": results})
+                          "repeats": args.repeats, "devkit_repeats": args.devkit_repeats, "benchmarks": results,
+                          "failed": failed})
     path.with_suffix(".md").write_text(report)
     print(report)
     print(f"(results: {path.relative_to(REPO)} and {path.with_suffix('.md').relative_to(REPO)})")
