@@ -87,7 +87,7 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
 def main(groups: list[str]) -> int:
     judgements = tomllib.loads(JUDGEMENTS.read_text()) if JUDGEMENTS.is_file() else {}
     flat = {name: verdict for table in judgements.values() for name, verdict in table.items()}
-    groups = groups or [p.name for p in sorted(STAGING.iterdir()) if (p / "mutants").is_dir()]
+    groups = groups or [p.name for p in sorted(STAGING.iterdir()) if (p / "mutants").is_dir() and not p.name.endswith("-recheck")]
     rows, sections = [], []
     for group in groups:
         text, figures = group_report(group, flat)

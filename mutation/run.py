@@ -65,6 +65,7 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
                  # devkit load would add ~3 s to every mutant
                  ["tests/parity/test_derived_datasets.py", "tests/convert/test_empty_annotations.py",
                   "tests/convert/test_real_layouts.py::test_lyft_frames_give_non_images_zero_size_and_annotations_no_visibility",
+                  "tests/convert/test_real_layouts.py::test_t4_visibility_comes_from_the_table_and_extra_tables_are_kept",
                   "-m", "not real", "-k", "not synth and not extract"]),
     "mosaic": (["nuparquet/render/plan.py", "nuparquet/render/mosaic.py"],
                ["tests/render/test_plan.py", "tests/parity/test_mosaic_devkit.py", "tests/render/test_render.py",
