@@ -239,3 +239,38 @@ def test_a_track_of_one_annotation_has_length_zero(case):
     if version == IRREGULAR_VERSION:
         assert single.height > 0  # the fixture's single-annotation tracks
     assert single["track_length_m"].to_list() == [0.0] * single.height
+
+
+def test_track_and_ego_path_lengths_follow_time_not_the_order_of_the_json(irregular_root, irregular_out, tmp_path):
+    """The JSON order of sample_annotation and sample_data is arbitrary: shuffled, the same path lengths come out
+    (summed in time order), equal to walking each instance's chain of annotations."""
+    import random
+    import shutil
+
+    from nuparquet.convert import convert
+
+    root = tmp_path / "shuffled"
+    shutil.copytree(irregular_root / IRREGULAR_VERSION, root / IRREGULAR_VERSION)
+    for table in ("sample_annotation", "sample_data"):
+        path = root / IRREGULAR_VERSION / f"{table}.json"
+        records = json.loads(path.read_text())
+        random.Random(3).shuffle(records)
+        path.write_text(json.dumps(records))
+    out = tmp_path / "out"
+    convert(root, IRREGULAR_VERSION, out)
+    ann = {a["token"]: a for a in json.loads((root / IRREGULAR_VERSION / "sample_annotation.json").read_text())}
+    instances = json.loads((root / IRREGULAR_VERSION / "instance.json").read_text())
+    lengths = dict(read(out, "instances").select("token", "track_length_m").iter_rows())
+    moving = 0
+    for inst in instances:
+        chain, token = [], inst["first_annotation_token"]
+        while token:
+            chain.append(ann[token]["translation"])
+            token = ann[token]["next"]
+        expected = sum(math.dist(a, b) for a, b in zip(chain, chain[1:]))
+        moving += expected > 0
+        assert lengths[inst["token"]] == pytest.approx(expected, rel=1e-9, abs=1e-12)
+    assert moving > 0
+    shuffled = read(out, "scenes").sort("token")["ego_distance_m"].to_list()
+    in_order = read(irregular_out, "scenes").sort("token")["ego_distance_m"].to_list()
+    assert shuffled == pytest.approx(in_order, rel=1e-12) and all(d > 0 for d in in_order)
