@@ -170,3 +170,14 @@ def test_abort_then_close_leaves_nothing_and_close_twice_is_harmless(tmp_path):
         video.write(np.zeros((16, 16, 3), np.uint8))
     video.close()
     assert [p.name for p in tmp_path.iterdir()] == ["b.mp4"]
+
+
+def test_the_macroblock_tree_is_off_as_x264_records_it(tmp_path):
+    """Videos are encoded with `mbtree=0` (with the tree on, long-lived workers gave different bytes for the same
+    pictures, and the engines must agree byte for byte). x264 writes its settings into the stream: check them."""
+    path = tmp_path / "v.mp4"
+    with VideoWriter(path, width=64, height=64) as video:
+        for value in (0, 128, 255):
+            video.write(np.full((64, 64, 3), value, np.uint8))
+    settings = path.read_bytes().split(b"options: ", 1)[1].split(b"\x00", 1)[0].decode("ascii", "replace")
+    assert " mbtree=0 " in f" {settings} " and " crf=23.0 " in f" {settings} "
