@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from nuparquet.cli.arguments import add_options, options_from
 from nuparquet.cli.progress import bars
-from nuparquet.index import build_index
 from nuparquet.index.options import IndexOptions
 
 
@@ -25,6 +24,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from nuparquet.index.build import build_index
+
     written = build_index(args.dataset, options_from(args, IndexOptions), on_progress=bars(not args.quiet))
     for name, path in written.items():
         print(f"{name}: {path}")
