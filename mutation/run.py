@@ -128,15 +128,11 @@ def recheck_stage(group: str, env: dict) -> Path:
     every track length). A re-check runs each named mutant against the whole selection instead (pytest -x stops
     at the first failure)."""
     where = stage(group, where=STAGING / f"{group}-recheck")
-    subprocess.run(MUTMUT + ["run", "nuparquet.no_such_module.x_none__mutmut_0"], cwd=where, env=env,
-                   capture_output=True, check=False)  # generates the mutants and collects the stats
+    names = all_mutants(where, env)  # generates the mutants and collects the stats
     stats_file = where / "mutants" / "mutmut-stats.json"
     stats = json.loads(stats_file.read_text())
     every_test = sorted(stats["duration_by_test"])
-    functions = set(stats["tests_by_mangled_function_name"])
-    listed = subprocess.run(MUTMUT + ["results", "--all", "true"], cwd=where, env=env, capture_output=True, text=True)
-    functions |= {line.split(":")[0].strip().partition("__mutmut_")[0] for line in listed.stdout.splitlines()
-                  if "__mutmut_" in line}
+    functions = set(stats["tests_by_mangled_function_name"]) | {name.partition("__mutmut_")[0] for name in names}
     stats["tests_by_mangled_function_name"] = {name: every_test for name in sorted(functions)}
     stats_file.write_text(json.dumps(stats))
     return where
@@ -144,14 +140,9 @@ def recheck_stage(group: str, env: dict) -> Path:
 
 def run_group(group: str, budget_s: float, max_children: int, mutants: list[str] | None = None,
               sample: int | None = None, seed: int = 0, recheck: bool = False) -> dict:
-    if recheck:
-        env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
-        env.update(NUPARQUET_TEST_CACHE=str(STAGING / "cache"), MPLBACKEND="Agg")
-        where = recheck_stage(group, env)
-    else:
-        where = stage(group, keep_results=bool(mutants))
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}  # the staged copy, not a worktree
     env.update(NUPARQUET_TEST_CACHE=str(STAGING / "cache"), MPLBACKEND="Agg")
+    where = recheck_stage(group, env) if recheck else stage(group, keep_results=bool(mutants))
     if sample:  # a uniform random sample of the group's mutants, the same for the same seed and code
         names = sorted(all_mutants(where, env))
         mutants = sorted(random.Random(seed).sample(names, min(sample, len(names))))

@@ -72,11 +72,7 @@ def extract_root() -> Path:
 
 @pytest.fixture(scope="session")
 def extract_out(extract_root, tmp_path_factory) -> Path:
-    from nuparquet.convert import convert
-
-    out = tmp_path_factory.mktemp("extract") / "out"
-    convert(extract_root, EXTRACT_VERSION, out)
-    return out
+    return converted(tmp_path_factory, "extract", extract_root, EXTRACT_VERSION)
 
 
 def generated_root(tmp_path_factory, name: str, make) -> Path:
@@ -95,14 +91,20 @@ def generated_root(tmp_path_factory, name: str, make) -> Path:
     return root
 
 
+def converted(tmp_path_factory, name: str, root: Path, version: str, **options) -> Path:
+    """`nuparquet convert` of `root`/`version` into a fresh temporary OUT (the session's converted fixtures)."""
+    from nuparquet.convert import convert
+
+    out = tmp_path_factory.mktemp(name) / "out"
+    convert(root, version, out, **options)
+    return out
+
+
 @pytest.fixture(scope="session")
 def extract_points_out(extract_root, tmp_path_factory) -> Path:
     """The real extract converted with its sensor points (lidar_points/, radar_points/), one process."""
-    from nuparquet.convert import convert
-
-    out = tmp_path_factory.mktemp("extract-points") / "out"
-    convert(extract_root, EXTRACT_VERSION, out, sensors=("lidar", "radar"), jobs=1)
-    return out
+    return converted(tmp_path_factory, "extract-points", extract_root, EXTRACT_VERSION, sensors=("lidar", "radar"),
+                     jobs=1)
 
 
 @pytest.fixture(scope="session")
@@ -125,11 +127,7 @@ def synth_root(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def synth_out(synth_root, tmp_path_factory) -> Path:
-    from nuparquet.convert import convert
-
-    out = tmp_path_factory.mktemp("synth-out") / "out"
-    convert(synth_root, SYNTH_VERSION, out)
-    return out
+    return converted(tmp_path_factory, "synth-out", synth_root, SYNTH_VERSION)
 
 
 @pytest.fixture(scope="session")
@@ -158,11 +156,7 @@ def lyft_rig_root(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def lyft_rig_out(lyft_rig_root, tmp_path_factory) -> Path:
-    from nuparquet.convert import convert
-
-    out = tmp_path_factory.mktemp("lyft-rig-out") / "out"
-    convert(lyft_rig_root, LYFT_RIG_VERSION, out)
-    return out
+    return converted(tmp_path_factory, "lyft-rig-out", lyft_rig_root, LYFT_RIG_VERSION)
 
 
 @pytest.fixture(scope="session")
@@ -177,11 +171,7 @@ def map_root(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def map_out(map_root, tmp_path_factory) -> Path:
-    from nuparquet.convert import convert
-
-    out = tmp_path_factory.mktemp("map-out") / "out"
-    convert(map_root, SYNTH_VERSION, out)
-    return out
+    return converted(tmp_path_factory, "map-out", map_root, SYNTH_VERSION)
 
 
 @pytest.fixture(scope="session")
@@ -210,18 +200,10 @@ def irregular_root(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def irregular_out(irregular_root, tmp_path_factory) -> Path:
-    from nuparquet.convert import convert
-
-    out = tmp_path_factory.mktemp("irregular-out") / "out"
-    convert(irregular_root, IRREGULAR_VERSION, out)
-    return out
+    return converted(tmp_path_factory, "irregular-out", irregular_root, IRREGULAR_VERSION)
 
 
 @pytest.fixture(scope="session")
 def irregular_empty_out(irregular_root, tmp_path_factory) -> Path:
     """The conversion of the version folder whose sample_annotation and instance tables are empty."""
-    from nuparquet.convert import convert
-
-    out = tmp_path_factory.mktemp("irregular-empty-out") / "out"
-    convert(irregular_root, IRREGULAR_EMPTY_VERSION, out)
-    return out
+    return converted(tmp_path_factory, "irregular-empty-out", irregular_root, IRREGULAR_EMPTY_VERSION)

@@ -25,7 +25,7 @@ import shapely
 from nuparquet.frame_boxes import FrameBoxes
 from nuparquet.palette import category_rgb
 from nuparquet.quaternions import heading_from_quaternions
-from nuparquet.render.plan import TileLoad
+from nuparquet.render.plan import RowTile, TileLoad
 from nuparquet.render.points import CloudReader
 
 BACKGROUND_BGR = (32, 32, 32)
@@ -162,7 +162,7 @@ def footprints(translation_m: np.ndarray, size_wlh_m: np.ndarray, heading_rad: n
 
 
 @dataclass(frozen=True)
-class BevTile:
+class BevTile(RowTile):
     """The bird's-eye view of each output: lidar frame `rows[t]` (-1: none) of the reference lidar's frames.
 
     global_from_ego, ego_from_sensor: (L, 4, 4) per lidar frame; clouds: their points (from lidar_points/ or the
@@ -178,10 +178,6 @@ class BevTile:
     clouds: CloudReader | None
     boxes: FrameBoxes
     label: str = "BEV"
-
-    def key(self, t: int) -> int | None:
-        row = int(self.rows[t])
-        return row if row >= 0 else None
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)

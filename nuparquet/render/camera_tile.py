@@ -12,14 +12,14 @@ import numpy as np
 from nuparquet.render import draw
 from nuparquet.render.decode import decode_image
 from nuparquet.render.overlay import LIDAR_MAX_DEPTH_M, DrawStyle, Overlay
-from nuparquet.render.plan import TileLoad
+from nuparquet.render.plan import RowTile, TileLoad
 
 if TYPE_CHECKING:
     from nuparquet.render.points import LidarPoints
 
 
 @dataclass(frozen=True)
-class CameraTile:
+class CameraTile(RowTile):
     """One camera channel's tiles.
 
     label: the channel. rows: (T,) camera row shown at each output (-1: none). paths: (F,) image file of each
@@ -35,10 +35,6 @@ class CameraTile:
     style: DrawStyle
     lidar: LidarPoints | None = None
     image_size_px: np.ndarray | None = None  # (F, 2) width, height of each row's image as its sample_data says
-
-    def key(self, t: int) -> int | None:
-        row = int(self.rows[t])
-        return row if row >= 0 else None
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)

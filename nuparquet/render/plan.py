@@ -47,6 +47,16 @@ class TileSource(Protocol):
         """The (tile height, tile width, 3) BGR tile of output t, or None when there is nothing to show."""
 
 
+class RowTile:
+    """`key` for tile sources that show one row of their frames per output (`rows`: (T,) int, -1 = nothing)."""
+
+    rows: np.ndarray
+
+    def key(self, t: int) -> int | None:
+        row = int(self.rows[t])
+        return row if row >= 0 else None
+
+
 @dataclass(frozen=True)
 class TilePlan:
     """T output pictures: their times and the tile sources in rows (front row first, left to right)."""
