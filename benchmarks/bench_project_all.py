@@ -42,7 +42,7 @@ def child(out: str, scenes_per_batch: int) -> None:
     import polars as pl
 
     import nuparquet
-    from nuparquet.projection.boxes import project_boxes
+    from nuparquet.frames.projection import project_boxes
 
     import_s = time.perf_counter() - start
     start, start_cpu = time.perf_counter(), time.process_time()

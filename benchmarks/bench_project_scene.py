@@ -4,7 +4,7 @@
 
 What is timed, in-process for both (construction of the devkit excluded, nuparquet's reading included):
 - nuparquet, in a fresh process per repeat, after the imports (polars, nuparquet.dataset,
-  nuparquet.projection.boxes; reported as `import_s`): `nuparquet.open(OUT)`, the lazy scans of the
+  nuparquet.frames.projection; reported as `import_s`): `nuparquet.open(OUT)`, the lazy scans of the
   scene's CAM_FRONT keyframes, its annotations and its samples collected together (`pl.collect_all`: only the
   row groups of that scene are read), and `project_boxes(..., visibility="any")`: corners in the camera frame
   and in pixels, depths, per-corner visibility and the devkit's ANY filter. This first call in a fresh
@@ -36,7 +36,7 @@ def project_scene(out, scene_name: str, channel: str = CHANNEL):
     import polars as pl
 
     import nuparquet
-    from nuparquet.projection.boxes import project_boxes
+    from nuparquet.frames.projection import project_boxes
 
     start = time.perf_counter()
     ds = nuparquet.open(out)
@@ -59,7 +59,7 @@ def child(out: str, scene_name: str) -> None:
     import polars  # noqa: F401
 
     import nuparquet.dataset  # noqa: F401 - imported by the first nuparquet.open; an import, not a read
-    import nuparquet.projection.boxes  # noqa: F401
+    import nuparquet.frames.projection  # noqa: F401
 
     import_s = time.perf_counter() - start
     _, first = project_scene(out, scene_name)

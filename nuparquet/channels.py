@@ -42,7 +42,7 @@ def default_camera(cameras: Sequence[str], layout: Sequence[Sequence[str]] | Non
 def camera_yaw(rotation_wxyz) -> np.ndarray:
     """(N,) heading in radians of each camera's optical axis (sensor +z) in the ego frame (x forward, y left):
     0 looks forward, +pi/2 to the left, -pi/2 to the right."""
-    from nuparquet import quaternions  # only here: `channels` is imported by the CLI's option definitions
+    from nuparquet.geometry import quaternions  # only here: `channels` is imported by the CLI's option definitions
 
     axis = quaternions.rotation_matrices(np.asarray(rotation_wxyz, dtype=np.float64))[..., :, 2]
     return np.arctan2(axis[..., 1], axis[..., 0])

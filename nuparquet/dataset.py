@@ -226,7 +226,7 @@ class Dataset:
         `LidarPointCloud.from_file(...).points` is the first 4 columns transposed), column-major (each column
         contiguous; `np.ascontiguousarray` for row-major); with `columns`, a polars
         DataFrame of those columns (e.g. ``["x", "y", "z", "lidarseg_label", "panoptic_label"]``)."""
-        from nuparquet import frame_points
+        from nuparquet.frames import points as frame_points
 
         table = frame_points.select_points(self._points_index("lidar_points"), tokens, scene=scene, channel=channel,
                                            columns=columns or list(frame_points.LIDAR_ARRAY_COLUMNS))
@@ -239,7 +239,7 @@ class Dataset:
         Returns (N, F) float64 of the PCD fields in header order (the devkit's `RadarPointCloud.points`
         transposed); `filtered=True` keeps only the points the devkit's default filters keep. With `columns`,
         a polars DataFrame of those columns."""
-        from nuparquet import frame_points
+        from nuparquet.frames import points as frame_points
 
         index = self._points_index("radar_points")
         fields = frame_points.radar_fields(index)
@@ -252,7 +252,7 @@ class Dataset:
         return pl.from_arrow(table) if columns else frame_points.radar_array(table, fields)
 
     def _points_index(self, name: str):
-        from nuparquet.frame_points import RowGroupIndex
+        from nuparquet.frames.points import RowGroupIndex
 
         if name not in self._entries:
             modality = name.split("_")[0]

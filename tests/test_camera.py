@@ -1,4 +1,4 @@
-"""The batch camera model (`nuparquet.camera.Cameras`) against hand computation and OpenCV's resize."""
+"""The batch camera model (`nuparquet.geometry.Cameras`) against hand computation and OpenCV's resize."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from nuparquet import geometry
-from nuparquet.camera import Cameras, scale_intrinsic, scale_pixels
+from nuparquet.geometry import Cameras, scale_intrinsic, scale_pixels
 
 K = np.array([[1000.0, 0.0, 800.0], [0.0, 1000.0, 450.0], [0.0, 0.0, 1.0]])
 # Camera axes (x right, y down, z forward) in the ego frame (x forward, y left, z up), 1.5 m above the origin.

@@ -8,11 +8,12 @@ import numpy as np
 import polars as pl
 import pytest
 
-from nuparquet.camera import Cameras
-from nuparquet.projection import lidar
-from nuparquet.frame_boxes import frame_boxes
-from nuparquet.projection.boxes import boxes_in_cameras, camera_rows, corner_visibility, project_boxes
-from nuparquet.projection.frames import (
+from nuparquet.geometry import Cameras
+from nuparquet.frames import points_in_image as lidar
+from nuparquet.frames.boxes import frame_boxes
+from nuparquet.frames.projection import boxes_in_cameras, camera_rows, project_boxes
+from nuparquet.geometry import box_visibility
+from nuparquet.frames.poses import (
     MATRIX_COLUMNS, POSE_COLUMNS, cameras_from_frames, pose_columns, sensor_poses,
 )
 
@@ -114,13 +115,13 @@ def test_lidar_points_exactly_at_the_minimum_depth_are_dropped_like_the_devkit()
     points = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.001], [0.0, 0.0, 0.5], [0.0, 0.0, 20.0],
                        [0.7995 * 2.0, 0.0, 2.0],   # u = 1599.5: inside the image, outside the 1-pixel margin
                        [0.7985 * 2.0, 0.0, 2.0]])  # u = 1598.5
-    uv, depth, index = lidar.project_points(points, np.eye(4), np.eye(4), identity_camera())
+    uv, depth, index = lidar.points_in_image(points, np.eye(4), np.eye(4), identity_camera())
     assert index.tolist() == [1, 3, 5]
     np.testing.assert_allclose(uv, [[800.0, 450.0], [800.0, 450.0], [1598.5, 450.0]], atol=1e-9)
     np.testing.assert_allclose(depth, [1.001, 20.0, 2.0], rtol=1e-15)
     with pytest.raises(ValueError) as error:
-        lidar.project_points(points, np.eye(4), np.eye(4), identity_camera().take([0, 0]))
-    assert str(error.value) == "project_points takes one camera, got 2"
+        lidar.points_in_image(points, np.eye(4), np.eye(4), identity_camera().take([0, 0]))
+    assert str(error.value) == "points_in_image takes one camera, got 2"
 
 
 def test_lidar_for_cameras_pairs_camera_keyframes_with_the_first_lidar_keyframe_of_their_sample():
@@ -132,12 +133,13 @@ def test_lidar_for_cameras_pairs_camera_keyframes_with_the_first_lidar_keyframe_
     assert got.tolist() == [1, 0, -1, -1, 0]
 
 
-def test_corner_visibility_uses_the_devkit_strict_depth_limits():
+def test_box_visibility_uses_the_devkit_strict_depth_limits():
     """box_in_image: a corner counts only deeper than 1 m (1.0 exactly is not), a box is in front only if every
     corner is deeper than 0.1 m (0.1 exactly is not); pixels are all inside the image here."""
     corners_px = np.full((3, 8, 2), [800.0, 450.0])
     depths = np.array([[1.0] * 8, [1.5] + [1.0] * 7, [1.5] * 7 + [0.1]])
-    corner_visible, in_front, visible = corner_visibility(identity_camera().take([0, 0, 0]), corners_px, depths)
+    camera = identity_camera().take([0, 0, 0])
+    corner_visible, in_front, visible = box_visibility(corners_px, depths, camera.size_px, camera.scale)
     assert corner_visible.tolist() == [[False] * 8, [True] + [False] * 7, [True] * 7 + [False]]
     assert in_front.tolist() == [True, True, False] and visible.tolist() == [False, True, False]
 
@@ -148,7 +150,7 @@ def test_boxes_in_cameras_moves_the_centre_into_the_ego_frame_and_the_camera():
     frames = camera_frame(ego_translation=[[5.0, 0.0, 0.0]])
     annotations, samples = one_box(15.0)
     boxes = frame_boxes(frames, annotations, samples)
-    seen = boxes_in_cameras(cameras_from_frames(frames).take(boxes.frame_index), boxes)
+    seen = boxes_in_cameras(cameras_from_frames(frames), boxes)
     np.testing.assert_allclose(seen.center_ego_m, [[10.0, 0.0, 0.0]], atol=1e-12)
     np.testing.assert_allclose(seen.center_camera_m, [[0.0, 0.0, 10.0]], atol=1e-12)
     # corners: length 4 along ego x (camera z), width 2 along ego y (camera -x), height 1.5 (camera -y)

@@ -5,7 +5,7 @@ For a sample at time t and a message type with messages at times u_0 < u_1 < ...
 - a continuous signal (a float field, or a fixed-size list of floats) is interpolated linearly between that
   message and the next one (u_i <= t < u_{i+1}) when both exist and u_{i+1} - u_i <= MAX_INTERPOLATION_GAP_US;
   at t == u_i it is that message's value. Quaternion fields (`orientation` of pose, `q` of ms_imu: 4 floats)
-  are interpolated by slerp with pyquaternion's semantics (`nuparquet.quaternions.quaternion_slerp`).
+  are interpolated by slerp with pyquaternion's semantics (`nuparquet.geometry.quaternions.quaternion_slerp`).
 Integer, boolean and string fields (gear, signals, switches) are discrete: as-of only.
 """
 
@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
-from nuparquet import quaternions
+from nuparquet.geometry import quaternions
 from nuparquet.columns import to_numpy, to_series
 
 # Messages further apart than this are not interpolated between (the slowest nuScenes message, vehicle_monitor,

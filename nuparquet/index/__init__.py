@@ -5,7 +5,7 @@ from nuparquet.index import IndexOptions, build_index
 paths = build_index("OUT", IndexOptions(out="infos", info_version=2))   # {"val": Path(".../nuscenes_infos_val.pkl"), ...}
 ```
 
-Modules: `build` (`build_index`), `inputs` (what is read, checked first), `splits`, `blas` + `quaternions` + `transforms` (the
+Modules: `build` (`build_index`), `inputs` (what is read, checked first), `splits`, `replay/` (blas, quaternions, transforms: the
 converter's arithmetic over arrays, bit for bit), `sweeps` (the lidar prev chain), `compute` (all numbers,
 vectorised over samples), `cam_instances` (v2 camera boxes), `v2_arrays` (one split's values with offsets),
 `records` (the dicts, v1 and v2), `bevformer`, `parquet` (DIR/infos/ from the same arrays), `write` (atomic

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from nuparquet.index import blas, quaternions, transforms
+from nuparquet.index.replay import blas, quaternions, transforms
 from nuparquet.index.labels import ATTRIBUTES, label_of
 
 VISIBILITIES = ("", "1", "2", "3", "4")  # the converter's filter (every nuScenes visibility)

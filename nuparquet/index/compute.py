@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nuparquet.errors import InputError
-from nuparquet.index import quaternions, transforms
+from nuparquet.index.replay import quaternions, transforms
 from nuparquet.index.cam_instances import CamInstances, camera_instances
 from nuparquet.index.inputs import Inputs
 from nuparquet.index.sweeps import sweep_rows

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nuparquet.index import transforms
+from nuparquet.index.replay import transforms
 from nuparquet.index.compute import Computed, offsets
 from nuparquet.index.labels import label_of, mapped_names
 

@@ -114,10 +114,10 @@ def points_in_boxes(ds: Dataset, *, scene: Scene = None, channel: str | None = N
     with the keyframe's own ego pose); vectorised over boxes and points, one frame at a time (`ds.points`
     reads only that frame's row groups). On synthetic data it equals `num_lidar_pts`.
     """
-    from nuparquet.camera import Cameras
-    from nuparquet.frame_boxes import frame_boxes
-    from nuparquet.projection.boxes import boxes_in_cameras
-    from nuparquet.projection.frames import sensor_poses
+    from nuparquet.geometry import Cameras
+    from nuparquet.frames.boxes import frame_boxes
+    from nuparquet.frames.projection import boxes_in_cameras
+    from nuparquet.frames.poses import sensor_poses
 
     channel = channel or ds.channels["reference_lidar"]
     frames = (for_scene(ds.scan("frames"), scene)
@@ -128,7 +128,7 @@ def points_in_boxes(ds: Dataset, *, scene: Scene = None, channel: str | None = N
     global_from_ego, ego_from_sensor = sensor_poses(frames)
     sensors = Cameras.from_poses(global_from_ego, ego_from_sensor, np.tile(np.eye(3), (frames.height, 1, 1)),
                                  np.zeros((frames.height, 2)))
-    corners = boxes_in_cameras(sensors.take(boxes.frame_index), boxes).corners_camera_m  # (M, 8, 3) sensor frame
+    corners = boxes_in_cameras(sensors, boxes).corners_camera_m  # (M, 8, 3) sensor frame
     counts = np.zeros(boxes.frame_index.size, dtype=np.int64)
     tokens = frames["token"].to_list()
     for frame in np.unique(boxes.frame_index):

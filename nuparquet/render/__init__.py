@@ -4,7 +4,7 @@
 - `scene`: the one query (camera frames, annotations, samples, lidar keyframes) and the cameras to show.
 - `plan`: output times and the tile sources of each picture (`TileSource`: `camera_tile.CameraTile` today,
   a bird's-eye view later); `mosaic`: tile placement and the devkit's time matching.
-- `overlay`: every box projected once into the tiles (`nuparquet.camera`); `points`: lidar points per tile.
+- `overlay`: every box projected once into the tiles (`nuparquet.geometry.camera`); `points`: lidar points per tile.
 - `decode`, `loop`, `sink`, `video`: image decoding, the frame loop, and where pictures are written.
 - `draw`: OpenCV drawing only.
 """

@@ -22,9 +22,9 @@ import cv2
 import numpy as np
 import shapely
 
-from nuparquet.frame_boxes import FrameBoxes
+from nuparquet.frames.boxes import FrameBoxes
 from nuparquet.palette import category_rgb
-from nuparquet.quaternions import heading_from_quaternions
+from nuparquet.geometry.quaternions import heading_from_quaternions
 from nuparquet.render.plan import RowTile, TileLoad
 from nuparquet.render.points import CloudReader
 

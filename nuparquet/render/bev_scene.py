@@ -13,8 +13,8 @@ import numpy as np
 import polars as pl
 
 from nuparquet.errors import UsageError
-from nuparquet.frame_boxes import ANNOTATION_COLUMNS, frame_boxes
-from nuparquet.projection.frames import MATRIX_COLUMNS, sensor_poses
+from nuparquet.frames.boxes import ANNOTATION_COLUMNS, frame_boxes
+from nuparquet.frames.poses import MATRIX_COLUMNS, sensor_poses
 from nuparquet.render.bev import BevTile, MapRaster, View, scene_extent
 from nuparquet.render.points import CloudReader
 from nuparquet.render.scene import SAMPLE_COLUMNS, reference_lidar

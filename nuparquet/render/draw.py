@@ -1,6 +1,6 @@
 """Overlays on camera images (numpy BGR arrays, drawn with OpenCV, headless): 3D box wireframes, labels, lidar
 points and placeholders for missing images. Drawing only: every input is already in the image's pixels (the
-camera model, `nuparquet.camera.Cameras`, projects and clips).
+camera model, `nuparquet.geometry.Cameras`, projects and clips).
 
 A box is drawn as 14 segments — the 12 cuboid edges plus a cross on the front face — given as
 `(M, 14, 2, 2)` pixel end points (box, segment, end, u/v); `BOX_SEGMENT_CORNERS` says which corners each

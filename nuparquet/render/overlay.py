@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nuparquet.camera import Cameras
-from nuparquet.frame_boxes import FrameBoxes
+from nuparquet.frames.boxes import FrameBoxes
+from nuparquet.frames.projection import boxes_in_cameras
+from nuparquet.geometry import Cameras, box_visibility, perspective
 from nuparquet.palette import category_rgb
-from nuparquet.projection.boxes import boxes_in_cameras, corner_visibility
 from nuparquet.render import draw
 
 LIDAR_MAX_DEPTH_M = 60.0  # colour scale of projected lidar points
@@ -84,14 +84,14 @@ def build_overlay(tile_cameras: Cameras, boxes: FrameBoxes, *, clip: bool = Fals
         labels: "category", "track" or "none".
     """
     frame = boxes.frame_index
-    cameras = tile_cameras.take(frame)
-    seen = boxes_in_cameras(cameras, boxes)
+    seen = boxes_in_cameras(tile_cameras, boxes)
     if clip:
+        cameras = tile_cameras.take(frame)  # clip_segments projects each box with its own camera
         segments_px, keep = cameras.clip_segments(seen.corners_camera_m[:, draw.BOX_SEGMENT_CORNERS])
         shown = segments_touch_image(segments_px, keep, cameras.size_px)
     else:
-        corners_px, depths = cameras.project(seen.corners_camera_m)
-        _, _, shown = corner_visibility(cameras, corners_px, depths)
+        corners_px, depths = perspective(tile_cameras.image_from_camera[frame], seen.corners_camera_m)
+        _, _, shown = box_visibility(corners_px, depths, tile_cameras.size_px[frame], tile_cameras.scale[frame])
         segments_px = draw.box_segments_px(corners_px)
         keep = np.ones(segments_px.shape[:2], dtype=bool)
     distance_m = np.linalg.norm(seen.center_camera_m, axis=1)

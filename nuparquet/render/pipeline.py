@@ -10,7 +10,7 @@ The stages, one module each (STYLE.md: vectorise over the batch; the only Python
 
 1. `scene`: one polars query for the scene's camera frames, annotations and samples (and lidar keyframes).
 2. The cameras of those frames, built once from the stored transforms and resized to the tile
-   (`nuparquet.camera`), and every box projected into them once (`overlay`).
+   (`nuparquet.geometry.camera`), and every box projected into them once (`overlay`).
 3. `plan`: which camera frame goes into which tile of which output, and the tile sources (`camera_tile`).
 4. `loop`: tiles decoded a few outputs ahead (`decode`), drawn (`draw`), composed (`mosaic`) and written
    (`sink`, `video`).
@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from nuparquet.errors import InputError, UsageError
-from nuparquet.frame_boxes import frame_boxes
+from nuparquet.frames.boxes import frame_boxes
 from nuparquet.progress import OnProgress, Reporter
-from nuparquet.projection.frames import cameras_from_frames
+from nuparquet.frames.poses import cameras_from_frames
 from nuparquet.render.camera_tile import CameraTile
 from nuparquet.render.loop import render_frames
 from nuparquet.render.options import BEV_CHANNEL, RenderOptions

@@ -18,12 +18,12 @@ import cv2
 import numpy as np
 import polars as pl
 
-from nuparquet.camera import Cameras
+from nuparquet.geometry import Cameras
 from nuparquet.errors import UsageError
 from nuparquet.palette import category_rgb
 from nuparquet.pointcloud import load_lidar_bin
-from nuparquet.projection.frames import sensor_poses
-from nuparquet.projection.lidar import lidar_for_cameras, project_points
+from nuparquet.frames.poses import sensor_poses
+from nuparquet.frames.points_in_image import lidar_for_cameras, points_in_image
 from nuparquet.render.options import LIDAR_COLORS
 
 _LABEL_COLUMN = {"lidarseg": "lidarseg_label", "panoptic": "panoptic_label"}
@@ -143,6 +143,6 @@ class LidarPoints:
             points, labels = self.reader.cloud(lidar)
         except (OSError, ValueError):
             return None, self.reader.paths[lidar]
-        uv, depth, index = project_points(points, self.global_from_ego[lidar], self.ego_from_sensor[lidar],
+        uv, depth, index = points_in_image(points, self.global_from_ego[lidar], self.ego_from_sensor[lidar],
                                           self.tile_cameras.take([row]))
         return (uv, depth, self.reader.colors_bgr(points, labels, index)), None

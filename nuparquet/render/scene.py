@@ -14,8 +14,8 @@ import polars as pl
 
 from nuparquet.channels import default_camera
 from nuparquet.errors import UsageError
-from nuparquet.frame_boxes import ANNOTATION_COLUMNS
-from nuparquet.projection.frames import CAMERA_COLUMNS, MATRIX_COLUMNS
+from nuparquet.frames.boxes import ANNOTATION_COLUMNS
+from nuparquet.frames.poses import CAMERA_COLUMNS, MATRIX_COLUMNS
 from nuparquet.render.options import ALL_CHANNELS
 
 FRAME_COLUMNS = ("token", "sample_token", "scene_token", "channel", "timestamp", "is_key_frame", "filename",

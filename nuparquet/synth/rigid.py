@@ -1,10 +1,14 @@
 """Quaternions, rigid transforms and cuboid corners for the generator (numpy only, vectorised over N).
 
+A deliberate second implementation: the generator is a producer of nuScenes data like any real dataset, and the
+tests compare what nuparquet computes from its output with what the generator drew. Sharing
+`nuparquet.geometry` here would make those comparisons circular, so this module re-implements the few formulas
+it needs from their textbook forms (and pyquaternion's slerp), independently.
+
 Conventions are nuScenes': quaternions are [w, x, y, z] and map the child frame into the parent frame
 (`ego_from_sensor`), boxes are (center, [width, length, height], rotation) with corners in the devkit's
 `Box.corners()` order. The interpolation between keyframes reproduces the devkit's `get_boxes` (linear centre,
-pyquaternion slerp) exactly, so painted sweep images agree with what the devkit computes.
-"""
+pyquaternion slerp), so painted sweep images agree with what the devkit computes."""
 
 from __future__ import annotations
 

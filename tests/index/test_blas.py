@@ -10,7 +10,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from nuparquet.index import blas
+from nuparquet.index.replay import blas
 
 
 def test_fma_rounds_once():

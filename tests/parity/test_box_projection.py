@@ -1,4 +1,4 @@
-"""nuparquet.projection and nuparquet.frame_boxes against nuscenes-devkit: boxes in images, interpolated sweep boxes, lidar points.
+"""nuparquet.projection and nuparquet.frames.boxes against nuscenes-devkit: boxes in images, interpolated sweep boxes, lidar points.
 
 The parity tests read the converted Parquet (`OUT/frames`, `OUT/annotations`, `OUT/tables/sample`) and compare
 every camera frame of a scene (keyframes and sweeps, all six cameras) with the devkit reading the source JSON.
@@ -15,10 +15,10 @@ import polars as pl
 import pytest
 
 from nuparquet.pointcloud import load_lidar_bin
-from nuparquet.frame_boxes import boxes_for_frames
-from nuparquet.projection.boxes import project_boxes
-from nuparquet.projection.frames import cameras_from_frames, sensor_poses
-from nuparquet.projection.lidar import project_points
+from nuparquet.frames.boxes import boxes_for_frames
+from nuparquet.frames.projection import project_boxes
+from nuparquet.frames.poses import cameras_from_frames, sensor_poses
+from nuparquet.frames.points_in_image import points_in_image
 
 os.environ.setdefault("MPLBACKEND", "Agg")  # the devkit's explorer imports pyplot; never open a window
 
@@ -161,7 +161,7 @@ def assert_lidar_matches_devkit(nusc, monkeypatch, out: Path, dataroot: Path, sc
         row = lidar_of_sample[camera["sample_token"]]
         lidar = lidar_frames.row(row, named=True)
         points_lidar = load_lidar_bin(dataroot / lidar["filename"])
-        uv, depth_m, index = project_points(points_lidar, global_from_ego[row], ego_from_lidar[row],
+        uv, depth_m, index = points_in_image(points_lidar, global_from_ego[row], ego_from_lidar[row],
                                             cameras.take([index_of_camera]))
         devkit_uv, devkit_depth_m, devkit_kept_uv, (width, height) = devkit_projection_of_all_points(
             nusc, monkeypatch, lidar["token"], camera["token"]

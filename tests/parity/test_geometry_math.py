@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nuparquet import geometry, quaternions
+from nuparquet import geometry
+from nuparquet.geometry import quaternions
 
 from pyquaternion import Quaternion  # a devkit dependency: missing is a failure, never a skip
 

@@ -27,7 +27,7 @@ def labelled_images(tmp_path_factory):
 
 def _lidar_points(out, root, color: str, *, from_dataset: bool = True):
     import nuparquet
-    from nuparquet.projection.frames import cameras_from_frames
+    from nuparquet.frames.poses import cameras_from_frames
     from nuparquet.render.points import LidarPoints
 
     ds = nuparquet.open(out)

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 import nuparquet
-from nuparquet.camera import Cameras, scale_pixels
-from nuparquet.frame_boxes import frame_boxes
+from nuparquet.geometry import Cameras, scale_pixels
+from nuparquet.frames.boxes import frame_boxes
 from nuparquet.palette import category_rgb
-from nuparquet.projection.boxes import project_boxes
-from nuparquet.projection.frames import cameras_from_frames
+from nuparquet.frames.projection import project_boxes
+from nuparquet.frames.poses import cameras_from_frames
 from nuparquet.render import draw
 from nuparquet.render.mosaic import match_frames_by_time, time_steps_us
 from nuparquet.render.overlay import build_overlay, segments_touch_image

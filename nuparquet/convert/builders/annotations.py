@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import polars as pl
 
-from nuparquet import quaternions
+from nuparquet.geometry import quaternions
 from nuparquet.columns import to_numpy
 from nuparquet.convert.builders.common import reference_poses, samples
 from nuparquet.convert.registry import BuildContext, Builder, SceneBatch

@@ -3,7 +3,7 @@
 
 A `Cameras` value holds, for F camera frames, where each camera was (`ego_from_global` at the frame's own
 timestamp, `camera_from_ego` from its calibration), its intrinsics `image_from_camera` and the size of the
-image its pixels address. It is built once per query (`nuparquet.projection.frames.cameras_from_frames`
+image its pixels address. It is built once per query (`nuparquet.frames.poses.cameras_from_frames`
 reads the stored transform columns of `frames`) and asked to move points into the cameras, to project them,
 to clip segments at the near plane, and to describe a resized image:
 
@@ -14,7 +14,7 @@ uv, depth = tiles.take(rows).project(tiles.take(rows).to_camera(points_global))
 ```
 
 Conventions (the devkit's and OpenCV's): pixel centres sit at integer coordinates, so resizing an image by s
-maps u to s * (u + 0.5) - 0.5 (`scale_pixels`, what `cv2.resize` does). A camera remembers how far it was
+maps u to s * (u + 0.5) - 0.5 (`projection.scale_pixels`, what `cv2.resize` does). A camera remembers how far it was
 resized (`scale`), so "inside the image" keeps the devkit's meaning on the full-size image (0 < u < width,
 `in_image`) whatever the size of the pixels it projects to. Camera axes: x right, y down, z forward.
 """
@@ -25,69 +25,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from nuparquet import geometry
-
-NEAR_PLANE_M = 0.1  # the devkit's `in_front` depth: points nearer than this count as behind the camera
-
-
-def scale_pixels(points_px, scale) -> np.ndarray:
-    """Pixel coordinates of an image -> those of the image resized by `scale` (as `cv2.resize`).
-
-    Pixel centres sit at integer coordinates, so the map is u' = s * (u + 0.5) - 0.5, not u' = s * u.
-
-    Args:
-        points_px: (..., 2) [u, v] pixels.
-        scale: one factor, (2,) [sx, sy], or (..., 2) broadcasting against `points_px`.
-    """
-    scale = np.asarray(scale, dtype=np.float64)
-    if scale.ndim == 0:
-        scale = np.broadcast_to(scale, (2,))
-    return np.asarray(points_px, dtype=np.float64) * scale + (scale - 1.0) / 2.0
-
-
-def scale_intrinsic(image_from_camera, scale) -> np.ndarray:
-    """(..., 3, 3) camera matrices of an image -> those of the image resized by `scale` (see `scale_pixels`).
-
-    `scale` is one factor, (2,) [sx, sy], or (..., 2) one pair per matrix.
-    """
-    scale = np.asarray(scale, dtype=np.float64)
-    if scale.ndim == 0:
-        scale = np.broadcast_to(scale, (2,))
-    sx, sy = scale[..., 0], scale[..., 1]
-    resized_from_image = np.zeros(np.shape(sx) + (3, 3))
-    resized_from_image[..., 0, 0], resized_from_image[..., 0, 2] = sx, (sx - 1.0) / 2.0
-    resized_from_image[..., 1, 1], resized_from_image[..., 1, 2] = sy, (sy - 1.0) / 2.0
-    resized_from_image[..., 2, 2] = 1.0
-    return resized_from_image @ np.asarray(image_from_camera, dtype=np.float64)
-
-
-def project_points(image_from_camera, points_camera_m) -> tuple[np.ndarray, np.ndarray]:
-    """Perspective projection (devkit `view_points(..., normalize=True)`) of points by their cameras'
-    intrinsics: image_from_camera (F, 3, 3) and points (F, 3) or (F, K, 3) in the camera frame, metres.
-    Returns pixels [u, v] (the points' shape with 2 coordinates) and depths (camera z, metres); see
-    `Cameras.project`."""
-    points_camera_m = np.asarray(points_camera_m, dtype=np.float64)
-    # view_points' product without its 4x4 padding (a copy of F matrices): the same numbers.
-    camera_to_image_t = np.ascontiguousarray(np.swapaxes(image_from_camera, -1, -2))  # matmul is faster on it
-    if points_camera_m.ndim == 2:
-        projected = (points_camera_m[:, None, :] @ camera_to_image_t)[:, 0]
-    else:
-        projected = points_camera_m @ camera_to_image_t
-    with np.errstate(divide="ignore", invalid="ignore"):
-        uv = projected[..., :2] / projected[..., 2:3]
-    return uv, points_camera_m[..., 2]
-
-
-def pixels_in_image(uv, size_px, scale, margin_px: float = 0.0) -> np.ndarray:
-    """`Cameras.in_image` for pixels (F, 2) or (F, K, 2) of cameras with (F, 2) image sizes and scales."""
-    uv = np.asarray(uv, dtype=np.float64)
-    offset = (scale - 1.0) / 2.0  # where the full image's pixel 0 lands (scale_pixels)
-    low = margin_px * scale + offset
-    high = size_px - margin_px * scale + offset
-    if uv.ndim == 3:
-        low, high = low[:, None, :], high[:, None, :]
-    u, v = uv[..., 0], uv[..., 1]
-    return (u > low[..., 0]) & (u < high[..., 0]) & (v > low[..., 1]) & (v < high[..., 1])
+from nuparquet.geometry.projection import NEAR_PLANE_M, perspective, pixels_in_image, scale_intrinsic
+from nuparquet.geometry.rigid import invert_rigid, transform_points
 
 
 @dataclass(frozen=True)
@@ -117,8 +56,8 @@ class Cameras:
         (F, 3, 3) and (F, 2) [width, height] of the calibrated images."""
         size_px = np.asarray(size_px, dtype=np.float64).reshape(-1, 2)
         return cls(
-            ego_from_global=geometry.invert_rigid(global_from_ego),
-            camera_from_ego=geometry.invert_rigid(ego_from_camera),
+            ego_from_global=invert_rigid(global_from_ego),
+            camera_from_ego=invert_rigid(ego_from_camera),
             image_from_camera=np.asarray(image_from_camera, dtype=np.float64).reshape(-1, 3, 3),
             size_px=size_px,
             scale=np.ones_like(size_px),
@@ -156,12 +95,12 @@ class Cameras:
 
     def to_camera(self, points_global_m) -> np.ndarray:
         """Global points -> camera frame, metres: (F, 3) one point per camera or (F, K, 3) K per camera."""
-        return geometry.transform_points(self.camera_from_ego, geometry.transform_points(self.ego_from_global,
+        return transform_points(self.camera_from_ego, transform_points(self.ego_from_global,
                                                                                           points_global_m))
 
     def to_ego(self, points_global_m) -> np.ndarray:
         """Global points -> each frame's ego frame, metres ((F, 3) or (F, K, 3))."""
-        return geometry.transform_points(self.ego_from_global, points_global_m)
+        return transform_points(self.ego_from_global, points_global_m)
 
     def rotation_to_camera(self, global_from_object_rotation) -> np.ndarray:
         """(F, 3, 3) orientations in the global frame -> in the camera frame."""
@@ -177,7 +116,7 @@ class Cameras:
             uv: pixels [u, v] of the shape of the points with 2 coordinates; a point behind the camera projects
             mirrored, one at depth 0 to inf/nan, as in the devkit. depth: camera z, metres.
         """
-        return project_points(self.image_from_camera, points_camera_m)
+        return perspective(self.image_from_camera, points_camera_m)
 
     def in_image(self, uv, margin_px: float = 0.0) -> np.ndarray:
         """Whether pixels lie inside the image, as the devkit tests it on the full-size image:

@@ -20,7 +20,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 import polars as pl
 
-from nuparquet import columns, geometry, quaternions
+from nuparquet import columns, geometry
+from nuparquet.geometry import quaternions
 
 FRAME_COLUMNS = ("token", "sample_token", "timestamp", "is_key_frame")
 ANNOTATION_COLUMNS = ("token", "sample_token", "instance_token", "category_name", "translation", "size", "rotation")

@@ -12,7 +12,7 @@ import numpy as np
 import polars as pl
 
 from nuparquet import columns, geometry
-from nuparquet.camera import Cameras
+from nuparquet.geometry import Cameras
 
 MATRIX_COLUMNS = ("global_from_ego", "ego_from_sensor")
 POSE_COLUMNS = ("ego_translation", "ego_rotation", "sensor_translation", "sensor_rotation")

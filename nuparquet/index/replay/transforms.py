@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from nuparquet.index import quaternions
-from nuparquet.index.blas import gemm, gemv_cols, gemv_rows, inv3
+from nuparquet.index.replay import quaternions
+from nuparquet.index.replay.blas import gemm, gemv_cols, gemv_rows, inv3
 
 
 def _t(m: np.ndarray) -> np.ndarray:

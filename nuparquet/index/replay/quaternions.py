@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from nuparquet.index import blas
+from nuparquet.index.replay import blas
 
 _UNIT_TOLERANCE = 1e-14  # pyquaternion's Quaternion.is_unit default
 

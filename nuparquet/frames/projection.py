@@ -8,8 +8,8 @@ The input is rows of the converted datasets (`schemas/frames.json`, `schemas/ann
     annotations = ds.scan("annotations").filter(pl.col("scene_name") == "scene-0061")
     projected = project_boxes(frames, annotations, samples, visibility="any")
 
-`nuparquet.frame_boxes` pairs every frame with its boxes (interpolated for sweeps), the cameras are built once
-from the stored transforms (`projection.frames`), and the geometry runs once over all (frame, box) pairs. The
+`nuparquet.frames.boxes` pairs every frame with its boxes (interpolated for sweeps), the cameras are built once
+from the stored transforms (`frames.poses`), and the geometry runs once over all (frame, box) pairs. The
 devkit functions reproduced: `NuScenes.get_sample_data`, `geometry_utils.view_points` and `box_in_image`.
 """
 
@@ -21,23 +21,17 @@ from typing import Literal
 import numpy as np
 import polars as pl
 
-from nuparquet import geometry, quaternions
-from nuparquet.camera import Cameras, pixels_in_image, project_points
-from nuparquet.frame_boxes import FRAME_COLUMNS, FrameBoxes, frame_boxes, lazy_with
-from nuparquet.projection.frames import CAMERA_COLUMNS, cameras_from_frames, pose_columns
+from nuparquet.frames.boxes import FRAME_COLUMNS, FrameBoxes, frame_boxes, lazy_with
+from nuparquet.frames.poses import CAMERA_COLUMNS, cameras_from_frames, pose_columns
+from nuparquet.geometry import Cameras, box_half_axes, box_visibility, corners_from_half_axes, perspective
 
 Visibility = Literal["any", "all", "none"]
 VISIBILITIES: tuple[str, ...] = ("any", "all", "none")
 
-# devkit box_in_image: a corner counts as visible only if it is more than 1 m in front of the camera, and a
-# box is dropped (for ANY and ALL) unless every corner is more than 0.1 m in front.
-CORNER_MIN_DEPTH_M = 1.0
-BOX_MIN_DEPTH_M = 0.1
-
 
 @dataclass(frozen=True)
 class BoxesInCameras:
-    """M boxes seen by M cameras (one camera per box): centres and corners in the camera frame.
+    """M boxes seen by their cameras: centres and corners in the camera frame.
 
     center_ego_m: (M, 3) centre in the frame's ego frame; center_camera_m: (M, 3) in the camera frame;
     corners_camera_m: (M, 8, 3) corners in the camera frame in `Box.corners()` order (0-3 front face).
@@ -49,21 +43,13 @@ class BoxesInCameras:
 
 
 def boxes_in_cameras(cameras: Cameras, boxes: FrameBoxes) -> BoxesInCameras:
-    """Move each box into its camera (`cameras[i]` sees `boxes[i]`), as the devkit moves a `Box`: centre and
-    orientation first, then the corners in the camera frame (corners built in the global frame would carry
-    ~1e3 m coordinates through the subtraction)."""
-    center_ego_m = cameras.to_ego(boxes.translation_m)
-    center_camera_m = geometry.transform_points(cameras.camera_from_ego, center_ego_m)
-    rotation = cameras.rotation_to_camera(quaternions.rotation_matrices(boxes.rotation_wxyz))
-    return BoxesInCameras(center_ego_m, center_camera_m,
-                          geometry.box_corners(center_camera_m, boxes.size_wlh_m, rotation))
+    """Move each box into its frame's camera (`boxes.frame_index` names it among the F `cameras`), as the devkit
+    moves a `Box`: centre global -> ego -> camera, then the corners built in the camera frame (corners built in
+    the global frame would carry ~1e3 m coordinates through the subtraction).
 
-
-def boxes_in_frame_cameras(cameras: Cameras, boxes: FrameBoxes) -> BoxesInCameras:
-    """`boxes_in_cameras` for F cameras and M boxes, `boxes.frame_index` naming each box's camera: the same
-    numbers (to rounding) without an (M, 4, 4) copy of the cameras. Each frame's rotation global -> camera is
-    composed once, each annotation's half-axes are built once (not once per camera that sees it), and the
-    corners come from one batched product of the half-axes with the frames' rotations."""
+    Each frame's rotation global -> camera is composed once and each annotation's half-axes are built once (not
+    once per camera that sees it): no (M, 4, 4) copy of the cameras, one batched product for the corners.
+    """
     frame = boxes.frame_index
     ego_rotation, ego_translation = cameras.ego_from_global[:, :3, :3], cameras.ego_from_global[:, :3, 3]
     cam_rotation, cam_translation = cameras.camera_from_ego[:, :3, :3], cameras.camera_from_ego[:, :3, 3]
@@ -72,7 +58,7 @@ def boxes_in_frame_cameras(cameras: Cameras, boxes: FrameBoxes) -> BoxesInCamera
     center_ego_m = (boxes.translation_m[:, None, :] @ _transposed(ego_rotation)[frame])[:, 0] + ego_translation[frame]
     center_camera_m = (center_ego_m[:, None, :] @ _transposed(cam_rotation)[frame])[:, 0] + cam_translation[frame]
     global_to_camera_t = _transposed(cam_rotation @ ego_rotation)
-    corners_camera_m = geometry.corners_from_half_axes(_half_axes_global(boxes) @ global_to_camera_t[frame])
+    corners_camera_m = corners_from_half_axes(_half_axes_global(boxes) @ global_to_camera_t[frame])
     corners_camera_m += center_camera_m[:, None, :]
     return BoxesInCameras(center_ego_m, center_camera_m, corners_camera_m)
 
@@ -88,23 +74,13 @@ def _half_axes_global(boxes: FrameBoxes) -> np.ndarray:
     fixed = np.flatnonzero(~boxes.interpolated) if len(moved) else slice(None)
     _, first, inverse = np.unique(boxes.annotation_index[fixed], return_index=True, return_inverse=True)
     once = np.arange(len(boxes))[fixed][first]
-    per_annotation = geometry.box_half_axes(boxes.size_wlh_m[once], boxes.rotation_wxyz[once])
+    per_annotation = box_half_axes(boxes.size_wlh_m[once], boxes.rotation_wxyz[once])
     if not len(moved):  # keyframes only: every box is its annotation's
         return per_annotation[inverse]
     half_axes = np.empty((len(boxes), 3, 3))
     half_axes[fixed] = per_annotation[inverse]
-    half_axes[moved] = geometry.box_half_axes(boxes.size_wlh_m[moved], boxes.rotation_wxyz[moved])
+    half_axes[moved] = box_half_axes(boxes.size_wlh_m[moved], boxes.rotation_wxyz[moved])
     return half_axes
-
-
-def corner_visibility(cameras: Cameras, corners_px: np.ndarray, depths_m: np.ndarray) -> tuple[np.ndarray, ...]:
-    """devkit `box_in_image`, per box: (corner_visible (M, 8), in_front (M,), visible (M,) = BoxVisibility.ANY).
-
-    A corner is visible when it lies inside the image and deeper than 1 m; a box is in front when every
-    corner is deeper than 0.1 m."""
-    corner_visible = cameras.in_image(corners_px) & (depths_m > CORNER_MIN_DEPTH_M)
-    in_front = np.all(depths_m > BOX_MIN_DEPTH_M, axis=1)
-    return corner_visible, in_front, np.any(corner_visible, axis=1) & in_front
 
 
 @dataclass(frozen=True)
@@ -212,7 +188,7 @@ def project_boxes(
             camera_intrinsic, and global_from_ego + ego_from_sensor (or the poses ego_translation,
             ego_rotation, sensor_translation, sensor_rotation). Rows without an intrinsic (lidar, radar) get
             no boxes.
-        annotations, samples: as for `nuparquet.frame_boxes.frame_boxes`.
+        annotations, samples: as for `nuparquet.frames.boxes.frame_boxes`.
         visibility: "any", "all" or "none" (devkit BoxVisibility.ANY / ALL / NONE).
 
     Returns:
@@ -223,14 +199,11 @@ def project_boxes(
     cameras_df = camera_rows(frames)
     boxes = frame_boxes(cameras_df.drop("frame_index"), annotations, samples)
     cameras = cameras_from_frames(cameras_df)  # F cameras; boxes.frame_index counts camera rows
-    seen = boxes_in_frame_cameras(cameras, boxes)
+    seen = boxes_in_cameras(cameras, boxes)
     frame = boxes.frame_index
-    corners_px, depths = project_points(cameras.image_from_camera[frame], seen.corners_camera_m)
-    # devkit box_in_image (`corner_visibility`), with each box's image size and scale gathered, not its camera
-    corner_visible = pixels_in_image(corners_px, cameras.size_px[frame], cameras.scale[frame])
-    corner_visible &= depths > CORNER_MIN_DEPTH_M
-    in_front = np.all(depths > BOX_MIN_DEPTH_M, axis=1)
-    visible = np.any(corner_visible, axis=1) & in_front
+    corners_px, depths = perspective(cameras.image_from_camera[frame], seen.corners_camera_m)
+    corner_visible, in_front, visible = box_visibility(corners_px, depths, cameras.size_px[frame],
+                                                       cameras.scale[frame])
 
     projected = ProjectedBoxes(
         frame_index=cameras_df["frame_index"].to_numpy().astype(np.int64)[boxes.frame_index],

@@ -1,6 +1,6 @@
 """Lidar points in camera images, as devkit `NuScenesExplorer.map_pointcloud_to_image`.
 
-The poses come from the stored transforms, read once per query (`projection.frames`): the lidar frames'
+The poses come from the stored transforms, read once per query (`frames.poses`): the lidar frames'
 `sensor_poses` and the cameras' `Cameras`; only the point files are read per frame.
 
 ```python
@@ -8,7 +8,7 @@ cameras = cameras_from_frames(camera_rows)                   # once
 global_from_ego, ego_from_lidar = sensor_poses(lidar_rows)   # once
 lidar_of_camera = lidar_for_cameras(camera_rows, lidar_rows)  # (F,) row of each camera's lidar keyframe
 j = lidar_of_camera[i]
-uv, depth, index = project_points(load_lidar_bin(path_j), global_from_ego[j], ego_from_lidar[j], cameras.take([i]))
+uv, depth, index = points_in_image(read_lidar_bin(path_j), global_from_ego[j], ego_from_lidar[j], cameras.take([i]))
 ```
 """
 
@@ -18,14 +18,14 @@ import numpy as np
 import polars as pl
 
 from nuparquet import geometry
-from nuparquet.camera import Cameras
+from nuparquet.geometry import Cameras
 
 # devkit map_pointcloud_to_image: min_dist default, and the 1-pixel margin it leaves "for aesthetic reasons".
 POINT_MIN_DEPTH_M = 1.0
 POINT_MARGIN_PX = 1.0
 
 
-def project_points(
+def points_in_image(
     points_sensor_m: np.ndarray,
     global_from_ego: np.ndarray,
     ego_from_sensor: np.ndarray,
@@ -50,7 +50,7 @@ def project_points(
         uv (K, 2) pixels of `camera`, depth (K,) metres (camera z), index (K,) int64 rows of `points_sensor_m`.
     """
     if len(camera) != 1:
-        raise ValueError(f"project_points takes one camera, got {len(camera)}")
+        raise ValueError(f"points_in_image takes one camera, got {len(camera)}")
     points_sensor_m = np.asarray(points_sensor_m)[:, :3].astype(np.float64)
     # Step by step rather than one composed matrix, the order the devkit applies them.
     points_global_m = geometry.transform_points(global_from_ego, geometry.transform_points(ego_from_sensor,
