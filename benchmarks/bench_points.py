@@ -53,7 +53,7 @@ def prepare() -> Path:
 def _tasks(out: str, scenes: int, directory: str):
     import polars as pl
 
-    from nuparquet.scene_points import SceneTask
+    from nuparquet.convert.scene_points import SceneTask
 
     frames = (pl.scan_parquet(f"{out}/frames/*.parquet")
               .filter((pl.col("modality").cast(pl.String) == "lidar") & pl.col("is_key_frame"))

@@ -39,7 +39,7 @@ FORKSERVER_GROUPS = {"geometry", "projection", "reader", "builders", "mosaic", "
 
 # group -> (modules to mutate, pytest arguments selecting the fast tests that exercise them)
 GROUPS: dict[str, tuple[list[str], list[str]]] = {
-    "geometry": (["nuparquet/geometry.py"], [
+    "geometry": (["nuparquet/geometry/rigid.py", "nuparquet/geometry/boxes.py", "nuparquet/geometry/projection.py", "nuparquet/geometry/interpolation.py"], [
         "tests/parity/test_geometry_math.py", "tests/test_geometry_contract.py", "tests/test_camera.py",
         "tests/parity/test_points_queries_devkit.py::test_points_in_boxes_equal_devkit_and_num_lidar_pts_on_synthetic_data",
         *(f"tests/parity/test_box_projection.py::{name}" for name in (  # the small get_boxes tables
@@ -47,13 +47,13 @@ GROUPS: dict[str, tuple[list[str], list[str]]] = {
             "test_sweep_time_is_clamped_to_the_two_samples",
             "test_keyframe_and_first_sample_sweep_use_their_sample_boxes_unchanged",
             "test_duplicate_instance_in_previous_sample_gives_one_box_from_the_last_like_devkit_dict"))]),
-    "projection": (["nuparquet/projection/boxes.py", "nuparquet/projection/lidar.py",
-                    "nuparquet/projection/frames.py"],
+    "projection": (["nuparquet/frames/projection.py", "nuparquet/frames/points_in_image.py",
+                    "nuparquet/frames/poses.py"],
                    # the irregular fixture holds every case of the regular one and more: [synth] is left out
                    ["tests/parity/test_box_projection.py", "tests/render/test_render.py",
                     "tests/test_projection_contract.py", "-m", "not real",
                     "-k", "irregular or not synthetic"]),
-    "reader": (["nuparquet/sources/tables.py", "nuparquet/validate.py"],
+    "reader": (["nuparquet/sources/tables.py", "nuparquet/sources/integrity.py"],
                ["tests/convert/test_bad_input.py", "tests/sources/test_json_records.py",
                 "tests/convert/test_real_layouts.py", "tests/convert/test_timestamp_units.py",
                 "tests/sources/test_duckdb_messages.py", "tests/sources/test_tables.py", "-m", "not real",

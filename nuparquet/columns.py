@@ -66,23 +66,9 @@ def to_numpy(column: Column, shape: tuple[int, ...], dtype=np.float64, *, writab
     return out.reshape((n, *shape))
 
 
-def list_type(shape: tuple[int, ...], value_type: pa.DataType | None = None, *, nested: bool = False) -> pa.DataType:
-    """The Arrow fixed-size-list type for rows of `shape` (float64 unless `value_type`): flat (`[16]` for (4, 4))
-    or, with `nested`, one level per axis (`[3][3]` for the intrinsics)."""
-    import pyarrow as pa
-
-    value_type = pa.float64() if value_type is None else value_type
-    if not nested:
-        return pa.list_(value_type, int(np.prod(shape)))
-    out = value_type
-    for size in reversed(shape):
-        out = pa.list_(out, size)
-    return out
-
-
 def to_arrow(values: np.ndarray, *, value_type: pa.DataType | None = None, nested: bool = False,
              valid: np.ndarray | None = None) -> pa.FixedSizeListArray:
-    """An `(N, *shape)` array as a fixed-size-list Arrow array (see `list_type`; float64 unless `value_type`);
+    """An `(N, *shape)` array as a fixed-size-list Arrow array (flat, or with `nested` one level per axis; float64 unless `value_type`);
     `valid` (N,) marks the rows that are not null."""
     import pyarrow as pa
 

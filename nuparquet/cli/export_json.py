@@ -20,7 +20,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from nuparquet.cli.progress import bars
-    from nuparquet.export import export_json
+    from nuparquet.export.json_files import export_json
 
     paths = export_json(args.dataset, args.out, overwrite=args.overwrite, on_progress=bars(not args.quiet))
     print(f"wrote {len(paths)} files to {args.out}")

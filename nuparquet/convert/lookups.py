@@ -19,45 +19,45 @@ def as_int(df: pl.DataFrame, *columns: str) -> pl.DataFrame:
                             for c in columns if df.schema[c].is_float()])
 
 
-def sample_lookup(t: dict[str, pl.DataFrame]) -> pl.DataFrame:
+def sample_lookup(tables: dict[str, pl.DataFrame]) -> pl.DataFrame:
     """sample_token -> scene_token, scene_name, log_location, sample_timestamp (one row per sample)."""
     return (
-        as_int(t["sample"], "timestamp").select(pl.col("token").alias("sample_token"), "scene_token",
+        as_int(tables["sample"], "timestamp").select(pl.col("token").alias("sample_token"), "scene_token",
                                                 pl.col("timestamp").alias("sample_timestamp"))
-        .join(t["scene"].select(pl.col("token").alias("scene_token"), pl.col("name").alias("scene_name"), "log_token"),
+        .join(tables["scene"].select(pl.col("token").alias("scene_token"), pl.col("name").alias("scene_name"), "log_token"),
               on="scene_token", how="left")
-        .join(t["log"].select(pl.col("token").alias("log_token"), pl.col("location").alias("log_location")),
+        .join(tables["log"].select(pl.col("token").alias("log_token"), pl.col("location").alias("log_location")),
               on="log_token", how="left")
         .select("sample_token", "scene_token", "scene_name", "log_location", "sample_timestamp")
     )
 
 
-def scene_batches(t: dict[str, pl.DataFrame], samples: pl.DataFrame, scenes_per_batch: int) -> pl.DataFrame:
+def scene_batches(tables: dict[str, pl.DataFrame], samples: pl.DataFrame, scenes_per_batch: int) -> pl.DataFrame:
     """sample_token -> `_batch`: scenes in name order, `scenes_per_batch` to a batch."""
-    order = t["scene"].select(pl.col("token").alias("scene_token"), "name").sort("name", "scene_token")
+    order = tables["scene"].select(pl.col("token").alias("scene_token"), "name").sort("name", "scene_token")
     order = order.with_columns(_batch=(pl.int_range(pl.len()) // scenes_per_batch).cast(pl.Int32))
     return samples.select("sample_token", "scene_token").join(order, on="scene_token", how="left").select(
         "sample_token", "_batch")
 
 
-def reference_channel(t: dict[str, pl.DataFrame]) -> str | None:
+def reference_channel(tables: dict[str, pl.DataFrame]) -> str | None:
     """The reference lidar of the dataset (`nuparquet.channels.reference_lidar`)."""
-    return reference_lidar(t["sensor"]["channel"].to_list(), t["sensor"]["modality"].to_list())
+    return reference_lidar(tables["sensor"]["channel"].to_list(), tables["sensor"]["modality"].to_list())
 
 
-def reference_poses(t: dict[str, pl.DataFrame], samples: pl.DataFrame) -> pl.DataFrame:
+def reference_poses(tables: dict[str, pl.DataFrame], samples: pl.DataFrame) -> pl.DataFrame:
     """Per sample: timestamp and ego translation of its reference-lidar keyframe."""
-    channel = reference_channel(t)
+    channel = reference_channel(tables)
     if channel is None:  # a layout without lidar: no sample has a reference pose
         return pl.DataFrame(schema={"sample_token": pl.String, "scene_name": pl.String, "timestamp": pl.Int64,
                                     "ego_translation": pl.Array(pl.Float64, 3)})
-    sensor_tokens = t["sensor"].filter(pl.col("channel") == channel)["token"]
-    calibrations = t["calibrated_sensor"].filter(pl.col("sensor_token").is_in(sensor_tokens.implode()))["token"]
+    sensor_tokens = tables["sensor"].filter(pl.col("channel") == channel)["token"]
+    calibrations = tables["calibrated_sensor"].filter(pl.col("sensor_token").is_in(sensor_tokens.implode()))["token"]
     return (
-        as_int(t["sample_data"], "timestamp").lazy()
+        as_int(tables["sample_data"], "timestamp").lazy()
         .filter(pl.col("is_key_frame") & pl.col("calibrated_sensor_token").is_in(calibrations.implode()))
         .select("sample_token", "timestamp", "ego_pose_token")
-        .join(t["ego_pose"].lazy().select(pl.col("token").alias("ego_pose_token"), pl.col("translation").alias("ego_translation")),
+        .join(tables["ego_pose"].lazy().select(pl.col("token").alias("ego_pose_token"), pl.col("translation").alias("ego_translation")),
               on="ego_pose_token", how="left")
         .join(samples.lazy().select("sample_token", "scene_name"), on="sample_token", how="left")
         .unique("sample_token", keep="first")

@@ -19,17 +19,19 @@ import polars as pl
 from nuparquet import __version__
 from nuparquet.channels import channel_facts
 from nuparquet.convert.options import ConvertOptions
-from nuparquet.convert.registry import BUILDERS, BuildContext
+from nuparquet.convert.builder import BuildContext
+from nuparquet.convert.registry import BUILDERS
 from nuparquet.convert.run import build_datasets, count_steps
-from nuparquet.convert.write import atomic_directory, check_target, utc_now, write_manifest, write_parquet
+from nuparquet.convert.write import utc_now, write_manifest, write_parquet
+from nuparquet.atomic import atomic_directory, check_target
 from nuparquet.format import FORMAT_NAME, FORMAT_VERSION
-from nuparquet.partials import check_apart
+from nuparquet.atomic import check_apart
 from nuparquet.errors import EnvironmentFault
 from nuparquet.problems import Problem, ProblemsFound, split_warnings
 from nuparquet.progress import OnProgress, Reporter
 from nuparquet.schemas import fingerprint, table_schemas
 from nuparquet.sources.tables import ReadResult, read_tables
-from nuparquet.validate import check_integrity
+from nuparquet.sources.integrity import check_integrity
 
 __all__ = ["ConvertOptions", "convert", "validate"]
 
@@ -112,10 +114,10 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
     return manifest
 
 
-def _channel_facts(t: dict[str, pl.DataFrame]) -> dict:
+def _channel_facts(tables: dict[str, pl.DataFrame]) -> dict:
     """The dataset's channels (`nuparquet.channels.channel_facts`): names, modalities, one calibration's yaw each."""
-    sensors = t["sensor"]
-    calibrations = (t["calibrated_sensor"].join(sensors.select(pl.col("token").alias("sensor_token"), "channel"),
+    sensors = tables["sensor"]
+    calibrations = (tables["calibrated_sensor"].join(sensors.select(pl.col("token").alias("sensor_token"), "channel"),
                                                 on="sensor_token")
                     .sort("channel", "token").unique("channel", keep="first", maintain_order=True))
     rotations = dict(zip(calibrations["channel"].to_list(), calibrations["rotation"].to_list()))

@@ -17,7 +17,7 @@ import pyarrow as pa
 
 from nuparquet.convert import lookups
 from nuparquet.convert.builders.common import reference_poses, samples
-from nuparquet.convert.registry import BuildContext, Builder, BuildResult, SceneBatch, WrittenParts
+from nuparquet.convert.builder import BuildContext, Builder, BuildResult, SceneBatch, WrittenParts
 from nuparquet.convert.write import DatasetWriter
 from nuparquet.schemas import Schema, dataset_schemas, fingerprint
 

@@ -1,34 +1,26 @@
-"""Writing Parquet datasets and the manifest, atomically.
-
-A conversion is written into a hidden temporary sibling of OUT and renamed into place only when
-complete, so a failed or interrupted run never leaves a complete-looking OUT, and never touches an
-existing OUT unless asked to replace it.
-"""
+"""Writing the Parquet datasets and the manifest of a conversion (into the hidden sibling of OUT that
+`nuparquet.atomic.atomic_directory` renames into place when the conversion is complete)."""
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
-import shutil
+from collections.abc import Iterator
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
-from nuparquet.errors import EnvironmentFault, UsageError
-from nuparquet.partials import partial_path, remove_stale
 from nuparquet.format import MANIFEST
 
-PART_NAME = "part-00000.parquet"
 
-
-def part_name(index: int) -> str:
+def parquet_part_name(index: int) -> str:
+    """The file name of part `index` of a dataset: `part-00000.parquet`, ..."""
     return f"part-{index:05d}.parquet"
+
+
 MAX_ROW_GROUP_ROWS = 65536
 
 
@@ -38,7 +30,7 @@ class DatasetWriter:
 
     def __init__(self, directory: Path, schema: pa.Schema, *, group_by: str | None = None, part: int = 0):
         directory.mkdir(parents=True, exist_ok=True)
-        self.path = directory / part_name(part)
+        self.path = directory / parquet_part_name(part)
         self.schema = schema
         self.group_by = group_by
         self.rows = 0
@@ -115,45 +107,3 @@ def write_manifest(root: Path, manifest: dict) -> None:
 
 def utc_now() -> str:
     return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-
-
-def check_target(out: Path | str, *, overwrite: bool) -> Path:
-    """Refuse an existing output unless told to replace it (call before doing the work, to fail fast)."""
-    out = Path(out).absolute()
-    if out.is_symlink() and not out.exists():
-        raise EnvironmentFault(f"{out} is a symbolic link to {os.readlink(out)}, which does not exist; remove the link "
-                               "or choose another output path")
-    blocking = next((p for p in out.parents if p.exists() and not p.is_dir()), None)
-    if blocking is not None:
-        raise EnvironmentFault(f"cannot create {out}: {blocking} is a file, not a folder")
-    if out.exists() and not overwrite:
-        raise UsageError(f"{out} already exists; pass --overwrite to replace it")
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"{out} exists and is not a directory")
-    return out
-
-
-@contextlib.contextmanager
-def atomic_directory(out: Path, *, overwrite: bool) -> Iterator[Path]:
-    """Yield a temporary sibling of `out` to write into; on success it replaces `out` by renames."""
-    out = check_target(out, overwrite=overwrite)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale(out)  # what killed runs left (SIGKILL cannot clean up); a live run's partial stays
-    tmp = partial_path(out)
-    tmp.mkdir()
-    try:
-        yield tmp
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-    old = None
-    if out.exists() or out.is_symlink():
-        if not overwrite:  # it appeared while we worked (another run, another user): never replace it
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise UsageError(f"{out} appeared while the output was being written; nothing was replaced (pass "
-                             "--overwrite to replace it)")
-        old = out.parent / f".{out.name}.replaced-{os.getpid()}"
-        os.rename(out, old)
-    os.rename(tmp, out)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)

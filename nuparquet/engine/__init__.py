@@ -10,7 +10,7 @@ deterministic whichever engine ran the units and in whatever order they finished
 from nuparquet.engine.commit import move_parts
 from nuparquet.engine.options import ENGINES, EngineOptions
 from nuparquet.engine.run import check_engine, raise_failures, run_units
-from nuparquet.engine.units import UnitOutcome, UnitsFailed, WorkUnit, part_name
+from nuparquet.engine.units import UnitOutcome, UnitsFailed, WorkUnit, unit_file_name
 
-__all__ = ["ENGINES", "EngineOptions", "UnitOutcome", "UnitsFailed", "WorkUnit", "check_engine", "move_parts", "part_name", "raise_failures",
+__all__ = ["ENGINES", "EngineOptions", "UnitOutcome", "UnitsFailed", "WorkUnit", "check_engine", "move_parts", "unit_file_name", "raise_failures",
            "run_units"]

@@ -21,7 +21,7 @@ from typing import Any, Callable
 from urllib.parse import quote
 
 from nuparquet.errors import InputError, NuparquetError
-from nuparquet.partials import write_text_atomic
+from nuparquet.atomic import write_text_atomic
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,7 @@ class UnitsFailed(InputError):
         super().__init__(f"{len(failures)} unit(s) failed; {tail}:\n{lines}")
 
 
-def part_name(unit_name: str) -> str:
+def unit_file_name(unit_name: str) -> str:
     """The file name standing for a unit: its name with anything but letters, digits, '-', '_' and '.' quoted
     (a scene named '../x' cannot leave the parts folder)."""
     name = quote(unit_name, safe="-_.")
@@ -76,11 +76,11 @@ def part_name(unit_name: str) -> str:
 
 
 def part_dir(parts_dir: Path, unit_name: str) -> Path:
-    return parts_dir / part_name(unit_name)
+    return parts_dir / unit_file_name(unit_name)
 
 
 def _marker(parts_dir: Path, unit_name: str) -> Path:
-    return parts_dir / f"{part_name(unit_name)}.done.json"
+    return parts_dir / f"{unit_file_name(unit_name)}.done.json"
 
 
 def write_marker(parts_dir: Path, outcome: UnitOutcome) -> None:

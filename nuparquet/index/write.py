@@ -1,18 +1,17 @@
-"""Atomic output: every file goes to a hidden sibling first and is renamed into place when complete."""
+"""The index files: pickles (one streamed without holding every entry) and the `infos/` Parquet folder, each
+written atomically (`nuparquet.atomic`: a hidden partial beside the target, renamed into place when complete)."""
 
 from __future__ import annotations
 
 import io
-import os
 import pickle
-import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from nuparquet.atomic import atomic_directory, atomic_file
 
 ROW_GROUP_ROWS = 256
 
@@ -32,13 +31,8 @@ class _Pickler(pickle.Pickler):
 
 
 def write_pickle(path: Path, obj) -> None:
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
-        with open(tmp, "wb") as f:
-            _Pickler(f, protocol=pickle.HIGHEST_PROTOCOL).dump(obj)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    with atomic_file(path) as partial, open(partial, "wb") as f:
+        _Pickler(f, protocol=pickle.HIGHEST_PROTOCOL).dump(obj)
 
 
 _PROTOCOL = 3  # explicit memo indices (BINPUT): a memo cleared between chunks just overwrites the slots
@@ -62,35 +56,22 @@ def write_infos_pickle(path: Path, head: dict, key: str, chunks) -> None:
     """Pickle `head | {key: [entries of every chunk]}` (loads equal to pickle.dump of that dict) without
     holding every entry at once: `chunks` yields lists of entries, each pickled with a fresh memo and
     appended to the list in the stream (a trainval split's entries take more memory than the budget)."""
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     buffer = io.BytesIO()
     pickler = _Pickler(buffer, protocol=_PROTOCOL)
-    try:
-        with open(tmp, "wb") as f:
-            f.write(b"\x80\x03}(")  # PROTO 3, EMPTY_DICT, MARK (key/value pairs follow)
-            pairs = _list_body(pickler, buffer, [k for item in head.items() for k in item] + [key])
-            f.write(pairs[1:-1])  # the pairs and the last key, without their MARK ... APPENDS
-            f.write(b"]")  # EMPTY_LIST: the value of `key`
-            for chunk in chunks:
-                if chunk:
-                    f.write(_list_body(pickler, buffer, chunk))
-            f.write(b"u.")  # SETITEMS, STOP
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    with atomic_file(path) as partial, open(partial, "wb") as f:
+        f.write(b"\x80\x03}(")  # PROTO 3, EMPTY_DICT, MARK (key/value pairs follow)
+        pairs = _list_body(pickler, buffer, [k for item in head.items() for k in item] + [key])
+        f.write(pairs[1:-1])  # the pairs and the last key, without their MARK ... APPENDS
+        f.write(b"]")  # EMPTY_LIST: the value of `key`
+        for chunk in chunks:
+            if chunk:
+                f.write(_list_body(pickler, buffer, chunk))
+        f.write(b"u.")  # SETITEMS, STOP
 
 
 def write_parquet_dir(directory: Path, tables: dict[str, pa.Table]) -> None:
     """`directory/<name>.parquet` per table, replacing `directory` as a whole once all are written."""
-    tmp = Path(tempfile.mkdtemp(prefix=f".{directory.name}.tmp-", dir=directory.parent))
-    try:
+    with atomic_directory(directory, overwrite=True) as partial:
         for name, table in tables.items():
             # small row groups: a loader reading one row decodes ROW_GROUP_ROWS rows, not the split
-            pq.write_table(table, tmp / f"{name}.parquet", compression="zstd", row_group_size=ROW_GROUP_ROWS)
-        old = directory.with_name(f".{directory.name}.old-{os.getpid()}")
-        if directory.exists():
-            os.replace(directory, old)
-        os.replace(tmp, directory)
-        shutil.rmtree(old, ignore_errors=True)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+            pq.write_table(table, partial / f"{name}.parquet", compression="zstd", row_group_size=ROW_GROUP_ROWS)

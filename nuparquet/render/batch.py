@@ -28,10 +28,10 @@ from pathlib import Path
 import polars as pl
 
 from nuparquet.engine import (
-    EngineOptions, UnitOutcome, WorkUnit, check_engine, move_parts, part_name, raise_failures, run_units,
+    EngineOptions, UnitOutcome, WorkUnit, check_engine, move_parts, unit_file_name, raise_failures, run_units,
 )
 from nuparquet.errors import QueryError, UsageError
-from nuparquet.partials import write_text_atomic
+from nuparquet.atomic import write_text_atomic
 from nuparquet.progress import OnProgress
 from nuparquet.render.options import ALL_CHANNELS, SUMMARY_NAME, RenderOptions, SceneSelection
 
@@ -63,7 +63,7 @@ class BatchResult:
 def video_name(scene: str) -> str:
     """The file a scene's video is written to inside --out-dir (the scene name, quoted if it is not a plain
     file name)."""
-    return f"{part_name(scene)}.mp4"
+    return f"{unit_file_name(scene)}.mp4"
 
 
 def select_scenes(dataset, selection: SceneSelection) -> list[str]:
@@ -139,7 +139,7 @@ def _check(dataset, options: RenderOptions, selection: SceneSelection) -> None:
         cameras = ", ".join([*dataset.channels.get("cameras", []), ALL_CHANNELS])
         raise UsageError(f"unknown channel {options.channel!r}; valid channels: {cameras}")
     if not dataset.is_remote:
-        from nuparquet.partials import check_apart
+        from nuparquet.atomic import check_apart
 
         check_apart(Path(selection.out_dir), dataset.root, what="the converted dataset")
 

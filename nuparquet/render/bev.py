@@ -23,7 +23,7 @@ import numpy as np
 import shapely
 
 from nuparquet.frames.boxes import FrameBoxes
-from nuparquet.palette import category_rgb
+from nuparquet.render.palette import category_rgb
 from nuparquet.geometry.quaternions import heading_from_quaternions
 from nuparquet.render.plan import RowTile, TileLoad
 from nuparquet.render.points import CloudReader

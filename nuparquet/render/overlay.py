@@ -15,7 +15,7 @@ import numpy as np
 from nuparquet.frames.boxes import FrameBoxes
 from nuparquet.frames.projection import boxes_in_cameras
 from nuparquet.geometry import Cameras, box_visibility, perspective
-from nuparquet.palette import category_rgb
+from nuparquet.render.palette import category_rgb
 from nuparquet.render import draw
 
 LIDAR_MAX_DEPTH_M = 60.0  # colour scale of projected lidar points

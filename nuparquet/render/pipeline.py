@@ -151,7 +151,7 @@ def render(dataset_or_path, options: RenderOptions, *, on_progress: OnProgress |
     options.check()
     dataset = _dataset(dataset_or_path)
     if not dataset.is_remote:  # never write into the converted dataset (--out OUT/manifest.json replaced it)
-        from nuparquet.partials import check_apart
+        from nuparquet.atomic import check_apart
 
         for target in (options.out, options.frames_dir):
             if target is not None:

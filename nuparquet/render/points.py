@@ -20,8 +20,8 @@ import polars as pl
 
 from nuparquet.geometry import Cameras
 from nuparquet.errors import UsageError
-from nuparquet.palette import category_rgb
-from nuparquet.pointcloud import load_lidar_bin
+from nuparquet.render.palette import category_rgb
+from nuparquet.sources.points import read_lidar_bin
 from nuparquet.frames.poses import sensor_poses
 from nuparquet.frames.points_in_image import lidar_for_cameras, points_in_image
 from nuparquet.render.options import LIDAR_COLORS
@@ -100,7 +100,7 @@ class CloudReader:
                 return frame.select(_POINT_COLUMNS).to_numpy().astype(np.float32), labels
         if label:
             raise FileNotFoundError(self.paths[lidar])
-        return load_lidar_bin(self.paths[lidar])[:, :4], None
+        return read_lidar_bin(self.paths[lidar])[:, :4], None
 
     def colors_bgr(self, points: np.ndarray, labels: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
         """(K, 3) BGR uint8 colours of the kept points `index`, or None for the depth colouring."""

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nuparquet.partials import partial_path, remove_stale
+from nuparquet.atomic import partial_path, remove_stale
 from nuparquet.render.decode import write_image
 from nuparquet.render.options import existing_frames
 from nuparquet.render.video import VideoWriter

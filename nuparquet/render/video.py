@@ -14,7 +14,7 @@ import av
 import cv2
 import numpy as np
 
-from nuparquet.partials import partial_path, remove_stale
+from nuparquet.atomic import partial_path, remove_stale
 from nuparquet.render.options import DEFAULT_CRF, DEFAULT_PRESET
 
 

@@ -11,7 +11,7 @@ import pytest
 
 from conftest import EXTRACT_VERSION, SYNTH_VERSION
 from nuparquet.cli.main import main
-from nuparquet.export import export_json
+from nuparquet.export.json_files import export_json
 from nuparquet.schemas import core_tables, dataset_schemas, table_schemas
 
 

@@ -14,7 +14,7 @@ import pytest
 from conftest import SYNTH_VERSION
 from nuparquet.cli.main import main
 from nuparquet.convert import convert
-from nuparquet.export import export_json
+from nuparquet.export.json_files import export_json
 
 V = SYNTH_VERSION
 TOKEN_FIELDS = {"token", "sample_token", "ego_pose_token", "calibrated_sensor_token", "sensor_token", "scene_token",

@@ -30,7 +30,7 @@ def test_a_40_mb_string_keeps_memory_bounded_and_round_trips(synth_root, tmp_pat
     assert done.returncode == 0, done.stderr[-500:]
     assert before / 1024 < LIMIT_MB  # the measurement is this child's, not an earlier larger one
     assert peak_mb < LIMIT_MB, f"peak RSS {peak_mb:.0f} MB"
-    from nuparquet.export import export_json
+    from nuparquet.export.json_files import export_json
 
     export_json(tmp_path / "out", tmp_path / "back")
     again = json.loads((tmp_path / "back" / V / "scene.json").read_text())

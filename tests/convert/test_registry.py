@@ -14,7 +14,7 @@ import pytest
 import nuparquet.convert.pipeline as convert_module
 from conftest import SYNTH_VERSION
 from nuparquet.convert import convert, registry
-from nuparquet.convert.registry import Builder
+from nuparquet.convert.builder import Builder
 
 # The opt-in sensor datasets, skipped unless --sensors asks for them.
 NOT_REQUESTED = {"lidar_points": "not requested (--sensors lidar)", "radar_points": "not requested (--sensors radar)"}

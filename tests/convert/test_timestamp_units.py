@@ -59,7 +59,7 @@ def test_the_unit_guess_at_its_limits():
     milliseconds, below 1e-5 of it seconds, anything else another unit. Each message is a warning."""
     import polars as pl
 
-    from nuparquet.validate import PLAUSIBLE_TIMESTAMP_US, _timestamp_units
+    from nuparquet.sources.integrity import PLAUSIBLE_TIMESTAMP_US, _timestamp_units
 
     low, high = PLAUSIBLE_TIMESTAMP_US
     cases = {

@@ -14,7 +14,7 @@ import numpy as np
 import polars as pl
 import pytest
 
-from nuparquet.pointcloud import load_lidar_bin
+from nuparquet.sources.points import read_lidar_bin
 from nuparquet.frames.boxes import boxes_for_frames
 from nuparquet.frames.projection import project_boxes
 from nuparquet.frames.poses import cameras_from_frames, sensor_poses
@@ -160,7 +160,7 @@ def assert_lidar_matches_devkit(nusc, monkeypatch, out: Path, dataroot: Path, sc
     for index_of_camera, camera in enumerate(cameras_df.iter_rows(named=True)):
         row = lidar_of_sample[camera["sample_token"]]
         lidar = lidar_frames.row(row, named=True)
-        points_lidar = load_lidar_bin(dataroot / lidar["filename"])
+        points_lidar = read_lidar_bin(dataroot / lidar["filename"])
         uv, depth_m, index = points_in_image(points_lidar, global_from_ego[row], ego_from_lidar[row],
                                             cameras.take([index_of_camera]))
         devkit_uv, devkit_depth_m, devkit_kept_uv, (width, height) = devkit_projection_of_all_points(

@@ -10,7 +10,7 @@ import polars as pl
 import pytest
 
 from conftest import EXTRACT_VERSION, SYNTH_VERSION
-from nuparquet.export import export_json
+from nuparquet.export.json_files import export_json
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 

@@ -10,7 +10,7 @@ import pytest
 import nuparquet
 from nuparquet.geometry import Cameras, scale_pixels
 from nuparquet.frames.boxes import frame_boxes
-from nuparquet.palette import category_rgb
+from nuparquet.render.palette import category_rgb
 from nuparquet.frames.projection import project_boxes
 from nuparquet.frames.poses import cameras_from_frames
 from nuparquet.render import draw

@@ -9,18 +9,18 @@ import polars as pl
 from nuparquet.geometry import quaternions
 from nuparquet.columns import to_numpy
 from nuparquet.convert.builders.common import reference_poses, samples
-from nuparquet.convert.registry import BuildContext, Builder, SceneBatch
+from nuparquet.convert.builder import BuildContext, Builder, SceneBatch
 
 # devkit NuScenes.box_velocity's default: neighbours further apart than this (doubled for a centred
 # difference) give NaN.
 MAX_VELOCITY_TIME_DIFF_S = 1.5
 
 
-def build_annotations(t: dict[str, pl.DataFrame], annotations: pl.DataFrame, samples: pl.DataFrame,
+def build_annotations(tables: dict[str, pl.DataFrame], annotations: pl.DataFrame, samples: pl.DataFrame,
                       references: pl.DataFrame) -> pl.DataFrame:
     """One row per row of `annotations` (sample_annotation rows of a batch of scenes). `references` is
-    `lookups.reference_poses(t, samples)`."""
-    names = dict(zip(t["attribute"]["token"].to_list(), t["attribute"]["name"].to_list()))  # a handful
+    `lookups.reference_poses(tables, samples)`."""
+    names = dict(zip(tables["attribute"]["token"].to_list(), tables["attribute"]["name"].to_list()))  # a handful
     ann = annotations.with_columns(attribute_names=pl.col("attribute_tokens").list.eval(
         pl.element().replace_strict(names, return_dtype=pl.String)))
     ego = references.select("sample_token", pl.col("ego_translation").alias("_ego"))
@@ -28,12 +28,12 @@ def build_annotations(t: dict[str, pl.DataFrame], annotations: pl.DataFrame, sam
         ann.lazy()
         .join(samples.lazy(), on="sample_token", how="left")
         .rename({"sample_timestamp": "timestamp"})
-        .join(t["instance"].lazy().select(pl.col("token").alias("instance_token"), "category_token"),
+        .join(tables["instance"].lazy().select(pl.col("token").alias("instance_token"), "category_token"),
               on="instance_token", how="left")
-        .join(t["category"].lazy().select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
+        .join(tables["category"].lazy().select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
               on="category_token", how="left")
         .join(ego.lazy(), on="sample_token", how="left")
-        .join(visibility_levels(t["visibility"]).lazy(), on="visibility_token", how="left")
+        .join(visibility_levels(tables["visibility"]).lazy(), on="visibility_token", how="left")
         .collect()
     )
     translation = to_numpy(ann["translation"], (3,))

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pyarrow as pa
 
-from nuparquet.convert.registry import BuildContext, Builder, needs_folder
+from nuparquet.convert.builder import BuildContext, Builder, needs_folder
 from nuparquet.problems import ProblemsFound
 from nuparquet.sources import can_bus as source
 from nuparquet.sources.json_records import range_facts

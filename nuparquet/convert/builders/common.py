@@ -5,7 +5,7 @@ from __future__ import annotations
 import polars as pl
 
 from nuparquet.convert import lookups
-from nuparquet.convert.registry import BuildContext
+from nuparquet.convert.builder import BuildContext
 
 
 def samples(ctx: BuildContext) -> pl.DataFrame:

@@ -9,23 +9,23 @@ from nuparquet import geometry
 from nuparquet.columns import to_numpy, to_series
 from nuparquet.convert.builders.common import samples
 from nuparquet.convert.lookups import as_int
-from nuparquet.convert.registry import BuildContext, Builder, SceneBatch
+from nuparquet.convert.builder import BuildContext, Builder, SceneBatch
 
 
-def build_frames(t: dict[str, pl.DataFrame], sample_data: pl.DataFrame, samples: pl.DataFrame) -> pl.DataFrame:
-    """One row per row of `sample_data` (a batch of scenes). `samples` is `lookups.sample_lookup(t)`."""
+def build_frames(tables: dict[str, pl.DataFrame], sample_data: pl.DataFrame, samples: pl.DataFrame) -> pl.DataFrame:
+    """One row per row of `sample_data` (a batch of scenes). `samples` is `lookups.sample_lookup(tables)`."""
     sample_data = as_int(sample_data, "timestamp", "width", "height").with_columns(
         pl.col("width").fill_null(0), pl.col("height").fill_null(0))  # 0 for non-images, as nuScenes writes it
     frames = (
         sample_data.lazy()
-        .join(t["ego_pose"].lazy().select(
+        .join(tables["ego_pose"].lazy().select(
             pl.col("token").alias("ego_pose_token"), pl.col("translation").alias("ego_translation"),
             pl.col("rotation").alias("ego_rotation")), on="ego_pose_token", how="left")
-        .join(t["calibrated_sensor"].lazy().select(
+        .join(tables["calibrated_sensor"].lazy().select(
             pl.col("token").alias("calibrated_sensor_token"), "sensor_token",
             pl.col("translation").alias("sensor_translation"), pl.col("rotation").alias("sensor_rotation"),
             "camera_intrinsic"), on="calibrated_sensor_token", how="left")
-        .join(t["sensor"].lazy().select(pl.col("token").alias("sensor_token"), "channel", "modality"),
+        .join(tables["sensor"].lazy().select(pl.col("token").alias("sensor_token"), "channel", "modality"),
               on="sensor_token", how="left")
         .join(samples.lazy().drop("sample_timestamp"), on="sample_token", how="left")
         .with_columns(time_utc=pl.from_epoch("timestamp", time_unit="us").dt.replace_time_zone("UTC"))

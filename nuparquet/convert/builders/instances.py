@@ -5,16 +5,16 @@ from __future__ import annotations
 import polars as pl
 
 from nuparquet.convert.builders.scenes import path_lengths
-from nuparquet.convert.registry import BuildContext, Builder
+from nuparquet.convert.builder import BuildContext, Builder
 
 
-def build_instances(t: dict[str, pl.DataFrame], annotation_times: pl.DataFrame, track_lengths: pl.DataFrame) -> pl.DataFrame:
+def build_instances(tables: dict[str, pl.DataFrame], annotation_times: pl.DataFrame, track_lengths: pl.DataFrame) -> pl.DataFrame:
     """One row per instance. `annotation_times`: token, scene_token, scene_name, timestamp of every
     annotation; `track_lengths`: path_lengths of the annotation centres per instance_token."""
     by_token = annotation_times.select("token", "scene_token", "scene_name", "timestamp")
     return (
-        t["instance"]
-        .join(t["category"].select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
+        tables["instance"]
+        .join(tables["category"].select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
               on="category_token", how="left")
         .join(by_token.rename({"token": "first_annotation_token", "timestamp": "first_timestamp"}),
               on="first_annotation_token", how="left")

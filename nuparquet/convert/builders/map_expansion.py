@@ -11,7 +11,7 @@ import numpy as np
 import pyarrow as pa
 import shapely
 
-from nuparquet.convert.registry import BuildContext, Builder
+from nuparquet.convert.builder import BuildContext, Builder
 from nuparquet.map.centerlines import discretize_lanes
 from nuparquet.map.geo import geometry_columns, with_geo_metadata
 from nuparquet.problems import Problem, ProblemsFound

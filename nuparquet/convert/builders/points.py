@@ -2,7 +2,7 @@
 nuScenes-lidarseg and Panoptic nuScenes labels, converted scene by scene on a process pool.
 
 Opt-in (`convert --sensors lidar,radar`), keyframes unless `--sweeps`. Each scene is one task
-(`nuparquet.scene_points`: `SceneTask` -> `convert_scene`, a top-level function of explicit inputs) that writes one part file,
+(`nuparquet.convert.scene_points`: `SceneTask` -> `convert_scene`, a top-level function of explicit inputs) that writes one part file,
 `part-{scene:05d}.parquet` (scene position in name order), committed into the temporary output by the
 scale-out engine (`run_scene_tasks`: serial, local processes or Ray with `--engine ray`). Output is
 byte-identical whatever `--jobs` and `--engine`.
@@ -24,12 +24,12 @@ import polars as pl
 import pyarrow.parquet as pq
 
 from nuparquet.convert.options import ConvertOptions
-from nuparquet.convert.registry import BuildContext, Builder, WrittenParts
-from nuparquet.convert.write import part_name
+from nuparquet.convert.builder import BuildContext, Builder, WrittenParts
+from nuparquet.convert.write import parquet_part_name
 from nuparquet.engine import EngineOptions, WorkUnit, move_parts, run_units
 from nuparquet.problems import Problem, ProblemsFound
 from nuparquet.progress import Progress
-from nuparquet.scene_points import (
+from nuparquet.convert.scene_points import (
     LABELS, SceneSummary, SceneTask, convert_unit, layout_text, lidar_schema, radar_schema,
 )
 
@@ -49,8 +49,8 @@ def run_scene_tasks(tasks: list[SceneTask], directory: Path, options: ConvertOpt
         engine.engine = "serial"  # one job: no worker process to start
     parts_dir = directory.parent / f".{directory.name}.parts"
     outcomes = run_units(convert_unit, [WorkUnit(task.scene_name, task) for task in tasks], parts_dir=parts_dir,
-                         options=engine, on_progress=_forward(on_done), preload=("nuparquet.scene_points",))
-    move_parts(outcomes, parts_dir, directory, name=lambda index, unit, filename: part_name(index))
+                         options=engine, on_progress=_forward(on_done), preload=("nuparquet.convert.scene_points",))
+    move_parts(outcomes, parts_dir, directory, name=lambda index, unit, filename: parquet_part_name(index))
     shutil.rmtree(parts_dir, ignore_errors=True)
     return [SceneSummary.from_json(outcome.value) for outcome in outcomes]
 
@@ -88,7 +88,7 @@ def build_points(ctx: BuildContext, modality: str, name: str) -> dict[str, Writt
     directory = ctx.out / name
     directory.mkdir(parents=True, exist_ok=True)
     frames = sensor_frames(ctx, modality)
-    tasks = [SceneTask(str(ctx.dataroot), str(directory / part_name(part)), part, scene, modality,
+    tasks = [SceneTask(str(ctx.dataroot), str(directory / parquet_part_name(part)), part, scene, modality,
                        rows.drop("scene_name").to_dict(as_series=False), ctx.options.lidar_columns)
              for part, ((scene,), rows) in enumerate(frames.partition_by("scene_name", as_dict=True, maintain_order=True).items())]
     if ctx.reporter:
@@ -113,7 +113,7 @@ def build_points(ctx: BuildContext, modality: str, name: str) -> dict[str, Writt
     schema = lidar_schema() if modality == "lidar" else radar_schema(next(iter(layouts), None))
     written = [s for s in summaries if s.written]
     if not written:  # every file missing (or no frames): an empty, scannable dataset
-        pq.write_table(schema.empty_table(), directory / part_name(0))
+        pq.write_table(schema.empty_table(), directory / parquet_part_name(0))
     if missing:
         listed = f", the first {MAX_LISTED_MISSING:,}" if len(missing) > MAX_LISTED_MISSING else ""
         ctx.warnings.append(f"{name}: {len(missing)} sensor file(s) missing, not converted (listed in manifest.json "

@@ -9,7 +9,7 @@ from nuparquet.can_bus.align import aligned
 from nuparquet.can_bus.bevformer import can_bus_vectors
 from nuparquet.columns import to_series
 from nuparquet.convert.builders.common import samples
-from nuparquet.convert.registry import BuildContext, Builder
+from nuparquet.convert.builder import BuildContext, Builder
 from nuparquet.sources.can_bus import FOLDER, META, ROUTE
 
 

@@ -8,7 +8,7 @@ import polars as pl
 from nuparquet.columns import to_numpy
 from nuparquet.convert.builders.common import reference_poses
 from nuparquet.convert.lookups import as_int, split_of
-from nuparquet.convert.registry import BuildContext, Builder
+from nuparquet.convert.builder import BuildContext, Builder
 
 
 def path_lengths(df: pl.DataFrame, group: str, order: str, position: str) -> pl.DataFrame:
@@ -23,15 +23,15 @@ def path_lengths(df: pl.DataFrame, group: str, order: str, position: str) -> pl.
     return ordered.select(group).with_columns(_step=pl.Series(step)).group_by(group).agg(pl.col("_step").sum())
 
 
-def build_scenes(t: dict[str, pl.DataFrame], references: pl.DataFrame, counts: pl.DataFrame,
+def build_scenes(tables: dict[str, pl.DataFrame], references: pl.DataFrame, counts: pl.DataFrame,
                  source_version: str) -> pl.DataFrame:
     """One row per scene. `counts`: scene_token -> num_annotations, num_instances over all annotations."""
-    sample_ts = as_int(t["sample"], "timestamp").select("token", "timestamp")
+    sample_ts = as_int(tables["sample"], "timestamp").select("token", "timestamp")
     ego_path = path_lengths(references, "scene_name", "timestamp", "ego_translation").rename(
         {"_step": "ego_distance_m"})
     scenes = (
-        t["scene"]
-        .join(t["log"].select(pl.col("token").alias("log_token"), "logfile", "vehicle", "date_captured",
+        tables["scene"]
+        .join(tables["log"].select(pl.col("token").alias("log_token"), "logfile", "vehicle", "date_captured",
                               pl.col("location").alias("log_location")), on="log_token", how="left")
         .join(sample_ts.rename({"token": "first_sample_token", "timestamp": "first_timestamp"}),
               on="first_sample_token", how="left")

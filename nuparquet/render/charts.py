@@ -193,7 +193,7 @@ def plot_steering(steering: pl.DataFrame, path: Path, *, scene: str) -> Path:
 def plot_lidarseg_counts(counts: pl.DataFrame, path: Path, *, title: str = "Lidar points per class") -> Path:
     """Horizontal bars of labelled lidar points per class (log scale, classes without points left out), from
     `queries.points.lidarseg_class_counts`; bars in the category colours."""
-    from nuparquet.palette import category_rgb
+    from nuparquet.render.palette import category_rgb
 
     data = counts.filter(pl.col("points") > 0).sort("points")
     fig, ax = plt.subplots(figsize=(9, 1.2 + 0.32 * max(data.height, 1)), layout="constrained")

@@ -8,7 +8,7 @@ import subprocess
 import sys
 
 from nuparquet.cli.main import main
-from nuparquet.partials import remove_stale
+from nuparquet.atomic import remove_stale
 from conftest import SYNTH_VERSION
 
 

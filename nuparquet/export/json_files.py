@@ -15,8 +15,8 @@ from typing import Callable
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from nuparquet.convert.write import atomic_directory, check_target
-from nuparquet.partials import check_apart
+from nuparquet.atomic import atomic_directory, check_target
+from nuparquet.atomic import check_apart
 from nuparquet.errors import FormatError
 from nuparquet.format import MANIFEST
 from nuparquet.progress import OnProgress, Reporter
