@@ -46,7 +46,7 @@ def prepare() -> Path:
 
         shutil.rmtree(out, ignore_errors=True)
         log(f"converting {EXTRACT} with --sensors lidar into {out}")
-        convert(EXTRACT, VERSION, out, sensors=("lidar",), jobs=1)
+        convert(EXTRACT, VERSION, out, sensors=("lidar",), workers=1)
     return out
 
 
@@ -68,13 +68,13 @@ def _tasks(out: str, scenes: int, directory: str):
 
 def child_convert(out: str, scenes: str, jobs: str, directory: str) -> None:
     from nuparquet.convert.builders.points import run_scene_tasks
-    from nuparquet.convert.options import ConvertOptions
+    from nuparquet.engine import EngineOptions
 
     tasks = _tasks(out, int(scenes), directory)
     Path(directory).mkdir(parents=True, exist_ok=True)
-    options = ConvertOptions(version=VERSION, out=directory, jobs=int(jobs))  # the engine: serial for 1 job, else processes
+    engine = EngineOptions(workers=int(jobs))  # run_scene_tasks: serial for 1 worker, else processes
     start, cpu = time.perf_counter(), time.process_time()
-    summaries = run_scene_tasks(tasks, Path(directory), options, lambda scene: None)
+    summaries = run_scene_tasks(tasks, Path(directory), engine, lambda scene: None)
     elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu  # cpu: this process only (not workers)
     input_bytes = sum((EXTRACT / f).stat().st_size for t in tasks for f in t.frames["filename"])
     print(json.dumps({"in_process_s": elapsed, "in_process_cpu_s": cpu, "points": sum(s.rows for s in summaries),

@@ -104,7 +104,7 @@ def converted(tmp_path_factory, name: str, root: Path, version: str, **options) 
 def extract_points_out(extract_root, tmp_path_factory) -> Path:
     """The real extract converted with its sensor points (lidar_points/, radar_points/), one process."""
     return converted(tmp_path_factory, "extract-points", extract_root, EXTRACT_VERSION, sensors=("lidar", "radar"),
-                     jobs=1)
+                     workers=1)
 
 
 @pytest.fixture(scope="session")

@@ -14,7 +14,8 @@ import pytest
 import nuparquet
 from nuparquet import queries
 from nuparquet.cli.main import main
-from nuparquet.dataset import Dataset, QueryError
+from nuparquet.dataset import Dataset
+from nuparquet.errors import QueryError
 from nuparquet.errors import FormatError, UsageError
 from nuparquet.schemas import FORMAT_VERSION
 

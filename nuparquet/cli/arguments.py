@@ -24,11 +24,13 @@ def _comma_list(text: str) -> tuple[str, ...]:
 
 
 def add_options(parser: argparse.ArgumentParser, options_class: type, *, skip: tuple[str, ...] = (),
-                defaults: dict[str, Any] | None = None) -> None:
+                defaults: dict[str, Any] | None = None, aliases: dict[str, tuple[str, ...]] | None = None) -> None:
     """Add one flag per CLI field of `options_class` (a dataclass using `option`), except those in `skip`.
 
-    Required fields (no default) become required flags. `defaults` overrides a default for this parser only.
+    Required fields (no default) become required flags. `defaults` overrides a default for this parser only;
+    `aliases` gives a field more spellings on this parser (`{"workers": ("--jobs",)}`).
     """
+    aliases = aliases or {}
     hints = typing.get_type_hints(options_class)
     defaults = defaults or {}
     for f in dataclasses.fields(options_class):
@@ -58,7 +60,7 @@ def add_options(parser: argparse.ArgumentParser, options_class: type, *, skip: t
                 kwargs["choices"] = meta["choices"]
         if meta.get("metavar"):
             kwargs["metavar"] = meta["metavar"]
-        parser.add_argument(flag, **kwargs)
+        parser.add_argument(flag, *aliases.get(f.name, ()), **kwargs)
 
 
 def options_from(args: argparse.Namespace, options_class: type, **overrides: Any):

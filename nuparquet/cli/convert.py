@@ -7,6 +7,7 @@ import time
 
 from nuparquet.cli.arguments import add_options, options_from
 from nuparquet.convert.options import ConvertOptions
+from nuparquet.engine.options import EngineOptions
 
 
 def register(sub) -> None:
@@ -24,7 +25,10 @@ def register(sub) -> None:
         epilog="example: nuparquet convert /data/nuscenes --version v1.0-mini --out nusc-mini --sensors lidar,radar",
     )
     p.add_argument("dataroot", help="dataset root holding the version folder (e.g. /data/nuscenes)")
+    p.add_argument("--version", required=True, help="version folder name, e.g. v1.0-mini or v1.0-trainval")
+    p.add_argument("--out", required=True, help="output directory (must not exist unless --overwrite)")
     add_options(p, ConvertOptions)
+    add_options(p, EngineOptions, skip=("keep_going", "resume"), aliases={"workers": ("--jobs",)})
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
@@ -33,16 +37,15 @@ def run(args) -> int:
     from nuparquet.cli.progress import bars
     from nuparquet.convert import convert
 
-    options = options_from(args, ConvertOptions)
     start = time.perf_counter()
-    extra = {k: v for k, v in vars(options).items() if k not in ("version", "out")}
-    manifest = convert(args.dataroot, options.version, options.out, on_progress=bars(not args.quiet), **extra)
+    manifest = convert(args.dataroot, args.version, args.out, options_from(args, ConvertOptions),
+                       engine=options_from(args, EngineOptions), on_progress=bars(not args.quiet))
     for warning in manifest.get("warnings", [])[:20]:
         print(warning, file=sys.stderr)
     if len(manifest.get("warnings", [])) > 20:
         print(f"... and {len(manifest['warnings']) - 20} more warnings (manifest.json lists them)", file=sys.stderr)
     rows = {name: d["rows"] for name, d in manifest["datasets"].items() if not name.startswith("tables/")}
     summary = ", ".join(f"{n} {r:,}" for n, r in rows.items())
-    print(f"converted {args.dataroot}/{options.version} -> {options.out} in {time.perf_counter() - start:.1f} s ({summary})",
+    print(f"converted {args.dataroot}/{args.version} -> {args.out} in {time.perf_counter() - start:.1f} s ({summary})",
           file=sys.stderr if args.quiet else sys.stdout)
     return 0

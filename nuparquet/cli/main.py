@@ -38,7 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
-    except Exception as exc:  # a damaged output (a truncated Parquet file) is named, not shown as a traceback
+    except Exception:  # a damaged output (a truncated Parquet file) is named, not shown as a traceback
         damaged = _damaged_files(args)
         if not damaged:
             raise

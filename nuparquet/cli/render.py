@@ -54,7 +54,9 @@ def register(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
-    add_options(p, RenderOptions, defaults={"scene": None})
+    p.add_argument("--scene", metavar="NAME", help="the scene to render, e.g. scene-0061 (`nuparquet info OUT` "
+                   "lists them); or many scenes with --all-scenes, --scenes or --where")
+    add_options(p, RenderOptions)
     add_options(p, SceneSelection)
     add_options(p, EngineOptions)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -70,7 +72,7 @@ def run(args) -> int:
                          "--scenes A,B or --where SQL with --out-dir DIR")
     from nuparquet.render.pipeline import render  # cv2 and PyAV load only when rendering
 
-    result = render(args.dataset, options_from(args, RenderOptions), on_progress=bars(not args.quiet))
+    result = render(args.dataset, args.scene, options_from(args, RenderOptions), on_progress=bars(not args.quiet))
     targets = [str(t) for t in (result.out, result.frames_dir) if t is not None]
     print(
         f"rendered {result.frames_written} frame(s) of {result.scene} {result.channel} "
@@ -91,10 +93,9 @@ def _run_many(args, selection: SceneSelection) -> int:
 
     if args.scene is not None:
         raise UsageError("--scene renders one scene; with --all-scenes, --scenes or --where leave it out")
-    options = options_from(args, RenderOptions, scene="")
     try:
-        result = render_scenes(args.dataset, options, selection, options_from(args, EngineOptions),
-                               on_progress=bars(not args.quiet))
+        result = render_scenes(args.dataset, selection, options_from(args, RenderOptions),
+                               options_from(args, EngineOptions), on_progress=bars(not args.quiet))
     except UnitsFailed as exc:
         done = [o for o in exc.outcomes if o is not None and o.ok]
         if done and args.keep_going:

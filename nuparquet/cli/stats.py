@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import difflib
 import json
 import sys
 
@@ -44,15 +43,6 @@ def register(sub) -> None:
     p.add_argument("--max-rows", type=int, default=60, metavar="N",
                    help="rows per section in table format (default 60; csv and json print every row)")
     p.set_defaults(run=run)
-
-
-def _check_scenes(ds, names: list[str]) -> None:
-    known = set(ds.scan("scenes").select("name").collect()["name"].to_list())
-    for name in names:
-        if name not in known:
-            close = difflib.get_close_matches(name, sorted(known), n=3)
-            hint = f"; did you mean {', '.join(close)}?" if close else f" ({len(known)} scenes in the dataset)"
-            raise UsageError(f"no scene named {name!r}{hint}")
 
 
 def _mean_std(df: pl.DataFrame, name: str) -> pl.Series:
@@ -109,7 +99,7 @@ def run(args) -> int:
     ds = open_dataset(args.out)
     scene = None
     if args.scene:
-        _check_scenes(ds, args.scene)
+        ds.check_scenes(args.scene)
         scene = args.scene[0] if len(args.scene) == 1 else args.scene
     sections = list(dict.fromkeys(args.only or default_sections(ds)))
     wanted = sections + [s for s in ("class_distribution", "distance_histogram", "points_per_box", "ego_motion")

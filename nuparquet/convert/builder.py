@@ -34,6 +34,7 @@ import pyarrow as pa
 
 if TYPE_CHECKING:
     from nuparquet.convert.options import ConvertOptions
+    from nuparquet.engine.options import EngineOptions
     from nuparquet.progress import Reporter
 
 
@@ -73,6 +74,7 @@ class BuildContext:
     dataroot: Path
     version: str
     options: ConvertOptions
+    engine: EngineOptions  # where per-scene work (the point conversion) runs
     tables: dict[str, pl.DataFrame]
     out: Path  # the temporary output root being written
     reporter: Reporter | None = None

@@ -3,9 +3,6 @@ and batch each sample belongs to, and the reference-lidar pose that stands for "
 
 from __future__ import annotations
 
-import json
-from importlib import resources
-
 import polars as pl
 
 from nuparquet.channels import reference_lidar
@@ -64,13 +61,3 @@ def reference_poses(tables: dict[str, pl.DataFrame], samples: pl.DataFrame) -> p
         .select("sample_token", "scene_name", "timestamp", "ego_translation")
         .collect()
     )
-
-
-def split_of(names: pl.Series, source_version: str) -> pl.Series:
-    """Known nuScenes split per scene name; mini_* splits win for mini versions, null for unknown names."""
-    splits = json.loads((resources.files("nuparquet") / "data" / "nuscenes_splits.json").read_text())
-    order = (["mini_train", "mini_val"] if "mini" in source_version else []) + ["train", "val", "test"]
-    lookup: dict[str, str] = {}
-    for split in reversed(order):  # earlier entries of `order` overwrite later ones
-        lookup.update(dict.fromkeys(splits[split], split))
-    return names.replace_strict(lookup, default=None, return_dtype=pl.String)

@@ -17,21 +17,23 @@ from typing import Any
 import polars as pl
 
 from nuparquet import __version__
+from nuparquet.atomic import atomic_directory, check_apart, check_target
 from nuparquet.channels import channel_facts
-from nuparquet.convert.options import ConvertOptions
 from nuparquet.convert.builder import BuildContext
+from nuparquet.convert.options import ConvertOptions
 from nuparquet.convert.registry import BUILDERS
 from nuparquet.convert.run import build_datasets, count_steps
 from nuparquet.convert.write import utc_now, write_manifest, write_parquet
-from nuparquet.atomic import atomic_directory, check_target
+from nuparquet.engine.options import EngineOptions
+from nuparquet.engine.run import check_engine
+from nuparquet.errors import EnvironmentFault, UsageError
 from nuparquet.format import FORMAT_NAME, FORMAT_VERSION
-from nuparquet.atomic import check_apart
-from nuparquet.errors import EnvironmentFault
+from nuparquet.options import resolve, split_fields
 from nuparquet.problems import Problem, ProblemsFound, split_warnings
 from nuparquet.progress import OnProgress, Reporter
 from nuparquet.schemas import fingerprint, table_schemas
-from nuparquet.sources.tables import ReadResult, read_tables
 from nuparquet.sources.integrity import check_integrity
+from nuparquet.sources.tables import ReadResult, read_tables
 
 __all__ = ["ConvertOptions", "convert", "validate"]
 
@@ -45,20 +47,26 @@ def validate(dataroot: Path | str, version: str, *, on_progress: OnProgress | No
         return result, result.problems + check_integrity(tables)
 
 
-def convert(dataroot: Path | str, version: str, out: Path | str, *, on_progress: OnProgress | None = None,
-            **options: Any) -> dict:
+def convert(dataroot: Path | str, version: str, out: Path | str, options: ConvertOptions | None = None, *,
+            engine: EngineOptions | None = None, on_progress: OnProgress | None = None, **fields: Any) -> dict:
     """Convert `dataroot/version` into the dataset directory `out`; returns the manifest.
 
-    `options` are the fields of `ConvertOptions` (`overwrite=True`, `scenes_per_batch=5`, ...). Progress goes to
-    `on_progress` (see `nuparquet.progress`). Raises ProblemsFound (naming file, record and token of each
-    problem) if the input is malformed or inconsistent, UsageError for bad paths or options or an existing `out`
-    without `overwrite`.
+    `options` (`ConvertOptions`) and `engine` (`EngineOptions`: where `--sensors` scenes run) may also be given as
+    keyword fields of either (`overwrite=True`, `sensors=("lidar",)`, `workers=2`). Progress goes to `on_progress`
+    (see `nuparquet.progress`). Raises ProblemsFound (naming file, record and token of each problem) if the input
+    is malformed or inconsistent, UsageError for bad paths or options or an existing `out` without `overwrite`.
     """
-    opts = ConvertOptions(version=version, out=str(out), **options)
+    convert_fields, engine_fields = split_fields(fields, ConvertOptions, EngineOptions)
+    opts = resolve(ConvertOptions, options, convert_fields)
+    engine = resolve(EngineOptions, engine, engine_fields)
+    if not version or not str(version).strip():
+        raise UsageError("--version must name the version folder (e.g. v1.0-mini)")
     check_apart(out, dataroot, what="the dataroot")
     check_target(out, overwrite=opts.overwrite)
+    if opts.sensors:
+        check_engine(engine)  # Ray installed: say so before the tables are converted, not after
     try:
-        return _convert(dataroot, version, out, opts, on_progress)
+        return _convert(dataroot, version, out, opts, engine, on_progress)
     except OSError as exc:  # the machine refused (read-only folder, full disk): the partial output is already gone
         where = str(exc.filename or out)
         if Path(where).name.startswith(f".{Path(out).name}.partial-"):  # the hidden folder is ours; name what the user gave
@@ -66,7 +74,7 @@ def convert(dataroot: Path | str, version: str, out: Path | str, *, on_progress:
         raise EnvironmentFault(f"{where}: {exc.strerror or exc}") from exc
 
 
-def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertOptions,
+def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertOptions, engine: EngineOptions,
              on_progress: OnProgress | None) -> dict:
     with Reporter(on_progress, "convert", total=2 * len(table_schemas()) + 2) as reporter, \
             atomic_directory(Path(out), overwrite=opts.overwrite) as tmp:
@@ -90,7 +98,7 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
         if problems:
             raise ProblemsFound(problems)
         channels = _channel_facts(tables)
-        ctx = BuildContext(Path(dataroot), version, opts, tables, tmp, reporter)
+        ctx = BuildContext(Path(dataroot), version, opts, engine, tables, tmp, reporter)
         reporter.grow(count_steps(ctx, BUILDERS))
         built, skipped = build_datasets(ctx, BUILDERS)
         manifest = {
@@ -99,7 +107,7 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
             "nuparquet_version": __version__,
             "created_utc": utc_now(),
             "source": {"dataroot": str(Path(dataroot).resolve()), "version": version, "files": result.files},
-            "options": {f.name: getattr(opts, f.name) for f in fields(opts) if f.name not in ("version", "out", "overwrite")},
+            "options": _recorded_options(opts, engine),
             "datasets": datasets | built,
             "skipped": skipped,
             "channels": channels,
@@ -112,6 +120,12 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
         reporter.advance(step="write manifest")
         write_manifest(tmp, manifest)
     return manifest
+
+
+def _recorded_options(opts: ConvertOptions, engine: EngineOptions) -> dict:
+    """The options manifest.json records: the conversion's own, then where its points were converted."""
+    recorded = {f.name: getattr(opts, f.name) for f in fields(opts) if f.name != "overwrite"}
+    return recorded | {"jobs": engine.workers or 0, "engine": engine.engine, "ray_address": engine.ray_address}
 
 
 def _channel_facts(tables: dict[str, pl.DataFrame]) -> dict:

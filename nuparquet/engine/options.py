@@ -21,10 +21,12 @@ class EngineOptions:
 
     engine: Literal["process", "ray", "serial"] = option(
         "process", help="where scenes run: 'process' (a pool of local processes, default), 'ray' (Ray tasks: "
-        "a local Ray started with --workers CPUs, or the cluster of --ray-address) or 'serial' (one at a time in "
-        "this process). The outputs are the same byte for byte")
+        "a local Ray started with --workers CPUs, or the cluster of --ray-address; the dataset, the dataroot and "
+        "the output must be on storage every node sees) or 'serial' (one at a time in this process). The outputs "
+        "are the same byte for byte")
     workers: int | None = option(
-        None, metavar="N", help="processes (or local Ray CPUs) to use; default: every core of this machine")
+        None, metavar="N", help="processes (or local Ray CPUs) to use; default (or 0): every core of this machine. "
+        "The outputs are the same whatever N")
     ray_address: str | None = option(
         None, metavar="ADDRESS", help="join this Ray cluster (e.g. 'auto' on a cluster node, or "
         "ray://head:10001) instead of starting a local Ray; needs --engine ray")
@@ -35,11 +37,12 @@ class EngineOptions:
         False, help="skip scenes whose outputs are complete from an earlier run with the same options (committed, "
         "or finished by a run that stopped on a failure)")
 
-    def check(self) -> None:
-        """Raise UsageError for contradictory or out-of-range options."""
+    def __post_init__(self) -> None:
         if self.engine not in ENGINES:
             raise UsageError(f"--engine must be one of {', '.join(ENGINES)}, got {self.engine!r}")
-        if self.workers is not None and self.workers < 1:
-            raise UsageError(f"--workers must be at least 1, got {self.workers}")
+        if self.workers is not None and self.workers < 0:
+            raise UsageError(f"--workers must be 0 (every core) or more, got {self.workers}")
+        if self.workers == 0:
+            self.workers = None  # every core
         if self.ray_address is not None and self.engine != "ray":
             raise UsageError("--ray-address needs --engine ray")

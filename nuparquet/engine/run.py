@@ -100,9 +100,8 @@ def run_units(task: Task, units: Sequence[WorkUnit], *, parts_dir: Path, options
 
 
 def check_engine(options: EngineOptions) -> None:
-    """UsageError for bad engine options, or for --engine ray when Ray is not installed (saying how to install
-    it): call before any work starts."""
-    options.check()
+    """UsageError for --engine ray when Ray is not installed (saying how to install it): call before any work
+    starts (the option values themselves are checked when `EngineOptions` is built)."""
     if options.engine == "ray":
         import_ray()
 

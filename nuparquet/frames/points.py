@@ -24,8 +24,8 @@ import pyarrow.compute as pc
 import pyarrow.parquet as pq
 
 from nuparquet.errors import UsageError
+from nuparquet.sources.points import LIDAR_FIELDS
 
-LIDAR_ARRAY_COLUMNS = ("x", "y", "z", "intensity", "ring")
 # Columns every points dataset has before its sensor fields (schemas/lidar_points.json, radar_points.json).
 FRAME_COLUMNS = ("sample_data_token", "scene_name", "channel", "timestamp", "is_key_frame", "point_index")
 
@@ -180,8 +180,8 @@ def lidar_array(table: pa.Table) -> np.ndarray:
 
     Column-major (each column contiguous, the devkit's (4, N) `points` layout transposed): the columns are copied
     whole instead of strided into rows, twice as fast; `np.ascontiguousarray` gives the row-major copy."""
-    out = np.empty((len(LIDAR_ARRAY_COLUMNS), table.num_rows), dtype=np.float32)
-    for j, name in enumerate(LIDAR_ARRAY_COLUMNS):
+    out = np.empty((len(LIDAR_FIELDS), table.num_rows), dtype=np.float32)
+    for j, name in enumerate(LIDAR_FIELDS):
         column = table.column(name)
         if column.null_count:
             column = column.cast(pa.float32()).fill_null(np.nan)

@@ -115,6 +115,26 @@ def quaternion_slerp(q0_wxyz, q1_wxyz, amount) -> np.ndarray:
     return _fast_normalise_quaternions(np.where(arc, spherical, linear))
 
 
+def invert_quaternions(q_wxyz) -> np.ndarray:
+    """(..., 4) pyquaternion's `Quaternion(q).inverse`: the conjugate over |q|^2 (a unit quaternion's conjugate)."""
+    q = as_float_array(q_wxyz, (4,), "q_wxyz")
+    return q * np.array([1.0, -1.0, -1.0, -1.0]) / np.sum(q * q, axis=-1, keepdims=True)
+
+
+def multiply_quaternions(p_wxyz, q_wxyz) -> np.ndarray:
+    """(..., 4) Hamilton products p * q (rotate by q first, then p), as pyquaternion's `p * q`; broadcasts."""
+    p = as_float_array(p_wxyz, (4,), "p_wxyz")
+    q = as_float_array(q_wxyz, (4,), "q_wxyz")
+    pw, px, py, pz = np.moveaxis(p, -1, 0)
+    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
+    return np.stack([
+        pw * qw - px * qx - py * qy - pz * qz,
+        pw * qx + px * qw + py * qz - pz * qy,
+        pw * qy - px * qz + py * qw + pz * qx,
+        pw * qz + px * qy - py * qx + pz * qw,
+    ], axis=-1)
+
+
 def yaw_from_quaternions(q_wxyz) -> np.ndarray:
     """Yaw angles as pyquaternion's `Quaternion(q).yaw_pitch_roll[0]`.
 

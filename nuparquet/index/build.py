@@ -14,6 +14,7 @@ from nuparquet.index.inputs import read_inputs
 from nuparquet.index.options import IndexOptions
 from nuparquet.index.v2_arrays import v2_arrays
 from nuparquet.index.write import write_infos_pickle, write_parquet_dir, write_pickle
+from nuparquet.options import resolve
 from nuparquet.progress import OnProgress, Reporter
 
 __all__ = ["IndexOptions", "build_index"]
@@ -29,14 +30,13 @@ def _entries(arrays, *, corrected: bool = False):
                                first_index=lo)
 
 
-def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: OnProgress | None = None) -> dict:
-    """Write the info pickle(s) of `options` into `options.out`; returns {split: pickle path} (plus
-    "infos": the Parquet directory when written). Raises InputError when the Parquet lacks what is needed."""
+def build_index(path: str | Path | Dataset, options: IndexOptions | None = None, *,
+                on_progress: OnProgress | None = None, **fields) -> dict:
+    """Write the info pickle(s) of `options` (or keyword fields of `IndexOptions`: `out="infos"`, ...) into
+    `options.out`; returns {split: pickle path} (plus "infos": the Parquet directory when written). Raises
+    InputError when the Parquet lacks what is needed."""
+    options = resolve(IndexOptions, options, fields)
     ds = path if isinstance(path, Dataset) else open_dataset(path)
-    if options.max_sweeps < 0:
-        raise UsageError("--max-sweeps must be >= 0")
-    if options.format == "bevformer" and options.info_version != 1:
-        raise UsageError("--format bevformer writes v1 infos (--info-version 1)")
     version = splits.converter_version(ds.version, options.version)
     test = version == "v1.0-test"
     wanted = splits.split_names(version) if options.split == "all" else (options.split,)
@@ -47,7 +47,7 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
 
     steps = 3 + len(wanted) * (2 if options.parquet and options.info_version == 2 else 1)
     with Reporter(on_progress, "index", total=steps) as progress:
-        inputs = read_inputs(ds, tuple(options.cameras), options.lidar)
+        inputs = read_inputs(ds, options.cameras, options.lidar)
         can_bus = None
         sample_links = None
         if options.format == "bevformer":
@@ -55,7 +55,7 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
             sample = ds.scan("tables/sample").select("prev", "next").collect()
             sample_links = (sample["prev"].to_numpy(), sample["next"].to_numpy())
         progress.advance(step="read tables")
-        computed = compute(inputs, tuple(options.cameras), options.lidar, options.max_sweeps,
+        computed = compute(inputs, options.cameras, options.lidar, options.max_sweeps,
                            with_annotations=not test, with_cam_instances=options.info_version == 2)
         progress.advance(step="compute")
         assigned = splits.assign_splits(version, inputs.scene_token, inputs.scene_name, inputs.sample_scene)
@@ -68,17 +68,17 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
             temporal = "temporal_" if options.format == "bevformer" else ""
             target = out / f"nuscenes_infos_{temporal}{split}.pkl"
             if options.info_version == 1:
-                infos = records.v1_infos(computed, samples, tuple(options.cameras), options.data_prefix, test)
+                infos = records.v1_infos(computed, samples, options.cameras, options.data_prefix, test)
                 if options.format == "bevformer":
                     infos = bevformer.bevformer_infos(computed, infos, samples, *sample_links, can_bus)
                 write_pickle(target, {"infos": infos, "metadata": {"version": version}})
             else:
-                arrays = v2_arrays(computed, samples, tuple(options.cameras), options.data_prefix)
+                arrays = v2_arrays(computed, samples, options.cameras, options.data_prefix)
                 last_ignored, all_ignored = records.v2_ignored(arrays)
                 write_infos_pickle(target, {"metainfo": records.v2_metainfo(version, last_ignored)}, "data_list",
                                    _entries(arrays))
                 if options.corrected:
-                    fixed = v2_arrays(computed, samples, tuple(options.cameras), options.data_prefix, corrected=True)
+                    fixed = v2_arrays(computed, samples, options.cameras, options.data_prefix, corrected=True)
                     write_infos_pickle(out / f"nuscenes_infos_{split}_corrected.pkl",
                                        {"metainfo": records.v2_metainfo(version, all_ignored)}, "data_list",
                                        _entries(fixed, corrected=True))

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+from nuparquet.errors import UsageError
 from nuparquet.options import option
 
 # mmdetection3d's converter lists the cameras in this order (dict order of `cams` / `images`): defaults only.
@@ -35,3 +36,13 @@ class IndexOptions:
                              "sweep paths like keyframe paths with num_pts_feats, every unmapped class in "
                              "metainfo (see docs)")
     parquet: bool = option(True, help="also write DIR/infos/ (one row per sample, nested columns)")
+
+    def __post_init__(self) -> None:
+        cameras = self.cameras.split(",") if isinstance(self.cameras, str) else self.cameras
+        self.cameras = tuple(c.strip() for c in cameras if c.strip())  # in info order, once for every layer
+        if not self.cameras:
+            raise UsageError("--cameras must name at least one camera channel")
+        if self.max_sweeps < 0:
+            raise UsageError("--max-sweeps must be >= 0")
+        if self.format == "bevformer" and self.info_version != 1:
+            raise UsageError("--format bevformer writes v1 infos (--info-version 1)")

@@ -4,12 +4,10 @@ scene lists for the version (mini versions use mini_train / mini_val, a test ver
 
 from __future__ import annotations
 
-import json
-from importlib import resources
-
 import numpy as np
 
 from nuparquet.errors import UsageError
+from nuparquet.splits import scene_splits
 
 CONVERTER_VERSIONS = ("v1.0-trainval", "v1.0-test", "v1.0-mini")
 
@@ -27,10 +25,6 @@ def converter_version(dataset_version: str | None, given: str | None) -> str:
                      f"({', '.join(CONVERTER_VERSIONS)})")
 
 
-def _lists() -> dict[str, list[str]]:
-    return json.loads((resources.files("nuparquet") / "data" / "nuscenes_splits.json").read_text())
-
-
 def split_names(version: str) -> tuple[str, ...]:
     """The files the converter writes for `version`."""
     return ("test",) if version == "v1.0-test" else ("train", "val")
@@ -41,7 +35,7 @@ def assign_splits(version: str, scene_token: np.ndarray, scene_name: np.ndarray,
     """(S,) the split name of each sample ("train", "val" or "test")."""
     if version == "v1.0-test":
         return np.full(len(sample_scene), "test", dtype=object)
-    lists = _lists()
+    lists = scene_splits()
     train = lists["mini_train" if version == "v1.0-mini" else "train"]
     train_tokens = scene_token[np.isin(scene_name, train)]
     return np.where(np.isin(sample_scene, train_tokens), "train", "val").astype(object)

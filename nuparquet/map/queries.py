@@ -1,6 +1,6 @@
 """Map queries over the converted map (`map/<layer>/`), vectorised, with the devkit's answers.
 
-`MapLayers.open(OUT, location)` reads one location's layers (WKB -> shapely 2 arrays; an STRtree per layer,
+`Dataset.map(location)` (`MapLayers.open(dataset, location)`) reads one location's layers (WKB -> shapely 2 arrays; an STRtree per layer,
 built on first use). Every query takes arrays and answers for all of them at once; none loops over records:
 
 - `layers_on_point(x, y)`: = `NuScenesMap.layers_on_point` for each point: per polygon layer, the first record
@@ -12,41 +12,28 @@ built on first use). Every query takes arrays and answers for all of them at onc
 - `closest_lane(x, y, radius_m)`: = `get_closest_lane`: among lanes and lane connectors whose polygon
   intersects the square of half-side `radius_m`, the one with the nearest 0.5 m centreline pose; ties go to the
   later candidate (lanes before connectors, file order), as the devkit's `<=` does; '' where none.
-- `map_mask(patch_box, patch_angle_deg, layers, canvas_size)`: = `get_map_mask` pixel for pixel: the same clip,
-  rotation, translation and scaling arithmetic (shapely's affine formulas applied to all coordinates at once),
-  then the same OpenCV calls per clipped geometry in file order (a geometry's holes cleared right after it, so
-  overlaps paint as the devkit's do). Deviation: where a line layer's clip is a MultiLineString the devkit
-  (shapely 2) raises TypeError iterating it; here each part is drawn. traffic_light yields no mask, as in the
-  devkit (so the stack has one channel fewer).
+- `map_mask(patch_box, patch_angle_deg, layers, canvas_size)`: = `get_map_mask` pixel for pixel (`map.mask`).
 - `discretize_lanes(tokens, resolution_m)`: = `discretize_lanes` (`map.centerlines`).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
-import cv2
 import numpy as np
-import pyarrow.compute as pc
-import pyarrow.dataset as ds
+import polars as pl
+import pyarrow as pa
 import shapely
 from shapely import STRtree
 
 from nuparquet.map.centerlines import discretize_lanes as _discretize
-
-POLYGON_LAYERS = ("drivable_area", "road_segment", "road_block", "lane", "ped_crossing", "walkway", "stop_line",
-                  "carpark_area")  # the devkit's non_geometric_polygon_layers
-LOOKUP_POLYGON_LAYERS = POLYGON_LAYERS + ("lane_connector",)
-LINE_LAYERS = ("road_divider", "lane_divider", "traffic_light")
-NON_GEOMETRIC_LAYERS = POLYGON_LAYERS + LINE_LAYERS
-LANE_LAYERS = ("lane", "lane_connector")
+from nuparquet.map.layers import LANE_LAYERS, LINE_LAYERS, LOOKUP_POLYGON_LAYERS, NON_GEOMETRIC_LAYERS, POLYGON_LAYERS
 
 
-def _read(dataset_dir: Path, layer: str, location: str, columns: list[str]):
-    dataset = ds.dataset(str(Path(dataset_dir) / "map" / layer), format="parquet")
-    return dataset.to_table(columns=columns, filter=pc.field("location") == location)
+
+def _read(dataset, layer: str, location: str, columns: list[str]) -> pa.Table:
+    """One location's rows of `map/<layer>` (file order), through the dataset's scans (local or remote)."""
+    return dataset.scan(f"map/{layer}").filter(pl.col("location") == location).select(columns).collect().to_arrow()
 
 
 class _Indexed:
@@ -89,50 +76,52 @@ class MapLayers:
     _lane_tree: STRtree | None = None
 
     @classmethod
-    def open(cls, dataset_dir: Path | str, location: str) -> MapLayers:
-        """One location's map from a conversion's `map/` datasets.
+    def open(cls, dataset, location: str) -> MapLayers:
+        """One location's map from a conversion's `map/` datasets: `dataset` is a `Dataset` (`Dataset.map(location)`
+        is the usual way here) or the path of a converted directory.
 
         Raises:
             UsageError: the output has no map datasets, or no map of `location` (the message lists those it has).
         """
+        from nuparquet.dataset import open_dataset
         from nuparquet.errors import UsageError
 
-        dataset_dir = Path(dataset_dir)
-        if not (dataset_dir / "map" / "lane").is_dir():
-            raise UsageError(f"{dataset_dir} has no map/ datasets: convert a dataroot holding maps/expansion/*.json "
+        if not hasattr(dataset, "scan"):
+            dataset = open_dataset(dataset)
+        if "map/lane" not in dataset.datasets:
+            raise UsageError(f"{dataset.root} has no map/ datasets: convert a dataroot holding maps/expansion/*.json "
                              "(without --no-map)")
-        held = ds.dataset(str(dataset_dir / "map" / "lane"), format="parquet").to_table(columns=["location"])
-        locations = sorted(set(held.column("location").to_pylist()))
+        locations = sorted(dataset.scan("map/lane").select("location").unique().collect()["location"].to_list())
         if location not in locations:
-            raise UsageError(f"no map of {location!r} in {dataset_dir}; maps: {', '.join(locations) or '(none)'}")
+            raise UsageError(f"no map of {location!r} in {dataset.root}; maps: {', '.join(locations) or '(none)'}")
         layers, parts, line_nodes = {}, {}, {}
         for layer in LOOKUP_POLYGON_LAYERS + LINE_LAYERS:
-            table = _read(dataset_dir, layer, location, ["token", "geometry"])
+            table = _read(dataset, layer, location, ["token", "geometry"])
             layers[layer] = _Layer(np.asarray(table.column("token").to_pylist(), dtype=object),
                                    shapely.from_wkb(table.column("geometry").to_numpy(zero_copy_only=False)))
-        polygons = _read(dataset_dir, "polygon", location, ["token", "geometry"])
+        polygons = _read(dataset, "polygon", location, ["token", "geometry"])
         polygon_geometry = dict(zip(polygons.column("token").to_pylist(),
                                     shapely.from_wkb(polygons.column("geometry").to_numpy(zero_copy_only=False))))
-        for layer in POLYGON_LAYERS + ("lane_connector",):
+        for layer in LOOKUP_POLYGON_LAYERS:
             if layer == "drivable_area":
-                lists = _read(dataset_dir, layer, location, ["polygon_tokens"]).column("polygon_tokens").to_pylist()
+                lists = _read(dataset, layer, location, ["polygon_tokens"]).column("polygon_tokens").to_pylist()
                 owner = np.repeat(np.arange(len(lists)), [len(t) for t in lists])
                 geometry = np.array([polygon_geometry[t] for tokens in lists for t in tokens], dtype=object)
                 parts[layer] = _Parts(owner, geometry)
             else:
                 parts[layer] = _Parts(np.arange(len(layers[layer].tokens)), layers[layer].geometry)
-        nodes = _read(dataset_dir, "node", location, ["token", "x", "y"])
+        nodes = _read(dataset, "node", location, ["token", "x", "y"])
         node_index = {t: i for i, t in enumerate(nodes.column("token").to_pylist())}
         node_xy = np.c_[nodes.column("x").to_numpy(), nodes.column("y").to_numpy()]
-        lines = _read(dataset_dir, "line", location, ["token", "node_tokens"])
+        lines = _read(dataset, "line", location, ["token", "node_tokens"])
         line_tokens = dict(zip(lines.column("token").to_pylist(), lines.column("node_tokens").to_pylist()))
         for layer in LINE_LAYERS:
-            refs = _read(dataset_dir, layer, location, ["line_token"]).column("line_token").to_pylist()
+            refs = _read(dataset, layer, location, ["line_token"]).column("line_token").to_pylist()
             lists = [line_tokens[t] for t in refs]
             counts = np.array([len(t) for t in lists], dtype=np.int64)
             flat = np.fromiter((node_index[t] for tokens in lists for t in tokens), np.int64, int(counts.sum()))
             line_nodes[layer] = (node_xy[flat].reshape(-1, 2), np.repeat(np.arange(len(lists)), counts), counts)
-        paths = _read(dataset_dir, "arcline_path_3", location, ["lane_token", "paths"])
+        paths = _read(dataset, "arcline_path_3", location, ["lane_token", "paths"])
         values = paths.column("paths").to_pylist()
         if values and isinstance(values[0], str):  # kept as JSON text
             import json
@@ -200,6 +189,14 @@ class MapLayers:
         return self._centerlines[resolution_m]
 
     def discretize_lanes(self, tokens: list[str], resolution_m: float) -> dict[str, list[tuple[float, float, float]]]:
+        """{token: the lane's centreline poses (x, y, yaw)} for lanes and lane connectors of this map (the devkit's
+        `discretize_lanes`); UsageError naming the tokens that are neither."""
+        unknown = [t for t in tokens if t not in self.arcline_path_3]
+        if unknown:
+            from nuparquet.errors import UsageError
+
+            raise UsageError(f"no lane or lane connector {', '.join(map(repr, unknown[:5]))}"
+                             f"{' ...' if len(unknown) > 5 else ''} in the map of {self.location}")
         poses, counts = _discretize([self.arcline_path_3.get(t, []) for t in tokens], resolution_m)
         starts = np.r_[0, np.cumsum(counts)]
         return {t: [tuple(p) for p in poses[starts[i]:starts[i + 1]].tolist()] for i, t in enumerate(tokens)}
@@ -236,90 +233,11 @@ class MapLayers:
             out[lo + point_i[best]] = tokens[lane_i[best]]
         return out
 
-    # -- raster -----------------------------------------------------------------------------------------------
-
     def map_mask(self, patch_box: tuple[float, float, float, float], patch_angle_deg: float,
                  layer_names: tuple[str, ...] | list[str] | None = None,
                  canvas_size: tuple[int, int] = (100, 100)) -> np.ndarray:
-        """(C, H, W) uint8 masks of the patch [x_center, y_center, height, width] rotated by `patch_angle_deg`."""
-        layer_names = list(layer_names or NON_GEOMETRIC_LAYERS)
-        if canvas_size is None:
-            canvas_size = tuple(np.round(np.array((patch_box[2], patch_box[3])) * 10).astype(np.int32))
-        px, py, ph, pw = patch_box
-        patch = _patch(patch_box, patch_angle_deg)
-        local = _patch((0.0, 0.0, ph, pw), 0.0)
-        h, w = canvas_size
-        scale_x, scale_y = w / pw, h / ph
-        trans_x, trans_y = -0.0 + pw / 2.0, -0.0 + ph / 2.0
-        masks = []
-        for layer in layer_names:
-            if layer == "traffic_light":
-                continue
-            mask = np.zeros(canvas_size, np.uint8)
-            if layer in POLYGON_LAYERS:
-                parts = self.parts[layer]
-                geoms = parts.geometry
-                candidates = np.sort(parts.tree.query(patch, predicate="intersects"))
-                if layer != "drivable_area":  # the devkit skips invalid polygons of the other layers
-                    candidates = candidates[shapely.is_valid(geoms[candidates])]
-                clipped = _to_local(shapely.intersection(geoms[candidates], patch), patch_angle_deg, px, py)
-                clipped = shapely.intersection(clipped[~shapely.is_empty(clipped)], local)
-                clipped = clipped[~shapely.is_empty(clipped)]
-                clipped = _affine(_affine(clipped, 1.0, 0.0, 0.0, 1.0, trans_x, trans_y),
-                                  scale_x, 0.0, 0.0, scale_y, 0.0 - 0.0 * scale_x, 0.0 - 0.0 * scale_y)
-                for geom in clipped:  # per geometry, as the devkit paints: its holes are cleared before the next
-                    polygons = shapely.get_parts(geom)
-                    exteriors = [np.asarray(p.exterior.coords).round().astype(np.int32) for p in polygons]
-                    interiors = [np.asarray(r.coords).round().astype(np.int32) for p in polygons for r in p.interiors]
-                    cv2.fillPoly(mask, exteriors, 1)
-                    cv2.fillPoly(mask, interiors, 0)
-            elif layer in LINE_LAYERS:
-                records = self.layers[layer]
-                geoms = records.geometry
-                ok = ~shapely.is_missing(geoms)
-                ok[ok] = ~shapely.is_empty(geoms[ok])
-                candidates = np.sort(records.tree.query(patch, predicate="intersects"))
-                candidates = candidates[ok[candidates]]
-                clipped = _to_local(shapely.intersection(geoms[candidates], patch), patch_angle_deg, px, py)
-                clipped = shapely.intersection(clipped[~shapely.is_empty(clipped)], local)
-                clipped = clipped[~shapely.is_empty(clipped)]
-                clipped = _affine(_affine(clipped, 1.0, 0.0, 0.0, 1.0, trans_x, trans_y),
-                                  scale_x, 0.0, 0.0, scale_y, 0.0 - 0.0 * scale_x, 0.0 - 0.0 * scale_y)
-                for geom in clipped:
-                    for part in shapely.get_parts(geom):
-                        cv2.polylines(mask, [np.asarray(part.coords, np.int32).reshape(-1, 2)], False, 1, 2)
-            else:
-                raise ValueError(f"{layer} is not a valid layer")
-            masks.append(mask)
-        return np.array(masks)
+        """(C, H, W) uint8 masks of the patch [x_center, y_center, height, width] rotated by `patch_angle_deg`
+        (`nuparquet.map.mask`)."""
+        from nuparquet.map.mask import map_mask
 
-
-def _patch(patch_box, patch_angle_deg: float):
-    """The devkit's get_patch_coord."""
-    from shapely import affinity
-
-    px, py, ph, pw = patch_box
-    patch = shapely.box(px - pw / 2.0, py - ph / 2.0, px + pw / 2.0, py + ph / 2.0)
-    return affinity.rotate(patch, patch_angle_deg, origin=(px, py), use_radians=False)
-
-
-def _affine(geoms: np.ndarray, a: float, b: float, d: float, e: float, xoff: float, yoff: float) -> np.ndarray:
-    """shapely.affinity.affine_transform's 2D arithmetic, applied to every coordinate of every geometry at once."""
-    if not len(geoms):
-        return geoms
-
-    def transform(coords: np.ndarray) -> np.ndarray:
-        x, y = coords.T
-        return np.stack([a * x + b * y + xoff, d * x + e * y + yoff]).T
-
-    return shapely.transform(geoms, transform)
-
-
-def _to_local(geoms: np.ndarray, patch_angle_deg: float, px: float, py: float) -> np.ndarray:
-    """Rotate by -angle about the patch centre (shapely.affinity.rotate's matrix), then move the centre to 0."""
-    angle = -patch_angle_deg * math.pi / 180.0
-    cosp, sinp = math.cos(angle), math.sin(angle)
-    cosp = 0.0 if abs(cosp) < 2.5e-16 else cosp
-    sinp = 0.0 if abs(sinp) < 2.5e-16 else sinp
-    rotated = _affine(geoms, cosp, -sinp, sinp, cosp, px - px * cosp + py * sinp, py - px * sinp - py * cosp)
-    return _affine(rotated, 1.0, 0.0, 0.0, 1.0, -px, -py)
+        return map_mask(self, patch_box, patch_angle_deg, layer_names, canvas_size)

@@ -6,17 +6,17 @@ per location) and a `surface`, the first that applies of: ped_crossing, walkway,
 (a road segment with `is_intersection`), lane (a lane or lane connector), drivable_area (elsewhere on the road),
 off_map. `ego_surfaces(ds)` is the same for the reference lidar's keyframe ego poses. The stats sections
 summarise them: pedestrians on crossings vs walkways vs the road, ego time on intersections.
-Needs a local output (the map is read with `nuparquet.map.queries.MapLayers`).
+The map is read once per location (`Dataset.map`).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 import polars as pl
 
+from nuparquet.map.layers import LOOKUP_POLYGON_LAYERS
 from nuparquet.queries.frames import ego_motion
 from nuparquet.queries.inputs import for_scene
 
@@ -24,25 +24,21 @@ if TYPE_CHECKING:
     from nuparquet.dataset import Dataset
     from nuparquet.queries.inputs import Scene
 
-# The polygon layers (the devkit's non_geometric_polygon_layers) and lane connectors; `nuparquet.map.queries`
-# (shapely, pyarrow.dataset, OpenCV) loads only when a map query runs, not with `nuparquet stats`.
-LAYERS = ("drivable_area", "road_segment", "road_block", "lane", "ped_crossing", "walkway", "stop_line",
-          "carpark_area", "lane_connector")
+# The polygon layers (the devkit's non_geometric_polygon_layers) and lane connectors. `nuparquet.map.layers` is
+# names only: the map queries (shapely) load when a map query runs, not with `nuparquet stats`.
+LAYERS = LOOKUP_POLYGON_LAYERS
 SURFACES = ("ped_crossing", "walkway", "carpark_area", "intersection", "lane", "drivable_area", "off_map")
 
 
 def _surfaces(ds: Dataset, points: pl.DataFrame) -> pl.DataFrame:
     """points (location, x_m, y_m, ...) -> the same rows with one token column per layer and `surface`."""
-    from nuparquet.map.queries import MapLayers
-
-    root = Path(ds.root)
     locations = set(ds.scan("map/lane").select("location").unique().collect()["location"].to_list())
     intersections = set(ds.scan("map/road_segment").filter(pl.col("is_intersection")).select("token")
                         .collect()["token"].to_list())
     parts = []
     for (location,), rows in points.group_by(["location"], maintain_order=True):
         if location in locations:
-            found = MapLayers.open(root, location).layers_on_point(rows["x_m"].to_numpy(), rows["y_m"].to_numpy(), LAYERS)
+            found = ds.map(location).layers_on_point(rows["x_m"].to_numpy(), rows["y_m"].to_numpy(), LAYERS)
         else:  # a log whose location has no map file
             found = {layer: np.full(rows.height, "", dtype=object) for layer in LAYERS}
         parts.append(rows.with_columns(pl.Series(layer, found[layer].tolist(), pl.String) for layer in LAYERS))

@@ -2,11 +2,9 @@
 engine (`nuparquet.engine`: a local process pool, Ray, or this process) with the same bytes whichever runs it.
 
 ```python
-from nuparquet.engine import EngineOptions
-from nuparquet.render.batch import render_scenes
-from nuparquet.render.options import RenderOptions, SceneSelection
-result = render_scenes("OUT", RenderOptions(scene="", channel="all"),
-                       SceneSelection(all_scenes=True, out_dir="videos"), EngineOptions(engine="ray"))
+import nuparquet
+result = nuparquet.render_scenes("OUT", all_scenes=True, out_dir="videos", channel="all", engine="ray")
+# the same with option objects: render_scenes("OUT", SceneSelection(...), RenderOptions(...), EngineOptions(...))
 ```
 
 Each scene is one work unit: its task opens the dataset (a path or URL every worker can read), runs the
@@ -31,6 +29,7 @@ from nuparquet.engine import (
     EngineOptions, UnitOutcome, WorkUnit, check_engine, move_parts, unit_file_name, raise_failures, run_units,
 )
 from nuparquet.errors import QueryError, UsageError
+from nuparquet.options import resolve, split_fields
 from nuparquet.atomic import write_text_atomic
 from nuparquet.progress import OnProgress
 from nuparquet.render.options import ALL_CHANNELS, SUMMARY_NAME, RenderOptions, SceneSelection
@@ -80,12 +79,9 @@ def select_scenes(dataset, selection: SceneSelection) -> list[str]:
         except (pl.exceptions.PolarsError, ValueError) as exc:  # a bad column, a syntax error
             raise QueryError(f"--where {selection.where!r}: {exc}".splitlines()[0]) from None
     else:
-        names = dataset.scan("scenes").select("name").collect()["name"].to_list()
+        names = dataset.scene_names()
     if selection.scenes:
-        known = set(dataset.scan("scenes").select("name").collect()["name"].to_list())
-        unknown = [name for name in selection.scenes if name not in known]
-        if unknown:
-            raise UsageError(f"unknown scene(s) {', '.join(unknown)}; valid scenes: {', '.join(sorted(known))}")
+        dataset.check_scenes(selection.scenes)
         wanted = set(selection.scenes)
         names = [name for name in names if name in wanted]
     if not names:
@@ -102,7 +98,7 @@ def render_unit(unit: WorkUnit, part: Path) -> dict:
     root, storage_options, options = unit.args
     dataset = open_dataset(root, storage_options=storage_options)
     name = video_name(unit.name)
-    result = render(dataset, replace(options, scene=unit.name, out=part / name))
+    result = render(dataset, unit.name, replace(options, out=part / name))
     return {"video": name, "channel": result.channel, "frames_written": result.frames_written,
             "frames_skipped": result.frames_skipped, "width": result.width, "height": result.height,
             "fps": result.fps, "missing": result.missing[:5]}
@@ -114,7 +110,7 @@ def render_settings(root: str, options: RenderOptions) -> str:
     draws the same pictures), `on_missing` and the decode threads. `--resume` reuses only videos made with the
     same."""
     fields = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(options).items()
-              if k not in ("scene", "out", "frames_dir", "overwrite", "threads", "dataroot", "on_missing")}
+              if k not in ("out", "frames_dir", "overwrite", "threads", "dataroot", "on_missing")}
     return hashlib.sha256(json.dumps({"dataset": root, **fields}, sort_keys=True, default=str).encode()).hexdigest()[:12]
 
 
@@ -134,7 +130,6 @@ def _check(dataset, options: RenderOptions, selection: SceneSelection) -> None:
     selection.check()
     if options.out is not None or options.frames_dir is not None:
         raise UsageError("a many-scene render writes DIR/<scene>.mp4: leave out --out and --frames-dir")
-    replace(options, out=Path(selection.out_dir) / "x.mp4").check()
     if options.channel not in (None, ALL_CHANNELS) and options.channel not in dataset.channels.get("cameras", []):
         cameras = ", ".join([*dataset.channels.get("cameras", []), ALL_CHANNELS])
         raise UsageError(f"unknown channel {options.channel!r}; valid channels: {cameras}")
@@ -144,10 +139,12 @@ def _check(dataset, options: RenderOptions, selection: SceneSelection) -> None:
         check_apart(Path(selection.out_dir), dataset.root, what="the converted dataset")
 
 
-def render_scenes(dataset_or_path, options: RenderOptions, selection: SceneSelection,
-                  engine: EngineOptions | None = None, *, on_progress: OnProgress | None = None) -> BatchResult:
-    """Render every scene of `selection` with `options` (its `scene`, `out`, `frames_dir` are not used) into
-    `selection.out_dir`, one video per scene, on `engine`. See the module docstring.
+def render_scenes(dataset_or_path, selection: SceneSelection | None = None, options: RenderOptions | None = None,
+                  engine: EngineOptions | None = None, *, on_progress: OnProgress | None = None,
+                  **fields) -> BatchResult:
+    """Render every scene of `selection` with `options` (its `out`, `frames_dir` are not used) into
+    `selection.out_dir`, one video per scene, on `engine`; each may also be given as keyword fields (`all_scenes=True,
+    out_dir="videos", channel="all", workers=4`). See the module docstring.
 
     Raises:
         UsageError: bad options, an unknown scene or channel, Ray asked for but not installed.
@@ -157,7 +154,10 @@ def render_scenes(dataset_or_path, options: RenderOptions, selection: SceneSelec
     """
     from nuparquet.dataset import open_dataset
 
-    engine = engine or EngineOptions()
+    selection_fields, render_fields, engine_fields = split_fields(fields, SceneSelection, RenderOptions, EngineOptions)
+    selection = resolve(SceneSelection, selection, selection_fields)
+    options = resolve(RenderOptions, options, render_fields)
+    engine = resolve(EngineOptions, engine, engine_fields)
     check_engine(engine)
     dataset = dataset_or_path if hasattr(dataset_or_path, "scan") else open_dataset(dataset_or_path)
     _check(dataset, options, selection)

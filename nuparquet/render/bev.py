@@ -16,7 +16,6 @@ Pixel convention: pixel (u, v) has its centre at (u, v); u grows east (north-up)
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import cv2
 import numpy as np

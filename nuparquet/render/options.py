@@ -36,9 +36,9 @@ def existing_frames(folder: Path) -> list[Path]:
 
 @dataclass
 class RenderOptions:
-    """What to render and how (see each field's help; the CLI flags of `nuparquet render` one to one)."""
+    """How to render a scene (see each field's help; the CLI flags of `nuparquet render` one to one). Which scene
+    is the verb's argument (`render(ds, scene, ...)`), or a `SceneSelection` for many."""
 
-    scene: str = option(help="scene name, e.g. scene-0061 (`nuparquet info OUT` lists them)")
     channel: str | None = option(
         None, metavar="CHANNEL",
         help=f"camera to render, '{ALL_CHANNELS}' for every camera of the dataset tiled in rows (front row over "
@@ -102,14 +102,8 @@ class RenderOptions:
             return float(self.fps)
         return ALL_FRAMES_FPS if self.all_frames else KEYFRAME_FPS
 
-    def check(self) -> None:
-        """Raise UsageError for contradictory or out-of-range options."""
-        if self.out is None and self.frames_dir is None:
-            raise UsageError("nothing to write: give --out FILE.mp4, --frames-dir DIR, or both")
-        if self.frames_dir is not None and not self.overwrite and any(existing_frames(Path(self.frames_dir))):
-            raise UsageError(f"--frames-dir {self.frames_dir} already holds frames; pass --overwrite to replace them")
-        if self.out is not None and Path(self.out).is_dir():
-            raise UsageError(f"--out {self.out} is a directory; give the video file to write (e.g. scene.mp4)")
+    def __post_init__(self) -> None:
+        """UsageError for out-of-range or contradictory values (where the output goes is `check_targets`)."""
         if not (0 < self.scale <= 4):
             raise UsageError(f"--scale must be in (0, 4], got {self.scale}")
         if self.fps is not None and not self.fps > 0:
@@ -132,6 +126,16 @@ class RenderOptions:
         ):
             if value not in valid:
                 raise UsageError(f"{name} must be one of {', '.join(valid)}, got {value!r}")
+
+    def check_targets(self) -> None:
+        """UsageError unless one scene's outputs can be written: something to write, --out not a folder,
+        --frames-dir not holding frames (unless --overwrite)."""
+        if self.out is None and self.frames_dir is None:
+            raise UsageError("nothing to write: give --out FILE.mp4, --frames-dir DIR, or both")
+        if self.frames_dir is not None and not self.overwrite and any(existing_frames(Path(self.frames_dir))):
+            raise UsageError(f"--frames-dir {self.frames_dir} already holds frames; pass --overwrite to replace them")
+        if self.out is not None and Path(self.out).is_dir():
+            raise UsageError(f"--out {self.out} is a directory; give the video file to write (e.g. scene.mp4)")
 
 
 SUMMARY_NAME = "render-summary.json"  # written into --out-dir by a many-scene render

@@ -2,8 +2,8 @@
 H.264 MP4 and/or a folder of images.
 
 ```python
-from nuparquet.render.pipeline import RenderOptions, render
-result = render("OUT", RenderOptions(scene="scene-0061", out="scene-0061.mp4"), on_progress=print)
+import nuparquet
+result = nuparquet.render("OUT", "scene-0061", out="scene-0061.mp4", channel="all", on_progress=print)
 ```
 
 The stages, one module each (STYLE.md: vectorise over the batch; the only Python loop is over output frames):
@@ -25,8 +25,9 @@ import numpy as np
 
 from nuparquet.errors import InputError, UsageError
 from nuparquet.frames.boxes import frame_boxes
-from nuparquet.progress import OnProgress, Reporter
 from nuparquet.frames.poses import cameras_from_frames
+from nuparquet.options import resolve
+from nuparquet.progress import OnProgress, Reporter
 from nuparquet.render.camera_tile import CameraTile
 from nuparquet.render.loop import render_frames
 from nuparquet.render.options import BEV_CHANNEL, RenderOptions
@@ -115,40 +116,41 @@ def _bev_view(options: RenderOptions, size: tuple[int, int]):
     return View(size, options.bev_range_m, ego_up=options.bev_up == "ego")
 
 
-def bev_plan(dataset, options: RenderOptions, dataroot: Path) -> tuple[TilePlan, float]:
+def bev_plan(dataset, rows: SceneRows, options: RenderOptions, dataroot: Path) -> tuple[TilePlan, float]:
     """`--channel bev`: one square tile per reference-lidar keyframe (or frame), and the video's frame rate (the
     lidar's own with --all-frames unless --fps says otherwise)."""
     from nuparquet.render.bev_scene import bev_source
 
     size = (options.bev_size, options.bev_size)
-    tile, times_us = bev_source(dataset, options.scene, dataroot, _bev_view(options, size), all_frames=options.all_frames,
-                                lidar_color=options.lidar_color)
+    tile, times_us = bev_source(dataset, rows, dataroot, _bev_view(options, size), lidar_color=options.lidar_color)
     fps = options.frame_rate
     if options.fps is None and options.all_frames and len(times_us) > 1:
         fps = float(round(1e6 / float(np.median(np.diff(times_us)))))
     return TilePlan(times_us, ((tile,),), size), fps
 
 
-def with_bev_tile(plan: TilePlan, dataset, options: RenderOptions, dataroot: Path) -> TilePlan:
+def with_bev_tile(plan: TilePlan, dataset, rows: SceneRows, options: RenderOptions, dataroot: Path) -> TilePlan:
     """The camera plan with the bird's-eye view appended to its first row, at the camera tile size."""
     from nuparquet.render.bev_scene import bev_source
 
-    tile, _ = bev_source(dataset, options.scene, dataroot, _bev_view(options, plan.tile_size),
-                         all_frames=options.all_frames, times_us=plan.times_us, lidar_color=options.lidar_color)
+    tile, _ = bev_source(dataset, rows, dataroot, _bev_view(options, plan.tile_size), times_us=plan.times_us,
+                         lidar_color=options.lidar_color)
     layout = (plan.layout[0] + (tile,),) + plan.layout[1:]
     return TilePlan(plan.times_us, layout, plan.tile_size)
 
 
-def render(dataset_or_path, options: RenderOptions, *, on_progress: OnProgress | None = None) -> RenderResult:
-    """Render one scene as described by `options`; see the module docstring. Progress goes to `on_progress`
-    (one "frame" unit per output picture).
+def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
+           on_progress: OnProgress | None = None, **fields) -> RenderResult:
+    """Render `scene` as `options` (or keyword fields of `RenderOptions`) describe; see the module docstring.
+    Progress goes to `on_progress` (one "frame" unit per output picture).
 
     Raises:
         UsageError: bad options, unknown scene or channel, a dataroot that does not exist, --lidar without a lidar.
         InputError: with on_missing="error", the first missing or unreadable file (named by path); with
             "skip", when no frame at all could be rendered.
     """
-    options.check()
+    options = resolve(RenderOptions, options, fields)
+    options.check_targets()
     dataset = _dataset(dataset_or_path)
     if not dataset.is_remote:  # never write into the converted dataset (--out OUT/manifest.json replaced it)
         from nuparquet.atomic import check_apart
@@ -157,19 +159,25 @@ def render(dataset_or_path, options: RenderOptions, *, on_progress: OnProgress |
             if target is not None:
                 check_apart(target, dataset.root, what="the converted dataset")
     dataroot = _dataroot(dataset, options.dataroot)
+    dataset.check_scenes([scene])
     fps = options.frame_rate
+    bev_channel = reference_lidar(dataset) if options.channel == BEV_CHANNEL or options.bev else None
     if options.channel == BEV_CHANNEL:
         channel = BEV_CHANNEL
-        plan, fps = bev_plan(dataset, options, dataroot)
+        rows = load_scene(dataset, scene, (), all_frames=options.all_frames, bev_channel=bev_channel)
+        _check_bev_rows(rows, scene, bev_channel)
+        plan, fps = bev_plan(dataset, rows, options, dataroot)
     else:
         channel, layout = cameras_to_render(dataset, options.channel)
-        rows = load_scene(dataset, options.scene, [c for row in layout for c in row], all_frames=options.all_frames,
-                          lidar_channel=reference_lidar(dataset) if options.draws_lidar else None, channel_label=channel)
+        rows = load_scene(dataset, scene, [c for row in layout for c in row], all_frames=options.all_frames,
+                          lidar_channel=reference_lidar(dataset) if options.draws_lidar else None,
+                          bev_channel=bev_channel, channel_label=channel)
         plan = camera_plan(rows, layout, dataroot, scale=options.scale, mosaic=options.mosaic,
                            all_frames=options.all_frames, fps=fps, clip=options.clip,
                            labels=options.labels, dataset=dataset, lidar_color=options.lidar_color)
         if options.bev:
-            plan = with_bev_tile(plan, dataset, options, dataroot)
+            _check_bev_rows(rows, scene, bev_channel)
+            plan = with_bev_tile(plan, dataset, rows, options, dataroot)
 
     out = Path(options.out) if options.out is not None else None
     frames_dir = Path(options.frames_dir) if options.frames_dir is not None else None
@@ -178,16 +186,21 @@ def render(dataset_or_path, options: RenderOptions, *, on_progress: OnProgress |
         return FrameSink(executor, size=plan.size, fps=fps, video=out, crf=options.crf,
                          preset=options.preset, frames_dir=frames_dir, frame_format=options.frame_format)
 
-    with Reporter(on_progress, f"render {options.scene} {channel}", total=len(plan), unit="frame") as reporter:
+    with Reporter(on_progress, f"render {scene} {channel}", total=len(plan), unit="frame") as reporter:
         result = render_frames(plan, make_sink, on_missing=options.on_missing, threads=options.threads,
                                reporter=reporter)
     if result.written == 0:
         raise InputError(
-            f"no frame of {options.scene} {channel} could be rendered: all {len(result.missing)} image "
+            f"no frame of {scene} {channel} could be rendered: all {len(result.missing)} image "
             f"file(s) are missing or unreadable, e.g. {result.missing[0] if result.missing else '?'} "
             "(is --dataroot right?)"
         )
     width, height = even_size(*plan.size) if out is not None else plan.size
-    return RenderResult(scene=options.scene, channel=channel, frames_written=result.written,
+    return RenderResult(scene=scene, channel=channel, frames_written=result.written,
                         frames_skipped=result.skipped, width=width, height=height, fps=fps,
                         out=out, frames_dir=frames_dir, missing=result.missing)
+
+
+def _check_bev_rows(rows: SceneRows, scene: str, lidar_channel: str) -> None:
+    if rows.bev_lidar.height == 0:
+        raise UsageError(f"{scene} has no {lidar_channel} frame to centre the bird's-eye view on")

@@ -30,13 +30,17 @@ class SceneRows:
     """The rows one render needs, collected by one query.
 
     cameras: camera frames of the wanted channels, sorted by channel then timestamp (channel as a string);
-    annotations, samples: the scene's; lidar: keyframes of the lidar channel asked for (else empty).
+    annotations, samples: the scene's; lidar: keyframes of the lidar whose points are drawn into the cameras
+    (else empty); bev_lidar: the reference lidar's frames a bird's-eye view follows, sorted by time (keyframes, or
+    every frame with --all-frames; else empty); location: the scene's log location (None when not asked).
     """
 
     cameras: pl.DataFrame
     annotations: pl.DataFrame
     samples: pl.DataFrame
     lidar: pl.DataFrame
+    bev_lidar: pl.DataFrame
+    location: str | None = None
 
 
 def cameras_to_render(dataset, channel: str | None) -> tuple[str, Layout]:
@@ -68,20 +72,24 @@ def reference_lidar(dataset) -> str:
 
 
 def load_scene(dataset, scene: str, cameras: Sequence[str], *, all_frames: bool = False,
-               lidar_channel: str | None = None, channel_label: str | None = None) -> SceneRows:
-    """Run the render's one query for `scene`: frames of the `cameras` channels (keyframes unless
-    `all_frames`), annotations, samples, and the keyframes of `lidar_channel` if given.
+               lidar_channel: str | None = None, bev_channel: str | None = None,
+               channel_label: str | None = None) -> SceneRows:
+    """Run the render's one query for `scene` (a name the dataset holds: `Dataset.check_scenes`): frames of the
+    `cameras` channels (keyframes unless `all_frames`), annotations, samples, the keyframes of `lidar_channel` if
+    given, and for a bird's-eye view the frames of `bev_channel` (keyframes, or all with `all_frames`) with the
+    scene's location.
 
     Raises:
-        UsageError: no camera frame matched: the scene or the channel (`channel_label`) is unknown; the message
-            lists the valid names.
+        UsageError: cameras were asked for and no camera frame matched: the channel (`channel_label`) is not a
+            camera of the scene; the message lists the valid names.
     """
     channel = pl.col("channel").cast(pl.String)
-    wanted = channel.is_in(list(cameras)) & (pl.col("modality").cast(pl.String) == "camera")
-    if not all_frames:
-        wanted = wanted & pl.col("is_key_frame")
+    key_frames = pl.lit(True) if all_frames else pl.col("is_key_frame")
+    wanted = channel.is_in(list(cameras)) & (pl.col("modality").cast(pl.String) == "camera") & key_frames
     if lidar_channel is not None:
         wanted = wanted | ((channel == lidar_channel) & pl.col("is_key_frame"))
+    if bev_channel is not None:
+        wanted = wanted | ((channel == bev_channel) & key_frames)
     in_scene = pl.col("scene_name") == scene
     frames = (dataset.scan("frames").filter(in_scene).filter(wanted).select(FRAME_COLUMNS)
               .with_columns(channel))
@@ -91,28 +99,29 @@ def load_scene(dataset, scene: str, cameras: Sequence[str], *, all_frames: bool 
         .join(frames.select("scene_token").unique(), on="scene_token", how="semi")
         .select(SAMPLE_COLUMNS)
     )
-    frames_df, annotations_df, samples_df = pl.collect_all([frames, annotations, samples])
+    queries = [frames, annotations, samples]
+    if bev_channel is not None:
+        queries.append(dataset.scan("scenes").filter(pl.col("name") == scene).select("log_location"))
+    frames_df, annotations_df, samples_df, *location_df = pl.collect_all(queries)
     is_camera = frames_df["channel"].is_in(list(cameras))
     camera_rows = frames_df.filter(is_camera).sort("channel", "timestamp", maintain_order=True)
-    if camera_rows.height == 0:
-        _raise_unknown(dataset, scene, channel_label if channel_label is not None else ",".join(cameras))
-    return SceneRows(cameras=camera_rows, annotations=annotations_df, samples=samples_df,
-                     lidar=frames_df.filter(~is_camera))
+    if cameras and camera_rows.height == 0:
+        _raise_unknown_channel(dataset, scene, channel_label if channel_label is not None else ",".join(cameras))
+    no_rows = frames_df.clear()
+    lidar = (frames_df.filter((pl.col("channel") == lidar_channel) & pl.col("is_key_frame"))
+             if lidar_channel is not None else no_rows)
+    bev_lidar = (frames_df.filter((pl.col("channel") == bev_channel) & (pl.lit(all_frames) | pl.col("is_key_frame")))
+                 .sort("timestamp", maintain_order=True) if bev_channel is not None else no_rows)
+    location = location_df[0]["log_location"][0] if location_df and location_df[0].height else None
+    return SceneRows(cameras=camera_rows, annotations=annotations_df, samples=samples_df, lidar=lidar,
+                     bev_lidar=bev_lidar, location=location)
 
 
-def _raise_unknown(dataset, scene: str, channel: str) -> None:
-    """The query found no camera frame: say whether the scene or the channel is unknown, listing valid names."""
-    listing = (
-        dataset.scan("frames")
-        .filter(pl.col("modality").cast(pl.String) == "camera")
-        .select("scene_name", pl.col("channel").cast(pl.String))
-        .unique()
-        .collect()
-    )
-    scenes = sorted(listing["scene_name"].unique().to_list())
-    if scene not in scenes:
-        raise UsageError(f"unknown scene {scene!r}; valid scenes: {', '.join(scenes) or '(none)'}")
-    channels = sorted(listing.filter(pl.col("scene_name") == scene)["channel"].unique().to_list())
+def _raise_unknown_channel(dataset, scene: str, channel: str) -> None:
+    """The query found no camera frame of a scene the dataset holds: the channel is not one of its cameras."""
+    channels = sorted(dataset.scan("frames").filter((pl.col("scene_name") == scene)
+                                                    & (pl.col("modality").cast(pl.String) == "camera"))
+                      .select(pl.col("channel").cast(pl.String)).unique().collect()["channel"].to_list())
     valid = ", ".join(channels + [ALL_CHANNELS])
     modality = (dataset.scan("frames").filter(pl.col("channel").cast(pl.String) == channel)
                 .select(pl.col("modality").cast(pl.String)).head(1).collect())

@@ -19,17 +19,12 @@ import numpy as np
 import pyarrow as pa
 import shapely
 
+from nuparquet.map.layers import DICT_LAYERS, LINE_LAYERS, LIST_LAYERS, LOOKUP_POLYGON_LAYERS
 from nuparquet.problems import Problem, echo
 from nuparquet.sources.json_records import Columns, Located, to_columns
 
 FOLDER = "maps/expansion"
 MIN_VERSION = (1, 3)
-GEOMETRIC_LAYERS = ("node", "line", "polygon")
-POLYGON_LAYERS = ("drivable_area", "road_segment", "road_block", "lane", "ped_crossing", "walkway", "stop_line",
-                  "carpark_area", "lane_connector")  # the devkit's lookup_polygon_layers
-LINE_LAYERS = ("road_divider", "lane_divider", "traffic_light")
-LIST_LAYERS = GEOMETRIC_LAYERS + POLYGON_LAYERS + LINE_LAYERS
-DICT_LAYERS = ("arcline_path_3", "connectivity")
 # South-west corner of each nuScenes map ([lat, lon], WGS 84), from the devkit's NuScenesMap docstring.
 ORIGIN_LAT_LON = {"boston-seaport": [42.336849169438615, -71.05785369873047],
                   "singapore-onenorth": [1.2882100868743724, 103.78475189208984],
@@ -142,9 +137,9 @@ def _check_references(name: str, data: dict) -> list[Problem]:
                 return problems
     polygons = {r["token"] for r in data["polygon"]}
     lines = {r["token"] for r in data["line"]}
-    for layer in POLYGON_LAYERS + LINE_LAYERS:
+    for layer in LOOKUP_POLYGON_LAYERS + LINE_LAYERS:
         key, known, what = (("polygon_tokens" if layer == "drivable_area" else "polygon_token"), polygons, "polygon") \
-            if layer in POLYGON_LAYERS else ("line_token", lines, "line")
+            if layer in LOOKUP_POLYGON_LAYERS else ("line_token", lines, "line")
         for i, record in enumerate(data[layer]):
             value = record.get(key)
             tokens = value if isinstance(value, list) else [value]
@@ -222,7 +217,7 @@ def _add_geometry(data: dict, out: dict[str, np.ndarray]) -> None:
     out["polygon"] = polygons
     polygon_index = {r["token"]: i for i, r in enumerate(data["polygon"])}
     line_index = {r["token"]: i for i, r in enumerate(data["line"])}
-    for layer in POLYGON_LAYERS:
+    for layer in LOOKUP_POLYGON_LAYERS:
         records = data[layer]
         if layer == "drivable_area":
             parts = [[polygon_index[t] for t in r["polygon_tokens"]] for r in records]

@@ -7,7 +7,6 @@ import shutil
 
 import pytest
 
-from conftest import SYNTH_VERSION
 from nuparquet.cli.main import main
 
 

@@ -375,7 +375,6 @@ def test_an_output_that_appears_during_the_conversion_is_never_replaced(root, tm
         (out / "theirs.txt").write_text("someone else's")
         return original(ctx)
 
-    import nuparquet.convert.pipeline as convert_module
     from nuparquet.convert import registry
 
     original = next(b.build for b in registry.BUILDERS if b.name == "instances")

@@ -4,7 +4,6 @@ come from the devkit reading the same JSON and from the source JPEGs."""
 
 from __future__ import annotations
 
-import json
 
 import cv2
 import numpy as np

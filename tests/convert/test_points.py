@@ -20,7 +20,7 @@ from nuparquet.problems import ProblemsFound
 @pytest.fixture(scope="module")
 def labelled_out(labelled_root, tmp_path_factory):
     out = tmp_path_factory.mktemp("labelled-out") / "out"
-    convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar", "radar"), sweeps=True, jobs=1)
+    convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar", "radar"), sweeps=True, workers=1)
     return out
 
 
@@ -63,7 +63,7 @@ def test_points_are_sorted_by_scene_channel_timestamp_point_index(labelled_out):
 
 def test_output_is_byte_identical_whatever_jobs(labelled_root, labelled_out, tmp_path):
     out = tmp_path / "jobs2"
-    convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar", "radar"), sweeps=True, jobs=2)
+    convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar", "radar"), sweeps=True, workers=2)
     for dataset in ("lidar_points", "radar_points"):
         ours = sorted(p.name for p in (labelled_out / dataset).glob("*.parquet"))
         assert ours == sorted(p.name for p in (out / dataset).glob("*.parquet")) and len(ours) == 2  # one per scene
@@ -134,7 +134,7 @@ def _first(root, table: str) -> dict:
 def _problems(root, tmp_path, **options) -> str:
     out = tmp_path / "broken-out"
     with pytest.raises(ProblemsFound) as info:
-        convert(root, SYNTH_VERSION, out, sensors=("lidar", "radar"), jobs=1, **options)
+        convert(root, SYNTH_VERSION, out, sensors=("lidar", "radar"), workers=1, **options)
     assert not out.exists() and not list(tmp_path.glob(".broken-out*"))  # nothing half-written is left
     return str(info.value)
 
@@ -181,7 +181,7 @@ def test_missing_sensor_files_are_listed_and_warned_once_or_an_error_with_strict
     gone = sorted(f["filename"] for f in frames[:2])
     for name in gone:
         (small_root / name).unlink()
-    manifest = convert(small_root, SYNTH_VERSION, tmp_path / "out", sensors=("lidar",), jobs=1)
+    manifest = convert(small_root, SYNTH_VERSION, tmp_path / "out", sensors=("lidar",), workers=1)
     entry = manifest["datasets"]["lidar_points"]
     assert sorted(entry["missing_files"]) == gone and entry["frames"] == len(frames) - 2
     warnings = [w for w in manifest["warnings"] if "lidar_points" in w]
@@ -214,7 +214,7 @@ def test_bad_sensor_options_are_usage_errors(labelled_root, tmp_path, capsys):
     from nuparquet.cli.main import main
 
     for flags, message in ((["--sensors", "lidar,camera"], "--sensors takes lidar, radar"),
-                           (["--sensors", "lidar", "--jobs", "-1"], "--jobs must be"),
+                           (["--sensors", "lidar", "--jobs", "-1"], "--workers must be"),
                            (["--sensors", "lidar", "--lidar-columns", "7"], "--lidar-columns must be 4 or 5")):
         code = main(["convert", str(labelled_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "o"), *flags])
         assert code == 2 and message in capsys.readouterr().err

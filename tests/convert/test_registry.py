@@ -4,7 +4,6 @@ and why, the channels and the files it read."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 
 import polars as pl

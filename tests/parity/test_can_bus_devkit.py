@@ -9,7 +9,6 @@ import os
 import polars as pl
 import pytest
 
-from conftest import EXTRACT_VERSION, SYNTH_VERSION
 from nuparquet.export.json_files import export_json
 
 os.environ.setdefault("MPLBACKEND", "Agg")

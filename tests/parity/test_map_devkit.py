@@ -103,10 +103,13 @@ def test_map_mask_is_pixel_equal(maps):
     assert painted > 10_000
 
 
-def test_open_names_what_is_missing(map_out, tmp_path):
+def test_open_names_what_is_missing(map_out, extract_out):
+    import nuparquet
     from nuparquet.errors import UsageError
 
     with pytest.raises(UsageError, match="no map of 'atlantis'.*maps: boston-seaport"):
         MapLayers.open(map_out, "atlantis")
-    with pytest.raises(UsageError, match="has no map/ datasets"):
-        MapLayers.open(tmp_path, "boston-seaport")
+    with pytest.raises(UsageError, match="no map of 'atlantis'.*maps: boston-seaport"):
+        nuparquet.open(map_out).map("atlantis")
+    with pytest.raises(UsageError, match="has no map/ datasets"):  # the real extract has no maps/expansion/
+        nuparquet.open(extract_out).map("boston-seaport")

@@ -18,7 +18,7 @@ def labelled(labelled_root, tmp_path_factory):
     from nuparquet.convert import convert
 
     out = tmp_path_factory.mktemp("labelled-q-out") / "out"
-    convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar",), jobs=1)
+    convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar",), workers=1)
     return labelled_root, out
 
 

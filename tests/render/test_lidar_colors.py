@@ -21,7 +21,7 @@ def labelled_images(tmp_path_factory):
     root = synthesize(tmp_path_factory.mktemp("colors") / "data", scenes=1, samples_per_scene=3, with_images=True,
                       with_lidar=True, seed=4, version=SYNTH_VERSION, with_can_bus=False)
     out = tmp_path_factory.mktemp("colors-out") / "out"
-    convert(root, SYNTH_VERSION, out, sensors=("lidar",), jobs=1)
+    convert(root, SYNTH_VERSION, out, sensors=("lidar",), workers=1)
     return root, out
 
 

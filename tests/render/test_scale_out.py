@@ -125,7 +125,7 @@ def test_scenes_and_where_select_the_scenes_rendered(scenes_out, tmp_path):
 
 def test_unknown_scene_or_bad_where_is_refused_before_any_work(scenes_out, tmp_path, capsys):
     assert main(["render", str(scenes_out), "--scenes", "scene-9999", "--out-dir", str(tmp_path / "x"), *SMALL]) == 2
-    assert "unknown scene(s) scene-9999; valid scenes: scene-0001, scene-0002, scene-0003" in capsys.readouterr().err
+    assert "unknown scene 'scene-9999'; valid scenes: scene-0001, scene-0002, scene-0003" in capsys.readouterr().err
     assert main(["render", str(scenes_out), "--where", "no_such_column = 1", "--out-dir", str(tmp_path / "x"),
                  *SMALL]) == 1
     assert "no_such_column" in capsys.readouterr().err

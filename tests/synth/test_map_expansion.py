@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pytest
 
 from nuparquet.synth import synthesize
 from tests.conftest import SYNTH_VERSION

@@ -14,6 +14,7 @@ import shapely
 from nuparquet.convert.builder import BuildContext, Builder
 from nuparquet.map.centerlines import discretize_lanes
 from nuparquet.map.geo import geometry_columns, with_geo_metadata
+from nuparquet.map.layers import DICT_LAYERS, LIST_LAYERS
 from nuparquet.problems import Problem, ProblemsFound
 from nuparquet.sources import map_expansion as source
 from nuparquet.sources.json_records import range_facts
@@ -49,13 +50,13 @@ def build(ctx: BuildContext) -> dict[str, pa.Table]:
                                    "origin_lat_lon": source.ORIGIN_LAT_LON.get(m.location)} for m in maps},
              "units": "metres from the map's south-west corner (x east, y north)"}
     out: dict[str, pa.Table] = {}
-    for layer in source.LIST_LAYERS:
+    for layer in LIST_LAYERS:
         table, layer_problems = _layer_table(maps, layer, entries)
         problems += layer_problems
         if table is not None:
             geometries = np.concatenate([m.geometry[layer] for m in maps]) if maps else np.empty(0, object)
             out[f"map/{layer}"] = with_geo_metadata(table, extra, geometries)
-    for layer in source.DICT_LAYERS:
+    for layer in DICT_LAYERS:
         table, layer_problems = _dict_layer_table(maps, layer, entries)
         problems += layer_problems
         if table is not None:

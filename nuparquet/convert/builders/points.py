@@ -18,15 +18,16 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import polars as pl
 import pyarrow.parquet as pq
 
-from nuparquet.convert.options import ConvertOptions
 from nuparquet.convert.builder import BuildContext, Builder, WrittenParts
 from nuparquet.convert.write import parquet_part_name
 from nuparquet.engine import EngineOptions, WorkUnit, move_parts, run_units
+from nuparquet.engine.backends import default_workers
 from nuparquet.problems import Problem, ProblemsFound
 from nuparquet.progress import Progress
 from nuparquet.convert.scene_points import (
@@ -38,15 +39,14 @@ from nuparquet.convert.scene_points import (
 MAX_LISTED_MISSING = 10_000
 
 
-def run_scene_tasks(tasks: list[SceneTask], directory: Path, options: ConvertOptions,
+def run_scene_tasks(tasks: list[SceneTask], directory: Path, engine: EngineOptions,
                     on_done: Callable[[str], None]) -> list[SceneSummary]:
     """`convert_scene` over `tasks` on the scale-out engine (`nuparquet.engine`: in this process for one job, else
     a local process pool, or Ray with --engine ray), each scene writing into its own part folder; the parts are
     then moved into `directory` as `part-{i:05d}.parquet` in task order. Summaries in task order; a scene whose task
     raised stops the conversion with its name (UnitsFailed)."""
-    engine = EngineOptions(engine=options.engine, workers=options.workers, ray_address=options.ray_address)
-    if engine.engine == "process" and (options.workers <= 1 or len(tasks) <= 1):
-        engine.engine = "serial"  # one job: no worker process to start
+    if engine.engine == "process" and ((engine.workers or default_workers()) <= 1 or len(tasks) <= 1):
+        engine = replace(engine, engine="serial")  # one job: no worker process to start
     parts_dir = directory.parent / f".{directory.name}.parts"
     outcomes = run_units(convert_unit, [WorkUnit(task.scene_name, task) for task in tasks], parts_dir=parts_dir,
                          options=engine, on_progress=_forward(on_done), preload=("nuparquet.convert.scene_points",))
@@ -98,7 +98,7 @@ def build_points(ctx: BuildContext, modality: str, name: str) -> dict[str, Writt
         if ctx.reporter:
             ctx.reporter.advance(step=f"{name} {scene}")
 
-    summaries = run_scene_tasks(tasks, directory, ctx.options, done)
+    summaries = run_scene_tasks(tasks, directory, ctx.engine, done)
     problems = [p for s in summaries for p in s.problems]
     missing = [m for s in summaries for m in s.missing]
     layouts = {s.pcd_layout: s.pcd_file for s in summaries if s.pcd_layout is not None}

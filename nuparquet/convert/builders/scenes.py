@@ -7,7 +7,8 @@ import polars as pl
 
 from nuparquet.columns import to_numpy
 from nuparquet.convert.builders.common import reference_poses
-from nuparquet.convert.lookups import as_int, split_of
+from nuparquet.convert.lookups import as_int
+from nuparquet.splits import known_split
 from nuparquet.convert.builder import BuildContext, Builder
 
 
@@ -47,7 +48,7 @@ def build_scenes(tables: dict[str, pl.DataFrame], references: pl.DataFrame, coun
         )
         .sort("name", "token")
     )
-    return scenes.with_columns(split=split_of(scenes["name"], source_version))
+    return scenes.with_columns(split=known_split(scenes["name"], source_version))
 
 
 def scene_counts(annotations: pl.LazyFrame) -> pl.DataFrame:
