@@ -1,10 +1,94 @@
-"""nuparquet: nuScenes-format datasets as typed, denormalised Parquet."""
+"""nuparquet: nuScenes-format datasets as typed, denormalised Parquet.
+
+```python
+import nuparquet
+nuparquet.convert("/data/nuscenes", "v1.0-mini", "nusc.parquet", sensors=("lidar",))
+ds = nuparquet.open("nusc.parquet")             # a Dataset: scan, sql, boxes, project_boxes, points, map
+ds.boxes(token)                                  # get_sample_data's boxes, for one frame or many
+nuparquet.render(ds, "scene-0061", out="scene-0061.mp4", channel="all")
+```
+
+The verbs are the CLI's commands under the same names, with the same defaults: `convert`, `validate`,
+`export_json` (export-json), `synthesize` (synth), `render` and `render_scenes` (render), `build_index` (index).
+Each takes its options as an options object (`ConvertOptions`, ...) or as keyword fields. Everything loads on
+first use, so `import nuparquet` (and the CLI) stays light.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
+# name -> (module, attribute): the public face, loaded on first use.
+_PUBLIC = {
+    "Dataset": ("nuparquet.dataset", "Dataset"),
+    "convert": ("nuparquet.convert", "convert"),
+    "validate": ("nuparquet.convert", "validate"),
+    "export_json": ("nuparquet.export.json_files", "export_json"),
+    "synthesize": ("nuparquet.synth", "synthesize"),
+    "render": ("nuparquet.render.pipeline", "render"),
+    "render_scenes": ("nuparquet.render.batch", "render_scenes"),
+    "build_index": ("nuparquet.index.build", "build_index"),
+    "ConvertOptions": ("nuparquet.convert.options", "ConvertOptions"),
+    "EngineOptions": ("nuparquet.engine.options", "EngineOptions"),
+    "IndexOptions": ("nuparquet.index.options", "IndexOptions"),
+    "RenderOptions": ("nuparquet.render.options", "RenderOptions"),
+    "SceneSelection": ("nuparquet.render.options", "SceneSelection"),
+    "SynthOptions": ("nuparquet.synth.options", "SynthOptions"),
+    "NuparquetError": ("nuparquet.errors", "NuparquetError"),
+    "UsageError": ("nuparquet.errors", "UsageError"),
+    "InputError": ("nuparquet.errors", "InputError"),
+    "FormatError": ("nuparquet.errors", "FormatError"),
+    "QueryError": ("nuparquet.errors", "QueryError"),
+    "EnvironmentFault": ("nuparquet.errors", "EnvironmentFault"),
+    "ProblemsFound": ("nuparquet.problems", "ProblemsFound"),
+    "UnitsFailed": ("nuparquet.engine.units", "UnitsFailed"),
+}
 
-def open(path):  # noqa: A001 - the public name users asked for: nuparquet.open(OUT)
-    """Open a converted dataset directory (local path or fsspec/object-store URL); see `nuparquet.dataset`."""
+__all__ = [
+    "open", "Dataset", "convert", "validate", "export_json", "synthesize", "render", "render_scenes", "build_index",
+    "ConvertOptions", "EngineOptions", "IndexOptions", "RenderOptions", "SceneSelection", "SynthOptions",
+    "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError", "EnvironmentFault", "ProblemsFound",
+    "UnitsFailed",
+]
+
+
+def open(path, storage_options=None):  # noqa: A001 - the public name users asked for: nuparquet.open(OUT)
+    """Open a converted dataset directory: a local path or a URL polars can scan (``s3://bucket/out``, ...), with
+    `storage_options` in polars' vocabulary for the manifest and every scan. Returns a `Dataset`."""
     from nuparquet.dataset import open_dataset
 
-    return open_dataset(path)
+    return open_dataset(path, storage_options=storage_options)
+
+
+def __getattr__(name: str):
+    if name in _PUBLIC:
+        module, attribute = _PUBLIC[name]
+        value = getattr(importlib.import_module(module), attribute)
+        globals()[name] = value  # found once
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+if TYPE_CHECKING:  # for readers and type checkers; at run time the names load on first use
+    from nuparquet.convert import convert, validate
+    from nuparquet.convert.options import ConvertOptions
+    from nuparquet.dataset import Dataset
+    from nuparquet.engine.options import EngineOptions
+    from nuparquet.engine.units import UnitsFailed
+    from nuparquet.errors import EnvironmentFault, FormatError, InputError, NuparquetError, QueryError, UsageError
+    from nuparquet.export.json_files import export_json
+    from nuparquet.index.build import build_index
+    from nuparquet.index.options import IndexOptions
+    from nuparquet.problems import ProblemsFound
+    from nuparquet.render.batch import render_scenes
+    from nuparquet.render.options import RenderOptions, SceneSelection
+    from nuparquet.render.pipeline import render
+    from nuparquet.synth import synthesize
+    from nuparquet.synth.options import SynthOptions

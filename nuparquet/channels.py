@@ -12,10 +12,9 @@ nuScenes names appear here only as defaults and in docs.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Sequence
-
-import numpy as np
 
 DEFAULT_REFERENCE_LIDAR = "LIDAR_TOP"  # nuScenes' reference sensor, preferred when a dataset has it
 DEFAULT_CAMERA = "CAM_FRONT"  # the default single camera of `render`, when a dataset has it
@@ -39,10 +38,12 @@ def default_camera(cameras: Sequence[str], layout: Sequence[Sequence[str]] | Non
     return cameras[0] if cameras else None
 
 
-def camera_yaw(rotation_wxyz) -> np.ndarray:
+def camera_yaw(rotation_wxyz):
     """(N,) heading in radians of each camera's optical axis (sensor +z) in the ego frame (x forward, y left):
     0 looks forward, +pi/2 to the left, -pi/2 to the right."""
-    from nuparquet.geometry import quaternions  # only here: `channels` is imported by the CLI's option definitions
+    import numpy as np  # only here: `channels` is imported by the CLI's option definitions, which stay light
+
+    from nuparquet.geometry import quaternions
 
     axis = quaternions.rotation_matrices(np.asarray(rotation_wxyz, dtype=np.float64))[..., :, 2]
     return np.arctan2(axis[..., 1], axis[..., 0])
@@ -64,8 +65,8 @@ def camera_layout(cameras: Sequence[str], yaws_rad: Sequence[float] | None = Non
         front = [c for c in cameras if not _word(c, "BACK")]
         back = [c for c in cameras if _word(c, "BACK")]
     else:
-        front = [c for c in cameras if abs(yaw[c]) <= np.pi / 2]
-        back = [c for c in cameras if abs(yaw[c]) > np.pi / 2]
+        front = [c for c in cameras if abs(yaw[c]) <= math.pi / 2]
+        back = [c for c in cameras if abs(yaw[c]) > math.pi / 2]
 
     def side(name: str) -> int:
         return 0 if _word(name, "LEFT") else 2 if _word(name, "RIGHT") else 1
@@ -74,7 +75,7 @@ def camera_layout(cameras: Sequence[str], yaws_rad: Sequence[float] | None = Non
         return (-yaw[name], name) if name in yaw else (side(name), name)
 
     def back_key(name: str):  # BACK_LEFT, BACK, BACK_RIGHT: increasing yaw in [0, 2 pi)
-        return (yaw[name] % (2 * np.pi), name) if name in yaw else (side(name), name)
+        return (yaw[name] % (2 * math.pi), name) if name in yaw else (side(name), name)
 
     rows = [tuple(sorted(front, key=front_key)), tuple(sorted(back, key=back_key))]
     return tuple(row for row in rows if row)
@@ -98,7 +99,7 @@ def channel_facts(channels: Sequence[str], modalities: Sequence[str],
     rotations = camera_rotations_wxyz or {}
     yaws = None
     if cameras and all(c in rotations for c in cameras):
-        yaws = camera_yaw(np.array([rotations[c] for c in cameras], dtype=np.float64)).tolist()
+        yaws = camera_yaw([rotations[c] for c in cameras]).tolist()
     return {
         "reference_lidar": reference_lidar(channels, modalities),
         "cameras": cameras,

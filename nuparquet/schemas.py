@@ -61,6 +61,9 @@ class Schema:
     # Dataset-level key/value metadata written into the Parquet file footer (e.g. GeoParquet's "geo"); values
     # that are not strings are stored as their JSON text.
     metadata: dict = field(default_factory=dict)
+    # Non-empty: the dataset holds further columns, which this text describes (columns that come from the input
+    # itself: a CAN bus message's fields, a map record's fields), typed by inference and kept where they stand.
+    extra: str = ""
 
     @property
     def names(self) -> list[str]:
@@ -174,7 +177,7 @@ def _load(path: Path) -> Schema:
     return Schema(
         name=raw["name"], kind=raw["kind"], version=raw["version"], doc=raw.get("doc", ""), fields=fields,
         source=raw.get("source"), optional=raw.get("optional", False), sort_by=tuple(raw.get("sort_by", ())),
-        metadata=raw.get("metadata", {}),
+        metadata=raw.get("metadata", {}), extra=raw.get("extra", ""),
     )
 
 
@@ -187,8 +190,39 @@ def table_schemas() -> dict[str, Schema]:
 
 @functools.cache
 def dataset_schemas() -> dict[str, Schema]:
-    """The derived datasets (frames, annotations, scenes, instances), by name."""
-    return {s.name: s for s in (_load(p) for p in sorted(_schema_dir().glob("*.json")))}
+    """The derived datasets (frames, annotations, scenes, instances, sample_can_bus, points, the map), by name
+    (`map/<layer>` stands for every record layer of the map expansion)."""
+    paths = sorted(_schema_dir().glob("*.json")) + sorted((_schema_dir() / "map").glob("*.json"))
+    return {s.name: s for s in (_load(p) for p in paths)}
+
+
+def schema_for(dataset: str) -> Schema | None:
+    """The schema of the dataset written as `dataset` (a manifest name): its own, or its family's for map layers
+    (`map/<layer>`, `map/<lane layer>`); None for datasets typed wholly by inference (`can_bus/<message>`, extra
+    source tables)."""
+    schemas = dataset_schemas()
+    if dataset in schemas:
+        return schemas[dataset]
+    if dataset.startswith("map/"):
+        from nuparquet.map.layers import DICT_LAYERS
+
+        return schemas["map/<lane layer>" if dataset.removeprefix("map/") in DICT_LAYERS else "map/<layer>"]
+    if dataset.startswith("tables/"):
+        return table_schemas().get(dataset.removeprefix("tables/"))
+    return None
+
+
+def check_columns(table: pa.Table, schema: Schema) -> None:
+    """AssertionError unless `table` has every field of `schema` with its type (and, for a schema without
+    `extra`, no other column): for datasets whose builder writes its own file metadata (GeoParquet)."""
+    names = table.schema.names
+    for f in schema.fields:
+        if f.name not in names:
+            raise AssertionError(f"{schema.name} lacks column {f.name}")
+        if table.schema.field(f.name).type != f.arrow_type:
+            raise AssertionError(f"{schema.name}.{f.name} is {table.schema.field(f.name).type}, the schema says {f.arrow_type}")
+    if not schema.extra and names != schema.names:
+        raise AssertionError(f"{schema.name} has columns {names}, the schema says {schema.names}")
 
 
 def core_tables() -> list[str]:
@@ -217,6 +251,8 @@ def docs_markdown() -> str:
                 out += [f"Rows sorted by: {', '.join(f'`{c}`' for c in s.sort_by)}.", ""]
             if s.metadata:
                 out += ["File metadata: " + ", ".join(f"`{k}`" for k in s.metadata) + ".", ""]
+            if s.extra:
+                out += [f"Further columns: {s.extra}", ""]
             out += ["| column | type | description |", "|---|---|---|"]
             for f in s.fields:
                 notes = []

@@ -10,6 +10,8 @@ import typing
 from pathlib import Path
 from typing import Any, Literal
 
+FORMATS = ("table", "csv", "json")  # how info, stats and sql print (`cli.output`)
+
 
 def _unwrap_optional(hint: Any) -> Any:
     args = typing.get_args(hint)

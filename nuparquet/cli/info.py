@@ -5,11 +5,6 @@ from __future__ import annotations
 import json
 import sys
 
-import polars as pl
-
-from nuparquet.cli.output import print_frame, records
-from nuparquet.dataset import open_dataset
-
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -39,6 +34,11 @@ def _size(n: int | None) -> str:
 
 
 def run(args) -> int:
+    import polars as pl
+
+    from nuparquet.cli.output import print_frame, records
+    from nuparquet.dataset import open_dataset
+
     ds = open_dataset(args.out)
     inventory = ds.inventory()
     mismatched = inventory.filter(pl.col("manifest_rows").is_not_null() & (pl.col("rows") != pl.col("manifest_rows")))

@@ -10,7 +10,7 @@ from typing import TextIO
 
 import polars as pl
 
-FORMATS = ("table", "csv", "json")
+from nuparquet.cli.arguments import FORMATS  # noqa: F401 - the formats these printers take
 MAX_CELL = 48  # characters of a string cell in table output
 
 

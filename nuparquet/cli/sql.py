@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
-from nuparquet.cli.output import FORMATS, print_frame
-from nuparquet.dataset import open_dataset
+from nuparquet.cli.arguments import FORMATS
+
 
 def register(sub) -> None:
     p = sub.add_parser(
         "sql",
         help="run a polars SQL query over a converted dataset",
         description="Run one SQL query (polars SQL dialect) over the datasets of OUT and print the result. "
-        "Tables: frames, annotations, scenes, instances, and every source table as sample, scene, "
-        "sample_annotation, … (also \"tables/sample\" — quoted, because of the slash — and tables_sample). "
+        "Tables: frames, annotations, scenes, instances, every other converted dataset by its name, and every "
+        "source table as sample, scene, sample_annotation, … (also \"tables/sample\" and tables_sample). A name "
+        "with a slash must be double-quoted: SELECT * FROM \"map/lane\", FROM \"can_bus/pose\", "
+        "FROM \"tables/sample\" (single quotes would make it a string). "
         "Only the columns and row groups the query needs are read. Exit 1 for bad SQL or unknown "
         "tables or columns (the message says what is wrong).",
         epilog="example: nuparquet sql OUT \"SELECT category_name, COUNT(*) AS n FROM annotations "
@@ -30,6 +32,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from nuparquet.cli.output import print_frame
+    from nuparquet.dataset import open_dataset
+
     result = open_dataset(args.out).sql(args.query, allow_file_access=args.allow_file_access)
     print_frame(result, args.format, max_rows=args.max_rows if args.format == "table" else None)
     if args.format == "table":

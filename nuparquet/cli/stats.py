@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import json
 import sys
-
-import polars as pl
+from typing import TYPE_CHECKING
 
 from nuparquet import queries
-from nuparquet.queries.sections import BY_NAME, default_sections
-from nuparquet.cli.output import FORMATS, print_frame, records
-from nuparquet.dataset import open_dataset
+from nuparquet.cli.arguments import FORMATS
 from nuparquet.errors import UsageError
+from nuparquet.queries.sections import BY_NAME, default_sections
+
+if TYPE_CHECKING:
+    import polars as pl
 
 
 
@@ -47,12 +48,16 @@ def register(sub) -> None:
 
 def _mean_std(df: pl.DataFrame, name: str) -> pl.Series:
     """``mean±std`` text with two decimals, as list_categories prints it."""
+    import polars as pl
+
     return pl.Series(name, [f"{m:.2f}\u00b1{s:.2f}" for m, s in zip(df[f"{name}_mean"], df[f"{name}_std"])],
                      dtype=pl.String)
 
 
 def display(section: str, df: pl.DataFrame) -> pl.DataFrame:
     """A narrower, readable version of one section for the terminal (csv/json print the full columns)."""
+    import polars as pl
+
     if df.is_empty():
         return df
     if section.startswith("class_distribution"):
@@ -91,6 +96,11 @@ def display(section: str, df: pl.DataFrame) -> pl.DataFrame:
 
 def run(args) -> int:
     import math
+
+    import polars as pl
+
+    from nuparquet.cli.output import print_frame, records
+    from nuparquet.dataset import open_dataset
 
     if not (math.isfinite(args.bin_width) and args.bin_width > 0):
         raise UsageError(f"--bin-width must be a positive number of metres, got {args.bin_width}")

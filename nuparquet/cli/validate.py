@@ -22,16 +22,15 @@ def register(sub) -> None:
 def run(args) -> int:
     from nuparquet.cli.progress import bars
     from nuparquet.convert import validate
-    from nuparquet.problems import count_problems, format_problems, split_warnings
-    result, found = validate(args.dataroot, args.version, on_progress=bars(not args.quiet))
-    problems, warnings = split_warnings(found)
-    if warnings:
-        print(format_problems(warnings, limit=args.max_problems))
-    if problems:
-        print(format_problems(problems, limit=args.max_problems))
-        n = count_problems(problems)
+    from nuparquet.problems import count_problems, format_problems
+
+    result = validate(args.dataroot, args.version, on_progress=bars(not args.quiet))
+    if result.warnings:
+        print(format_problems(result.warnings, limit=args.max_problems))
+    if result.problems:
+        print(format_problems(result.problems, limit=args.max_problems))
+        n = count_problems(result.problems)
         print(f"{n} problem{'s' if n != 1 else ''} found")
         return 1
-    rows = sum(t.table.num_rows for t in result.tables.values())
-    print(f"ok: {len(result.tables)} tables, {rows:,} records, no problems")
+    print(f"ok: {len(result.records)} tables, {sum(result.records.values()):,} records, no problems")
     return 0

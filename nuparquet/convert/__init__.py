@@ -7,7 +7,7 @@ parser; `render` needs only a path check).
 
 from __future__ import annotations
 
-__all__ = ["convert", "validate"]
+__all__ = ["Validation", "convert", "validate"]
 
 
 def __getattr__(name: str):

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from nuparquet.errors import UsageError
 from nuparquet.options import option
-from nuparquet.sources.points import LIDAR_FIELDS, NUSCENES_LIDAR_COLUMNS
+from nuparquet.sources.point_layout import LIDAR_FIELDS, NUSCENES_LIDAR_COLUMNS
 
 # Scenes per batch when building frames/annotations: ~30k frames each at nuScenes rates (~3k per scene),
 # small enough to keep trainval's peak memory low, large enough that per-batch overhead is negligible.

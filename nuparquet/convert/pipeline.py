@@ -10,7 +10,7 @@ the per-sample datasets never exist whole, only a batch of scenes of them.
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
@@ -33,18 +33,33 @@ from nuparquet.problems import Problem, ProblemsFound, split_warnings
 from nuparquet.progress import OnProgress, Reporter
 from nuparquet.schemas import fingerprint, table_schemas
 from nuparquet.sources.integrity import check_integrity
-from nuparquet.sources.tables import ReadResult, read_tables
+from nuparquet.sources.tables import read_tables
 
-__all__ = ["ConvertOptions", "convert", "validate"]
+__all__ = ["ConvertOptions", "Validation", "convert", "validate"]
 
 
-def validate(dataroot: Path | str, version: str, *, on_progress: OnProgress | None = None) -> tuple[ReadResult, list[Problem]]:
-    """Parse and check a dataroot without converting: (parsed tables, every problem found)."""
+@dataclass(frozen=True)
+class Validation:
+    """What `validate` found: `problems` (each would stop a conversion; file, record index and token named),
+    `warnings` (accepted as the devkit accepts them, worth knowing) and the records read per table."""
+
+    problems: list[Problem]
+    warnings: list[Problem]
+    records: dict[str, int]
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+
+def validate(dataroot: Path | str, version: str, *, on_progress: OnProgress | None = None) -> Validation:
+    """Parse and check `dataroot/version` without converting: every problem and warning found, all at once."""
     with Reporter(on_progress, "validate", total=len(table_schemas()) + 1) as reporter:
         result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"))
         reporter.advance(step="check integrity")
         tables = {name: pl.from_arrow(source.table) for name, source in result.tables.items()}
-        return result, result.problems + check_integrity(tables)
+        problems, warnings = split_warnings(result.problems + check_integrity(tables))
+        return Validation(problems, warnings, {name: frame.height for name, frame in tables.items()})
 
 
 def convert(dataroot: Path | str, version: str, out: Path | str, options: ConvertOptions | None = None, *,

@@ -152,9 +152,16 @@ def _to_arrow(frame: pl.DataFrame | pa.Table) -> pa.Table:
 
 
 def to_schema(frame: pl.DataFrame | pa.Table, schema: Schema) -> pa.Table:
-    """Exactly the columns and Arrow types of `schema` (the single definition in schemas/)."""
-    table = _to_arrow(frame).select(schema.names)
+    """Exactly the columns and Arrow types of `schema` (the single definition in schemas/); a schema with `extra`
+    columns keeps the frame's other columns where they stand, typed as built."""
+    table = _to_arrow(frame)
+    if not schema.extra:
+        table = table.select(schema.names)
     for f in schema.fields:
         if not f.nullable and table.column(f.name).null_count:
             raise AssertionError(f"{schema.name}.{f.name} has nulls but the schema says it cannot")
-    return table.cast(schema.arrow_schema())
+    if not schema.extra:
+        return table.cast(schema.arrow_schema())
+    declared = schema.arrow_schema()
+    fields = [declared.field(name) if name in schema.names else table.schema.field(name) for name in table.schema.names]
+    return table.cast(pa.schema(fields, metadata=declared.metadata))

@@ -5,28 +5,20 @@ lidarseg class counts) is one `Section(...)` entry in `SECTIONS` below; `require
 so a section whose inputs were not converted (no `can_bus/` folder, no `--sensors lidar`) is left out of the
 default run instead of failing.
 
-    Section("can_speed", "CAN speed vs ego pose speed per scene", lambda ds, scene, o: can_speed(ds, scene=scene),
+    Section("can_speed", "CAN speed vs ego pose speed per scene", _query("can_bus:can_speed"),
             requires=("sample_can_bus",))
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
-import polars as pl
-
-from nuparquet.queries.annotations import (
-    attribute_counts, class_distribution, distance_histogram, points_per_box, visibility_by_category,
-)
-from nuparquet.queries.can_bus import brake_throttle, can_speed, speed_over_time, steering_over_time
-from nuparquet.queries.frames import channel_rates, ego_motion, ego_speed_summary
-from nuparquet.queries.map import ego_time_on_surfaces, surfaces_by_category
-from nuparquet.queries.points import has_labels, lidarseg_class_counts, panoptic_instance_stats
-from nuparquet.queries.scenes import scene_summary, track_stats
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    import polars as pl
+
     from nuparquet.dataset import Dataset
     from nuparquet.queries.inputs import Scene
 
@@ -36,6 +28,28 @@ class SectionOptions:
     """Parameters some sections take (the `stats` flags)."""
 
     bin_width_m: float = 10.0
+
+
+def _query(path: str, **fixed: Any) -> Callable[[Dataset, Scene, SectionOptions], pl.LazyFrame]:
+    """The query `module:function` of `nuparquet.queries`, imported when the section runs (the registry itself
+    stays light: `nuparquet stats --help` lists the sections without loading polars)."""
+    module, function = path.split(":")
+
+    def run(ds: Dataset, scene: Scene, options: SectionOptions) -> pl.LazyFrame:
+        query = getattr(importlib.import_module(f"nuparquet.queries.{module}"), function)
+        extra = {"bin_width_m": options.bin_width_m} if function == "distance_histogram" else {}
+        return query(ds, scene=scene, **fixed, **extra)
+
+    return run
+
+
+def _has_labels(kind: str) -> Callable[[Dataset], bool]:
+    def check(ds: Dataset) -> bool:
+        from nuparquet.queries.points import has_labels
+
+        return has_labels(ds, kind)
+
+    return check
 
 
 @dataclass(frozen=True)
@@ -50,47 +64,41 @@ class Section:
 
 SECTIONS: tuple[Section, ...] = (
     Section("scenes", "Scenes (like NuScenes.list_scenes; anns_list_scenes leaves out the last sample as it does)",
-            lambda ds, scene, o: scene_summary(ds, scene=scene)),
+            _query("scenes:scene_summary")),
     Section("class_distribution", "Categories (like NuScenes.list_categories: mean±std, ddof=0)",
-            lambda ds, scene, o: class_distribution(ds, scene=scene)),
-    Section("attributes", "Attributes (like NuScenes.list_attributes)",
-            lambda ds, scene, o: attribute_counts(ds, scene=scene)),
+            _query("annotations:class_distribution")),
+    Section("attributes", "Attributes (like NuScenes.list_attributes)", _query("annotations:attribute_counts")),
     Section("visibility", "Visibility level by category (annotation counts)",
-            lambda ds, scene, o: visibility_by_category(ds, scene=scene)),
+            _query("annotations:visibility_by_category")),
     Section("points_per_box", "Points per box by category (percentiles; zero = share of boxes with no point)",
-            lambda ds, scene, o: points_per_box(ds, scene=scene)),
+            _query("annotations:points_per_box")),
     Section("distance_histogram", "Distance to the ego vehicle by category (annotation counts per bin, metres)",
-            lambda ds, scene, o: distance_histogram(ds, bin_width_m=o.bin_width_m, scene=scene)),
-    Section("tracks", "Tracks (instances) by category", lambda ds, scene, o: track_stats(ds, scene=scene)),
-    Section("ego_speed", "Ego motion per scene (reference lidar keyframe poses)",
-            lambda ds, scene, o: ego_speed_summary(ds, scene=scene)),
-    Section("channel_rates", "Frames per channel (rates measured from timestamps)",
-            lambda ds, scene, o: channel_rates(ds, scene=scene)),
+            _query("annotations:distance_histogram")),
+    Section("tracks", "Tracks (instances) by category", _query("scenes:track_stats")),
+    Section("ego_speed", "Ego motion per scene (reference lidar keyframe poses)", _query("frames:ego_speed_summary")),
+    Section("channel_rates", "Frames per channel (rates measured from timestamps)", _query("frames:channel_rates")),
     Section("can_speed", "CAN bus speed per scene, m/s (vehicle_monitor wheel speed, pose |vel|) vs ego-pose speed",
-            lambda ds, scene, o: can_speed(ds, scene=scene), requires=("can_bus/vehicle_monitor", "can_bus/pose")),
+            _query("can_bus:can_speed"), requires=("can_bus/vehicle_monitor", "can_bus/pose")),
     Section("brake_throttle", "CAN bus pedals per scene (vehicle_monitor: share of messages pressed, mean, max)",
-            lambda ds, scene, o: brake_throttle(ds, scene=scene), requires=("can_bus/vehicle_monitor",)),
+            _query("can_bus:brake_throttle"), requires=("can_bus/vehicle_monitor",)),
     Section("map_surfaces", "Where the boxes are on the map, by category (annotation counts per surface)",
-            lambda ds, scene, o: surfaces_by_category(ds, scene=scene), requires=("map/lane", "map/road_segment")),
+            _query("map:surfaces_by_category"), requires=("map/lane", "map/road_segment")),
     Section("ego_on_map", "Ego keyframes per scene on each map surface (shares; intersection = ego time there)",
-            lambda ds, scene, o: ego_time_on_surfaces(ds, scene=scene), requires=("map/lane", "map/road_segment")),
+            _query("map:ego_time_on_surfaces"), requires=("map/lane", "map/road_segment")),
     Section("lidarseg", "nuScenes-lidarseg: labelled lidar points per class (like NuScenes.list_lidarseg_categories)",
-            lambda ds, scene, o: lidarseg_class_counts(ds, scene=scene), requires=("lidar_points",),
-            when=lambda ds: has_labels(ds, "lidarseg")),
+            _query("points:lidarseg_class_counts"), requires=("lidar_points",), when=_has_labels("lidarseg")),
     Section("panoptic", "Panoptic nuScenes: instances per class (like NuScenes.list_panoptic_instances, ddof=0)",
-            lambda ds, scene, o: panoptic_instance_stats(ds, scene=scene), requires=("lidar_points",),
-            when=lambda ds: has_labels(ds, "panoptic")),
+            _query("points:panoptic_instance_stats"), requires=("lidar_points",), when=_has_labels("panoptic")),
     Section("class_distribution_by_scene", "Categories per scene",
-            lambda ds, scene, o: class_distribution(ds, by_scene=True, scene=scene), default=False),
-    Section("channel_rates_by_scene", "Frames per channel and scene",
-            lambda ds, scene, o: channel_rates(ds, by_scene=True, scene=scene), default=False),
-    Section("ego_motion", "Ego motion over time (reference lidar keyframe poses)",
-            lambda ds, scene, o: ego_motion(ds, scene=scene), default=False),
+            _query("annotations:class_distribution", by_scene=True), default=False),
+    Section("channel_rates_by_scene", "Frames per channel and scene", _query("frames:channel_rates", by_scene=True),
+            default=False),
+    Section("ego_motion", "Ego motion over time (reference lidar keyframe poses)", _query("frames:ego_motion"),
+            default=False),
     Section("can_speed_over_time", "Speed over time: CAN vehicle_monitor, CAN pose and ego pose (m/s)",
-            lambda ds, scene, o: speed_over_time(ds, scene=scene), default=False,
-            requires=("can_bus/vehicle_monitor", "can_bus/pose")),
+            _query("can_bus:speed_over_time"), default=False, requires=("can_bus/vehicle_monitor", "can_bus/pose")),
     Section("steering_over_time", "Steering wheel angle (rad) and yaw rate (rad/s) over time, CAN bus",
-            lambda ds, scene, o: steering_over_time(ds, scene=scene), default=False,
+            _query("can_bus:steering_over_time"), default=False,
             requires=("can_bus/steeranglefeedback", "can_bus/pose")),
 )
 BY_NAME = {s.name: s for s in SECTIONS}

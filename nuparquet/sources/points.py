@@ -22,11 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from nuparquet.errors import InputError
+from nuparquet.sources.point_layout import LIDAR_FIELDS, NUSCENES_LIDAR_COLUMNS  # noqa: F401 - re-exported
 
-# nuScenes' lidar record (devkit LidarPointCloud.from_file reshapes to 5), the one definition of the layout: the
-# lidar_points dataset stores these columns (schemas/lidar_points.json) and `Dataset.points` returns them in order.
-LIDAR_FIELDS = ("x", "y", "z", "intensity", "ring")
-NUSCENES_LIDAR_COLUMNS = len(LIDAR_FIELDS)
 
 # devkit RadarPointCloud default filters (class attributes invalid_states, dynprop_states, ambig_states).
 DEFAULT_INVALID_STATES = (0,)

@@ -36,7 +36,6 @@ from nuparquet.synth.taxonomy import CATEGORY_INDEX, KEYFRAME_INTERVAL_US
 from nuparquet.synth.timeline import Timeline
 from nuparquet.synth.world import SceneWorld
 
-PROFILES = ("regular", "irregular")
 EMPTY_ANNOTATIONS_SUFFIX = "-test"
 CLOCK_STEP_US = 100_000  # devkit render_scene(freq=10)
 TIE_WINDOW_US = 20_000

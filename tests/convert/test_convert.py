@@ -6,13 +6,14 @@ import json
 from pathlib import Path
 
 import polars as pl
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
 from conftest import EXTRACT_VERSION, SYNTH_VERSION
 from nuparquet.cli.main import main
 from nuparquet.export.json_files import export_json
-from nuparquet.schemas import core_tables, dataset_schemas, table_schemas
+from nuparquet.schemas import core_tables, schema_for, table_schemas
 
 
 def _json_tables(root: Path, version: str) -> dict[str, list[dict]]:
@@ -47,14 +48,18 @@ def _assert_schemas(out: Path) -> None:
         if files:
             written = pq.read_schema(files[0])
             assert written.remove_metadata().equals(schema.arrow_schema()), name
-    skipped = json.loads((out / "manifest.json").read_text())["skipped"]
-    for name, schema in dataset_schemas().items():
-        if name in skipped:  # opt-in datasets (lidar_points, radar_points without --sensors)
-            continue
-        if name == "radar_points":  # the PCD header's fields follow: checked in tests/convert/test_points.py
-            continue
+    manifest = json.loads((out / "manifest.json").read_text())
+    for name in manifest["datasets"]:
+        schema = schema_for(name)
+        if schema is None or name.startswith("tables/") or name == "radar_points":
+            continue  # inferred (CAN bus messages); tables above; radar: the PCD header's fields, test_points.py
         written = pq.read_schema(next((out / name).glob("*.parquet")))
-        assert written.remove_metadata().equals(schema.arrow_schema()), name
+        if schema.extra:  # the declared columns with their types, the input's own columns beside them
+            declared = [f for f in written if f.name in schema.names]
+            assert pa.schema(declared).equals(schema.arrow_schema().remove_metadata()), name
+        else:
+            assert written.remove_metadata().equals(schema.arrow_schema()), name
+    assert {"frames", "annotations", "scenes", "instances"} <= set(manifest["datasets"])
 
 
 def test_real_extract_row_counts_match_the_json(extract_root, extract_out):

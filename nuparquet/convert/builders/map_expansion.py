@@ -16,6 +16,7 @@ from nuparquet.map.centerlines import discretize_lanes
 from nuparquet.map.geo import geometry_columns, with_geo_metadata
 from nuparquet.map.layers import DICT_LAYERS, LIST_LAYERS
 from nuparquet.problems import Problem, ProblemsFound
+from nuparquet.schemas import check_columns, schema_for
 from nuparquet.sources import map_expansion as source
 from nuparquet.sources.json_records import range_facts
 
@@ -65,6 +66,8 @@ def build(ctx: BuildContext) -> dict[str, pa.Table]:
         raise ProblemsFound(problems)
     centerlines, lines = _centerlines(maps)
     out["map/lane_centerlines"] = with_geo_metadata(centerlines, extra | {"resolution_m": CENTERLINE_RESOLUTION_M}, lines)
+    for name, table in out.items():  # the files carry their own GeoParquet metadata: checked, not cast
+        check_columns(table, schema_for(name))
     ctx.files += entries
     return out
 

@@ -33,4 +33,4 @@ def build(ctx: BuildContext) -> pl.DataFrame:
     return pl.concat(columns, how="horizontal")
 
 
-BUILDER = Builder("sample_can_bus", build, scope="whole", needs=("can_bus",))
+BUILDER = Builder("sample_can_bus", build, scope="whole", schema="sample_can_bus", needs=("can_bus",))
