@@ -6,7 +6,7 @@ Data: `.bench-cache/map/` — `nuparquet synth --scenes N` (tables only; every s
 location) converted once; the largest `maps/expansion/<location>.json` is measured.
 
 Measured, each side in a fresh process (wall time of each step in-process, peak RSS of the process):
-- load: `NuScenesMap(dataroot, location)` (json.load + indices) vs `MapLayers.open(OUT, location)` (WKB from
+- load: `NuScenesMap(dataroot, location)` (json.load + indices) vs `nuparquet.open(OUT).map(location)` (WKB from
   the GeoParquet, shapely arrays; the STRtrees are built on first use and counted in the first query);
 - layers_on_point and closest_lane (radius 5 m) for `--points` points (half near the roads, half anywhere on the
   map): nuparquet answers all of them; the devkit answers the first `--devkit-points` (its per-point cost is
@@ -77,9 +77,9 @@ def _load_queries() -> tuple[np.ndarray, tuple]:
 def child_ours(root: str, out: str, location: str, n: str) -> None:
     points, patch = _load_queries()
     t0 = time.perf_counter()
-    from nuparquet.map.queries import MapLayers
+    import nuparquet
 
-    m = MapLayers.open(out, location)
+    m = nuparquet.open(out).map(location)
     t1 = time.perf_counter()
     on = m.layers_on_point(points[:, 0], points[:, 1])
     t2 = time.perf_counter()

@@ -107,3 +107,22 @@ def channel_facts(channels: Sequence[str], modalities: Sequence[str],
         "lidars": by_modality.get("lidar", []),
         "radars": by_modality.get("radar", []),
     }
+
+
+def channels_of_dataset(ds) -> dict:
+    """`channel_facts` of a converted output whose manifest predates the "channels" record: from `tables/sensor`
+    and one camera calibration per channel in `tables/calibrated_sensor` (else from `frames`)."""
+    import polars as pl
+
+    if not {"tables/sensor", "tables/calibrated_sensor"} <= set(ds.datasets):
+        present = (ds.scan("frames").select(pl.col("channel").cast(pl.String), pl.col("modality").cast(pl.String))
+                   .unique().sort("channel").collect())
+        return channel_facts(present["channel"].to_list(), present["modality"].to_list())
+    # The sensor table names every channel with its modality; one calibration per channel gives its yaw.
+    sensors = ds.scan("tables/sensor").select("token", "channel", "modality")
+    calibrations = (ds.scan("tables/calibrated_sensor").select("sensor_token", "token", "rotation")
+                    .join(sensors.select(pl.col("token").alias("sensor_token"), "channel"), on="sensor_token")
+                    .sort("channel", "token").unique("channel", keep="first"))
+    sensors_df, calibrations_df = pl.collect_all([sensors, calibrations])
+    rotations = dict(zip(calibrations_df["channel"].to_list(), calibrations_df["rotation"].to_list()))
+    return channel_facts(sensors_df["channel"].to_list(), sensors_df["modality"].to_list(), rotations)

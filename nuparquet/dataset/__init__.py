@@ -15,6 +15,6 @@ ds.map("boston-seaport").layers_on_point(x, y)    # the map expansion
 `storage` (local or object store).
 """
 
-from nuparquet.dataset.core import Dataset, open_dataset
+from nuparquet.dataset.core import Dataset, as_dataset, open_dataset
 
-__all__ = ["Dataset", "open_dataset"]
+__all__ = ["Dataset", "as_dataset", "open_dataset"]

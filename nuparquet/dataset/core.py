@@ -1,5 +1,8 @@
 """`Dataset`: one converted directory, its manifest, a lazy polars scan per dataset, and the questions people ask
-of it first (boxes of frames, projected boxes, points, the map, SQL)."""
+of it first (boxes of frames, projected boxes, points, the map, SQL).
+
+Longer than our ~300-line norm on purpose: it is the face users read, so every method keeps its docstring here,
+while the work is done elsewhere (`frames/`, `map/`, `dataset.sql`, `dataset.manifest`)."""
 
 from __future__ import annotations
 
@@ -11,9 +14,9 @@ from typing import TYPE_CHECKING, Any
 import polars as pl
 
 from nuparquet.dataset.manifest import load_manifest
-from nuparquet.dataset.sql import QUOTING_HINT, file_reading_function, sql_names
+from nuparquet.dataset.sql import run_sql, sql_names
 from nuparquet.dataset.storage import is_url
-from nuparquet.errors import FormatError, QueryError, UsageError
+from nuparquet.errors import FormatError, UsageError
 from nuparquet.format import MANIFEST
 
 if TYPE_CHECKING:
@@ -78,24 +81,10 @@ class Dataset:
         if isinstance(recorded, dict):
             return recorded
         if self._channels is None:
-            self._channels = self._channels_from_data()
+            from nuparquet.channels import channels_of_dataset
+
+            self._channels = channels_of_dataset(self)
         return self._channels
-
-    def _channels_from_data(self) -> dict:
-        from nuparquet.channels import channel_facts
-
-        if not {"tables/sensor", "tables/calibrated_sensor"} <= set(self._entries):
-            present = (self.scan("frames").select(pl.col("channel").cast(pl.String), pl.col("modality").cast(pl.String))
-                       .unique().sort("channel").collect())
-            return channel_facts(present["channel"].to_list(), present["modality"].to_list())
-        # The sensor table names every channel with its modality; one calibration per channel gives its yaw.
-        sensors = self.scan("tables/sensor").select("token", "channel", "modality")
-        calibrations = (self.scan("tables/calibrated_sensor").select("sensor_token", "token", "rotation")
-                        .join(sensors.select(pl.col("token").alias("sensor_token"), "channel"), on="sensor_token")
-                        .sort("channel", "token").unique("channel", keep="first"))
-        sensors_df, calibrations_df = pl.collect_all([sensors, calibrations])
-        rotations = dict(zip(calibrations_df["channel"].to_list(), calibrations_df["rotation"].to_list()))
-        return channel_facts(sensors_df["channel"].to_list(), sensors_df["modality"].to_list(), rotations)
 
     def scene_names(self) -> list[str]:
         """Every scene's name, sorted (read once)."""
@@ -220,26 +209,7 @@ class Dataset:
         only: polars' file-reading table functions (`read_csv('/etc/passwd')`, `read_parquet`, ...) are refused
         unless `allow_file_access` (a notebook user joining their own files may want them).
         """
-        if not allow_file_access:
-            function = file_reading_function(query)
-            if function is not None:
-                raise QueryError(f"SQL reads only this dataset: {function}(...) would read another file (pass "
-                                 "allow_file_access=True, or --allow-file-access, to allow it)")
-        try:
-            result = self.sql_context().execute(query, eager=False)
-            return result if lazy else result.collect()
-        except pl.exceptions.PolarsError as exc:
-            message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-            damaged = self.damaged_files() if "parquet" in message.lower() and not self.is_remote else []
-            if damaged:
-                raise FormatError(f"{damaged[0][0]} is damaged ({damaged[0][1]}); convert the dataset again") from exc
-            hint = ""
-            lowered = message.lower()
-            if "not found" in lowered and ("relation" in lowered or "table" in lowered):
-                derived = [n for n in self.datasets if not n.startswith("tables/")]
-                tables = [n.removeprefix("tables/") for n in self.datasets if n.startswith("tables/")]
-                hint = f" (datasets: {', '.join(derived)}; source tables: {', '.join(tables)}; {QUOTING_HINT})"
-            raise QueryError(f"SQL failed: {message}{hint}") from exc
+        return run_sql(self, query, lazy=lazy, allow_file_access=allow_file_access)
 
     # -- boxes, points, the map -------------------------------------------------------------------------------
 
@@ -354,3 +324,11 @@ def open_dataset(path, *, storage_options: Mapping[str, Any] | None = None) -> D
     """
     root, manifest = load_manifest(path, storage_options)
     return Dataset(root, manifest, storage_options)
+
+
+def as_dataset(dataset_or_path, *, storage_options: Mapping[str, Any] | None = None) -> Dataset:
+    """`dataset_or_path` itself when it is a `Dataset`, else the output it names opened: what every verb that
+    reads a converted directory accepts."""
+    if isinstance(dataset_or_path, Dataset):
+        return dataset_or_path
+    return open_dataset(dataset_or_path, storage_options=storage_options)

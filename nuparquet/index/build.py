@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nuparquet.dataset import Dataset, open_dataset
+from nuparquet.dataset import Dataset, as_dataset
 from nuparquet.errors import UsageError
 from nuparquet.index import bevformer, parquet, records, splits
 from nuparquet.index.compute import compute
@@ -36,7 +36,7 @@ def build_index(path: str | Path | Dataset, options: IndexOptions | None = None,
     `options.out`; returns {split: pickle path} (plus "infos": the Parquet directory when written). Raises
     InputError when the Parquet lacks what is needed."""
     options = resolve(IndexOptions, options, fields)
-    ds = path if isinstance(path, Dataset) else open_dataset(path)
+    ds = as_dataset(path)
     version = splits.converter_version(ds.version, options.version)
     test = version == "v1.0-test"
     wanted = splits.split_names(version) if options.split == "all" else (options.split,)

@@ -1,6 +1,6 @@
 """Map queries over the converted map (`map/<layer>/`), vectorised, with the devkit's answers.
 
-`Dataset.map(location)` (`MapLayers.open(dataset, location)`) reads one location's layers (WKB -> shapely 2 arrays; an STRtree per layer,
+`Dataset.map(location)` reads one location's layers (WKB -> shapely 2 arrays; an STRtree per layer,
 built on first use). Every query takes arrays and answers for all of them at once; none loops over records:
 
 - `layers_on_point(x, y)`: = `NuScenesMap.layers_on_point` for each point: per polygon layer, the first record
@@ -77,17 +77,14 @@ class MapLayers:
 
     @classmethod
     def open(cls, dataset, location: str) -> MapLayers:
-        """One location's map from a conversion's `map/` datasets: `dataset` is a `Dataset` (`Dataset.map(location)`
-        is the usual way here) or the path of a converted directory.
+        """One location's map from the `map/` datasets of `dataset` (a `Dataset`; `Dataset.map(location)` is the
+        usual way here, and keeps what it read).
 
         Raises:
             UsageError: the output has no map datasets, or no map of `location` (the message lists those it has).
         """
-        from nuparquet.dataset import open_dataset
         from nuparquet.errors import UsageError
 
-        if not hasattr(dataset, "scan"):
-            dataset = open_dataset(dataset)
         if "map/lane" not in dataset.datasets:
             raise UsageError(f"{dataset.root} has no map/ datasets: convert a dataroot holding maps/expansion/*.json "
                              "(without --no-map)")

@@ -152,14 +152,14 @@ def render_scenes(dataset_or_path, selection: SceneSelection | None = None, opti
         UnitsFailed: scenes failed (each named with its error). Without `engine.keep_going` the first failure
             stops the job and nothing is committed; with it the other scenes are committed first.
     """
-    from nuparquet.dataset import open_dataset
+    from nuparquet.dataset import as_dataset
 
     selection_fields, render_fields, engine_fields = split_fields(fields, SceneSelection, RenderOptions, EngineOptions)
     selection = resolve(SceneSelection, selection, selection_fields)
     options = resolve(RenderOptions, options, render_fields)
     engine = resolve(EngineOptions, engine, engine_fields)
     check_engine(engine)
-    dataset = dataset_or_path if hasattr(dataset_or_path, "scan") else open_dataset(dataset_or_path)
+    dataset = as_dataset(dataset_or_path)
     _check(dataset, options, selection)
     scenes = select_scenes(dataset, selection)
     out_dir = Path(selection.out_dir)

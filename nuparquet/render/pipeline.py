@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nuparquet.dataset import as_dataset
 from nuparquet.errors import InputError, UsageError
 from nuparquet.frames.boxes import frame_boxes
 from nuparquet.frames.poses import cameras_from_frames
@@ -54,14 +55,6 @@ class RenderResult:
     out: Path | None
     frames_dir: Path | None
     missing: list[str] = field(default_factory=list)
-
-
-def _dataset(dataset_or_path):
-    if hasattr(dataset_or_path, "scan"):
-        return dataset_or_path
-    import nuparquet
-
-    return nuparquet.open(dataset_or_path)
 
 
 def _dataroot(dataset, given) -> Path:
@@ -151,7 +144,7 @@ def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
     """
     options = resolve(RenderOptions, options, fields)
     options.check_targets()
-    dataset = _dataset(dataset_or_path)
+    dataset = as_dataset(dataset_or_path)
     if not dataset.is_remote:  # never write into the converted dataset (--out OUT/manifest.json replaced it)
         from nuparquet.atomic import check_apart
 

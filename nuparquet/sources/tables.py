@@ -15,6 +15,9 @@ read in two passes:
    diagnostic query naming every offending record; an int field with JSON floats is read as float64.
 2. a plain typed read with explicit column types, now known to convert losslessly.
 Fields the schema does not know are kept as their raw JSON text and written back verbatim by export-json.
+
+Longer than our ~300-line norm on purpose: the two passes and the checks between them share one file's
+state; what could be split off already has its module (`table_layouts`, `table_types`, `table_diagnostics`).
 """
 
 from __future__ import annotations

@@ -10,6 +10,9 @@ single-annotation tracks), as instance tracks are in nuScenes.
 
 Only the keyframe states are generated: between keyframes an object moves exactly as the devkit interpolates
 (linear centre, slerp rotation), which is what the painted sweep images show.
+
+Longer than our ~300-line norm on purpose: rows, speed profiles and annotation runs are one model of a
+scene, read together; it is test data's generator, not a library surface.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nuparquet.map.queries import MapLayers
+import nuparquet
 
 pytestmark = pytest.mark.devkit
 
@@ -25,7 +25,8 @@ def _points(nusc_map, rng, n):
 
 @pytest.fixture(scope="module")
 def maps(map_out, devkit_maps):
-    return {location: (devkit_maps[location], MapLayers.open(map_out, location)) for location in sorted(devkit_maps)[:2]}
+    ours = nuparquet.open(map_out)
+    return {location: (devkit_maps[location], ours.map(location)) for location in sorted(devkit_maps)[:2]}
 
 
 def test_layers_on_point_for_many_points(maps):
@@ -107,8 +108,6 @@ def test_open_names_what_is_missing(map_out, extract_out):
     import nuparquet
     from nuparquet.errors import UsageError
 
-    with pytest.raises(UsageError, match="no map of 'atlantis'.*maps: boston-seaport"):
-        MapLayers.open(map_out, "atlantis")
     with pytest.raises(UsageError, match="no map of 'atlantis'.*maps: boston-seaport"):
         nuparquet.open(map_out).map("atlantis")
     with pytest.raises(UsageError, match="has no map/ datasets"):  # the real extract has no maps/expansion/
