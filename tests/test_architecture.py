@@ -1,0 +1,172 @@
+"""The shape of the package, as docs/ARCHITECTURE.md describes it: every module listed there and nothing else, no
+import circle (function-level imports included), the import rules, modules of ~300 lines or a reason, and a
+command line and a front door that start light."""
+
+from __future__ import annotations
+
+import ast
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+PACKAGE = REPO / "nuparquet"
+MAX_LINES = 320  # "~300": a module past this says why in its docstring
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        name = ".".join(path.relative_to(REPO).with_suffix("").parts)
+        out[name.removesuffix(".__init__")] = path
+    return out
+
+
+def _imports(path: Path, package: str, modules: dict[str, Path]) -> set[str]:
+    """The nuparquet modules `path` imports anywhere (functions too), except under `if TYPE_CHECKING:`."""
+    tree = ast.parse(path.read_text())
+    skip = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            skip |= {id(n) for child in node.body for n in ast.walk(child)}
+    found = set()
+    for node in ast.walk(tree):
+        if id(node) in skip or not isinstance(node, (ast.Import, ast.ImportFrom)):
+            continue
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        else:
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(parts + ([base] if base else []))
+            names = [f"{base}.{a.name}" for a in node.names if f"{base}.{a.name}" in modules]
+            if len(names) < len(node.names):
+                names.append(base)
+        for name in names:
+            while name and name not in modules:
+                name = name.rpartition(".")[0]
+            if name.startswith("nuparquet"):
+                found.add(name)
+    return found
+
+
+def _graph() -> dict[str, set[str]]:
+    modules = _modules()
+    graph = {}
+    for name, path in modules.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        graph[name] = _imports(path, package, modules) - {name}
+    return graph
+
+
+def test_architecture_md_lists_every_module_and_no_other():
+    listed = set(re.findall(r"^- `([\w/]+\.py)` — ", (REPO / "docs" / "ARCHITECTURE.md").read_text(), re.M))
+    actual = {str(p.relative_to(PACKAGE)) for p in PACKAGE.rglob("*.py")}
+    assert sorted(actual - listed) == [], "modules missing from docs/ARCHITECTURE.md"
+    assert sorted(listed - actual) == [], "docs/ARCHITECTURE.md lists modules that do not exist"
+
+
+def test_no_import_circle_inside_the_package():
+    graph = _graph()
+    index, low, stack, on_stack, circles = {}, {}, [], set(), []
+
+    def visit(v):  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                circles.append(sorted(component))
+
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10_000))
+    for v in graph:
+        if v not in index:
+            visit(v)
+    assert circles == []
+
+
+def test_the_import_rules_hold():
+    graph = _graph()
+    for name, imported in graph.items():
+        if name.startswith("nuparquet.geometry"):  # numpy only
+            assert all(i.startswith("nuparquet.geometry") for i in imported), (name, imported)
+        if name.startswith("nuparquet.render"):  # never the JSON reader, never the converter
+            assert not {i for i in imported if i.startswith(("nuparquet.convert", "nuparquet.sources.tables",
+                                                             "nuparquet.sources.json_records"))}, name
+        if not name.startswith("nuparquet.cli"):  # the library never imports the command line
+            assert not {i for i in imported if i.startswith("nuparquet.cli")}, name
+        if not name.startswith(("nuparquet.synth", "nuparquet.cli")) and name != "nuparquet":
+            assert not {i for i in imported if i.startswith("nuparquet.synth")}, name  # the generator is input
+
+
+def test_no_module_passes_300_lines_without_saying_why():
+    long = []
+    for path in PACKAGE.rglob("*.py"):
+        text = path.read_text()
+        if text.count("\n") > MAX_LINES and "~300-line" not in (ast.get_docstring(ast.parse(text)) or ""):
+            long.append(str(path.relative_to(REPO)))
+    assert long == []
+
+
+def _loaded_after(code: str) -> set[str]:
+    out = subprocess.run([sys.executable, "-c", f"{code}\nimport sys\nprint(' '.join(sorted(sys.modules)))"],
+                         capture_output=True, text=True, check=True, cwd=REPO)
+    return set(out.stdout.split())
+
+
+@pytest.mark.parametrize("code", [
+    "import nuparquet",
+    "from nuparquet.cli.main import build_parser\nbuild_parser()",
+])
+def test_the_front_door_and_the_cli_parser_load_no_heavy_library(code):
+    loaded = _loaded_after(code)
+    assert not loaded & {"polars", "numpy", "pyarrow", "cv2", "duckdb", "av", "shapely", "matplotlib"}
+
+
+def test_the_front_door_lists_the_face_and_every_name_resolves():
+    import nuparquet
+
+    assert nuparquet.__all__ == [
+        "open", "Dataset", "convert", "validate", "export_json", "synthesize", "render", "render_scenes",
+        "build_index", "ConvertOptions", "EngineOptions", "IndexOptions", "RenderOptions", "SceneSelection",
+        "SynthOptions", "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError",
+        "EnvironmentFault", "ProblemsFound", "UnitsFailed"]
+    from nuparquet.convert import convert
+    from nuparquet.dataset import Dataset
+    from nuparquet.errors import NuparquetError
+
+    assert nuparquet.convert is convert and nuparquet.Dataset is Dataset
+    for name in nuparquet.__all__:
+        value = getattr(nuparquet, name)
+        assert callable(value), name
+        if name.endswith(("Error", "Fault", "Found", "Failed")):
+            assert issubclass(value, NuparquetError), name
+    with pytest.raises(AttributeError, match="no attribute 'nope'"):
+        nuparquet.nope  # noqa: B018
+
+
+def test_every_cli_command_has_its_verb_in_the_front_door():
+    """One verb per command, same names: the CLI's modules and the library's face name the same things."""
+    import nuparquet
+    from nuparquet.cli.main import COMMANDS
+
+    verb = {"synth": "synthesize", "index": "build_index", "info": "open", "stats": "open", "sql": "open"}
+    for command in COMMANDS:
+        assert verb.get(command, command) in nuparquet.__all__, command
