@@ -61,7 +61,7 @@ def make_data(scenes: int) -> Path:
 
 def child_convert(root: str, out: str) -> None:
     start = time.perf_counter()
-    from nuparquet.convert.write import write_parquet
+    from nuparquet.conversion.write import write_parquet
     from nuparquet.sources import can_bus
 
     root_path = Path(root)

@@ -41,7 +41,7 @@ def make_data(scenes: int) -> tuple[Path, Path]:
         return root, out
     shutil.rmtree(CACHE, ignore_errors=True)
     CACHE.mkdir(parents=True)
-    from nuparquet.convert import convert
+    from nuparquet.conversion import convert
     from nuparquet.synth import synthesize
 
     log(f"synthesising {scenes} scenes (tables and maps) into {root}")

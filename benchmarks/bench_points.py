@@ -9,7 +9,7 @@ lidar keyframes of real scene i % 2 under the name scene-i): real clouds, a volu
 dominate. The files stay in the page cache for every contender alike.
 
 Measured, each in a fresh process (wall time, peak RSS; the figure used is timed in-process around the work):
-- ours: `nuparquet.convert.builders.points.run_scene_tasks(tasks, directory, options)` — what `convert --sensors lidar
+- ours: `nuparquet.conversion.builders.points.run_scene_tasks(tasks, directory, options)` — what `convert --sensors lidar
   --jobs N` runs after the tables: per scene, read every .pcd.bin, check it, build the Arrow columns
   (dictionary-encoded token/scene/channel, timestamp, point_index, x/y/z/intensity, ring, null labels) and
   write one zstd Parquet part, whole frames per row group;
@@ -42,7 +42,7 @@ def prepare() -> Path:
     """The extract converted with its lidar points (read row) — also gives the frame lists of the tasks."""
     out = CACHE / "extract-out"
     if not (out / "manifest.json").is_file():
-        from nuparquet.convert import convert
+        from nuparquet.conversion import convert
 
         shutil.rmtree(out, ignore_errors=True)
         log(f"converting {EXTRACT} with --sensors lidar into {out}")
@@ -53,7 +53,7 @@ def prepare() -> Path:
 def _tasks(out: str, scenes: int, directory: str):
     import polars as pl
 
-    from nuparquet.convert.scene_points import SceneTask
+    from nuparquet.conversion.scene_points import SceneTask
 
     frames = (pl.scan_parquet(f"{out}/frames/*.parquet")
               .filter((pl.col("modality").cast(pl.String) == "lidar") & pl.col("is_key_frame"))
@@ -67,7 +67,7 @@ def _tasks(out: str, scenes: int, directory: str):
 
 
 def child_convert(out: str, scenes: str, jobs: str, directory: str) -> None:
-    from nuparquet.convert.builders.points import run_scene_tasks
+    from nuparquet.conversion.builders.points import run_scene_tasks
     from nuparquet.engine import EngineOptions
 
     tasks = _tasks(out, int(scenes), directory)

@@ -28,8 +28,8 @@ ENGINES = (("1 process", "serial", 1), ("2 processes", "process", 2), ("Ray, 2 C
 def child(out: str, engine: str, workers: int, out_dir: str) -> None:
     start = time.perf_counter()
     from nuparquet.engine import EngineOptions
-    from nuparquet.render.batch import render_scenes
-    from nuparquet.render.options import RenderOptions, SceneSelection
+    from nuparquet.rendering.batch import render_scenes
+    from nuparquet.rendering.options import RenderOptions, SceneSelection
 
     import_s = time.perf_counter() - start
     start_s = 0.0

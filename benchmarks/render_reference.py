@@ -19,8 +19,8 @@ import cv2
 import numpy as np
 import polars as pl
 
-from nuparquet.render.decode import decode_image
-from nuparquet.render.video import DEFAULT_CRF, DEFAULT_PRESET, VideoWriter
+from nuparquet.rendering.decode import decode_image
+from nuparquet.rendering.video import DEFAULT_CRF, DEFAULT_PRESET, VideoWriter
 
 
 def bare_decode_encode(
@@ -89,7 +89,7 @@ def bare_mosaic_decode_encode(
 
 
 def _time_render(out_dir: Path, scene: str, all_frames: bool, scale: float, video: Path) -> dict:
-    from nuparquet.render.pipeline import RenderOptions, render
+    from nuparquet.rendering.pipeline import RenderOptions, render
 
     start = time.perf_counter()
     result = render(out_dir, scene, RenderOptions(channel="CAM_FRONT", out=video, all_frames=all_frames, scale=scale))
@@ -107,7 +107,7 @@ def main() -> None:
     args = parser.parse_args()
 
     import nuparquet
-    from nuparquet.convert import convert
+    from nuparquet.conversion import convert
     from nuparquet.synth import synthesize
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -11,7 +11,9 @@ nuparquet.render(ds, "scene-0061", out="scene-0061.mp4", channel="all")
 The verbs are the CLI's commands under the same names, with the same defaults: `convert`, `validate`,
 `export_json` (export-json), `synthesize` (synth), `render` and `render_scenes` (render), `build_index` (index).
 Each takes its options as an options object (`ConvertOptions`, ...) or as keyword fields. Everything loads on
-first use, so `import nuparquet` (and the CLI) stays light.
+first use, so `import nuparquet` (and the CLI) stays light. The packages that hold the verbs are named for what
+they hold (`conversion/`, `rendering/`, ...), never like a verb: importing `nuparquet.render` would otherwise
+replace the function `nuparquet.render` with a module.
 """
 
 from __future__ import annotations
@@ -24,18 +26,18 @@ __version__ = "0.1.0"
 # name -> (module, attribute): the public face, loaded on first use.
 _PUBLIC = {
     "Dataset": ("nuparquet.dataset", "Dataset"),
-    "convert": ("nuparquet.convert", "convert"),
-    "validate": ("nuparquet.convert", "validate"),
+    "convert": ("nuparquet.conversion", "convert"),
+    "validate": ("nuparquet.conversion", "validate"),
     "export_json": ("nuparquet.export.json_files", "export_json"),
     "synthesize": ("nuparquet.synth", "synthesize"),
-    "render": ("nuparquet.render.pipeline", "render"),
-    "render_scenes": ("nuparquet.render.batch", "render_scenes"),
+    "render": ("nuparquet.rendering.pipeline", "render"),
+    "render_scenes": ("nuparquet.rendering.batch", "render_scenes"),
     "build_index": ("nuparquet.index.build", "build_index"),
-    "ConvertOptions": ("nuparquet.convert.options", "ConvertOptions"),
+    "ConvertOptions": ("nuparquet.conversion.options", "ConvertOptions"),
     "EngineOptions": ("nuparquet.engine.options", "EngineOptions"),
     "IndexOptions": ("nuparquet.index.options", "IndexOptions"),
-    "RenderOptions": ("nuparquet.render.options", "RenderOptions"),
-    "SceneSelection": ("nuparquet.render.options", "SceneSelection"),
+    "RenderOptions": ("nuparquet.rendering.options", "RenderOptions"),
+    "SceneSelection": ("nuparquet.rendering.options", "SceneSelection"),
     "SynthOptions": ("nuparquet.synth.options", "SynthOptions"),
     "NuparquetError": ("nuparquet.errors", "NuparquetError"),
     "UsageError": ("nuparquet.errors", "UsageError"),
@@ -77,8 +79,8 @@ def __dir__() -> list[str]:
 
 
 if TYPE_CHECKING:  # for readers and type checkers; at run time the names load on first use
-    from nuparquet.convert import convert, validate
-    from nuparquet.convert.options import ConvertOptions
+    from nuparquet.conversion import convert, validate
+    from nuparquet.conversion.options import ConvertOptions
     from nuparquet.dataset import Dataset
     from nuparquet.engine.options import EngineOptions
     from nuparquet.engine.units import UnitsFailed
@@ -87,8 +89,8 @@ if TYPE_CHECKING:  # for readers and type checkers; at run time the names load o
     from nuparquet.index.build import build_index
     from nuparquet.index.options import IndexOptions
     from nuparquet.problems import ProblemsFound
-    from nuparquet.render.batch import render_scenes
-    from nuparquet.render.options import RenderOptions, SceneSelection
-    from nuparquet.render.pipeline import render
+    from nuparquet.rendering.batch import render_scenes
+    from nuparquet.rendering.options import RenderOptions, SceneSelection
+    from nuparquet.rendering.pipeline import render
     from nuparquet.synth import synthesize
     from nuparquet.synth.options import SynthOptions

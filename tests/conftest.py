@@ -93,7 +93,7 @@ def generated_root(tmp_path_factory, name: str, make) -> Path:
 
 def converted(tmp_path_factory, name: str, root: Path, version: str, **options) -> Path:
     """`nuparquet convert` of `root`/`version` into a fresh temporary OUT (the session's converted fixtures)."""
-    from nuparquet.convert import convert
+    from nuparquet.conversion import convert
 
     out = tmp_path_factory.mktemp(name) / "out"
     convert(root, version, out, **options)

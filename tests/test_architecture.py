@@ -107,8 +107,8 @@ def test_the_import_rules_hold():
     for name, imported in graph.items():
         if name.startswith("nuparquet.geometry"):  # numpy only
             assert all(i.startswith("nuparquet.geometry") for i in imported), (name, imported)
-        if name.startswith("nuparquet.render"):  # never the JSON reader, never the converter
-            assert not {i for i in imported if i.startswith(("nuparquet.convert", "nuparquet.sources.tables",
+        if name.startswith("nuparquet.rendering"):  # never the JSON reader, never the converter
+            assert not {i for i in imported if i.startswith(("nuparquet.conversion", "nuparquet.sources.tables",
                                                              "nuparquet.sources.json_records"))}, name
         if not name.startswith("nuparquet.cli"):  # the library never imports the command line
             assert not {i for i in imported if i.startswith("nuparquet.cli")}, name
@@ -148,11 +148,14 @@ def test_the_front_door_lists_the_face_and_every_name_resolves():
         "build_index", "ConvertOptions", "EngineOptions", "IndexOptions", "RenderOptions", "SceneSelection",
         "SynthOptions", "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError",
         "EnvironmentFault", "ProblemsFound", "UnitsFailed"]
-    from nuparquet.convert import convert
+    import nuparquet.conversion.options  # noqa: F401 - packages imported first must not shadow the verbs
+    import nuparquet.rendering.options  # noqa: F401
+    from nuparquet.conversion import convert
     from nuparquet.dataset import Dataset
     from nuparquet.errors import NuparquetError
+    from nuparquet.rendering.pipeline import render
 
-    assert nuparquet.convert is convert and nuparquet.Dataset is Dataset
+    assert nuparquet.convert is convert and nuparquet.render is render and nuparquet.Dataset is Dataset
     for name in nuparquet.__all__:
         value = getattr(nuparquet, name)
         assert callable(value), name

@@ -10,7 +10,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from nuparquet.convert.write import write_parquet
+from nuparquet.conversion.write import write_parquet
 from nuparquet.schemas import Field, Schema, fingerprint, parse_type
 
 

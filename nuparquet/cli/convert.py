@@ -6,7 +6,7 @@ import sys
 import time
 
 from nuparquet.cli.arguments import add_options, options_from
-from nuparquet.convert.options import ConvertOptions
+from nuparquet.conversion.options import ConvertOptions
 from nuparquet.engine.options import EngineOptions
 
 
@@ -35,7 +35,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from nuparquet.cli.progress import bars
-    from nuparquet.convert import convert
+    from nuparquet.conversion import convert
 
     start = time.perf_counter()
     manifest = convert(args.dataroot, args.version, args.out, options_from(args, ConvertOptions),

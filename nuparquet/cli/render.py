@@ -14,7 +14,7 @@ from nuparquet.cli.arguments import add_options, options_from
 from nuparquet.cli.progress import bars
 from nuparquet.engine.options import EngineOptions
 from nuparquet.errors import UsageError
-from nuparquet.render.options import RenderOptions, SceneSelection
+from nuparquet.rendering.options import RenderOptions, SceneSelection
 
 _EPILOG = """\
 examples:
@@ -70,7 +70,7 @@ def run(args) -> int:
     if args.scene is None:
         raise UsageError("say what to render: --scene NAME (with --out or --frames-dir), or --all-scenes, "
                          "--scenes A,B or --where SQL with --out-dir DIR")
-    from nuparquet.render.pipeline import render  # cv2 and PyAV load only when rendering
+    from nuparquet.rendering.pipeline import render  # cv2 and PyAV load only when rendering
 
     result = render(args.dataset, args.scene, options_from(args, RenderOptions), on_progress=bars(not args.quiet))
     targets = [str(t) for t in (result.out, result.frames_dir) if t is not None]
@@ -89,7 +89,7 @@ def run(args) -> int:
 
 def _run_many(args, selection: SceneSelection) -> int:
     from nuparquet.engine import UnitsFailed
-    from nuparquet.render.batch import render_scenes
+    from nuparquet.rendering.batch import render_scenes
 
     if args.scene is not None:
         raise UsageError("--scene renders one scene; with --all-scenes, --scenes or --where leave it out")

@@ -21,7 +21,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from nuparquet.cli.progress import bars
-    from nuparquet.convert import validate
+    from nuparquet.conversion import validate
     from nuparquet.problems import count_problems, format_problems
 
     result = validate(args.dataroot, args.version, on_progress=bars(not args.quiet))

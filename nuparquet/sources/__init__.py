@@ -1,6 +1,6 @@
 """The inputs of a conversion: one module per kind of source file, each with its own reader, reporting bad input
 as `nuparquet.problems.Problem`s (file relative to the dataroot, record index, token). A source returns Arrow
-tables; the builders in `nuparquet/convert/builders/` turn them into datasets, and `export-json` writes each
+tables; the builders in `nuparquet/conversion/builders/` turn them into datasets, and `export-json` writes each
 converted JSON file back by the `kind` the manifest records for it (`nuparquet/export/json_files.py`).
 
 - `tables` (+ `json_records`, `strict_json`, `table_types`, `table_layouts`, `table_diagnostics`): the JSON

@@ -8,7 +8,7 @@ the painted cuboids on every frame, keyframe or sweep.
 
 - Cameras (JPEG, 1600x900 on the nuScenes rig): a sky-to-ground gradient, then every box whose eight corners are all at least
   0.1 m in front of the camera, far to near, as the filled convex hull of its projected corners in its
-  category's colour (nuparquet.render.palette), outlined in a darker shade.
+  category's colour (nuparquet.rendering.palette), outlined in a darker shade.
 - Lidar (float32 rows x, y, z, intensity, ring in the lidar's own frame): `num_lidar_pts` points on the
   sensor-facing faces of each box (just inside them) and ring-pattern returns from the ground plane z = 0
   outside the boxes' footprints.
@@ -24,7 +24,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from nuparquet.render.palette import category_rgb
+from nuparquet.rendering.palette import category_rgb
 from nuparquet.synth.plan import Rig
 from nuparquet.synth.rigid import (
     box_corners, invert_rigid, quat_slerp, quat_to_matrix, rigid_matrix, transform_points,

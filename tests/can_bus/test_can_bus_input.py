@@ -12,7 +12,7 @@ import pytest
 
 from conftest import SYNTH_VERSION
 from nuparquet.cli.main import main
-from nuparquet.convert import convert
+from nuparquet.conversion import convert
 from nuparquet.export.json_files import export_json
 
 V = SYNTH_VERSION

@@ -119,7 +119,7 @@ def test_real_extract_mutations_round_trip_exactly_or_are_refused_cleanly(extrac
                                                                          seed):
     """The real extract's tables (5,049 annotations, 6,285 sample_data): only tables/ is built here (the derived
     datasets run in the synthetic cases above), so 150 cases stay near a minute."""
-    import nuparquet.convert.pipeline as convert_module
+    import nuparquet.conversion.pipeline as convert_module
 
     monkeypatch.setattr(convert_module, "BUILDERS", ())
     run_case(extract_root, EXTRACT_VERSION, tmp_path, capsys, seed)

@@ -15,7 +15,7 @@ from shapely.geometry import MultiPolygon
 
 from conftest import SYNTH_VERSION
 from nuparquet.cli.main import main
-from nuparquet.convert import convert
+from nuparquet.conversion import convert
 from nuparquet.export.json_files import export_json
 
 POLYGON_LAYERS = ["drivable_area", "road_segment", "road_block", "lane", "ped_crossing", "walkway", "stop_line",

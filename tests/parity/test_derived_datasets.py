@@ -203,7 +203,7 @@ def test_distance_to_ego_is_null_without_a_reference_keyframe(synth_root, tmp_pa
     """The schema promises null (not NaN) when a sample has no LIDAR_TOP keyframe."""
     import shutil
 
-    from nuparquet.convert import convert
+    from nuparquet.conversion import convert
 
     shutil.copytree(synth_root / SYNTH_VERSION, tmp_path / "data" / SYNTH_VERSION)
     path = tmp_path / "data" / SYNTH_VERSION / "sensor.json"
@@ -247,7 +247,7 @@ def test_track_and_ego_path_lengths_follow_time_not_the_order_of_the_json(irregu
     import random
     import shutil
 
-    from nuparquet.convert import convert
+    from nuparquet.conversion import convert
 
     root = tmp_path / "shuffled"
     shutil.copytree(irregular_root / IRREGULAR_VERSION, root / IRREGULAR_VERSION)

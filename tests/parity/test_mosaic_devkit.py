@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import nuparquet
-from nuparquet.render.plan import camera_rows_per_output
-from nuparquet.render.scene import load_scene
+from nuparquet.rendering.plan import camera_rows_per_output
+from nuparquet.rendering.scene import load_scene
 from conftest import IRREGULAR_VERSION
 
 os.environ.setdefault("MPLBACKEND", "Agg")  # the devkit's explorer imports pyplot; never open a window

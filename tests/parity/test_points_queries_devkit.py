@@ -15,7 +15,7 @@ from conftest import EXTRACT_VERSION, SYNTH_VERSION
 
 @pytest.fixture(scope="module")
 def labelled(labelled_root, tmp_path_factory):
-    from nuparquet.convert import convert
+    from nuparquet.conversion import convert
 
     out = tmp_path_factory.mktemp("labelled-q-out") / "out"
     convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar",), workers=1)

@@ -78,7 +78,7 @@ def test_ego_time_on_surfaces_match_the_devkit(map_root, map_out, devkit_maps):
 
 def test_map_sections_join_the_default_stats_when_map_was_converted(map_out, synth_out, tmp_path):
     assert {"map_surfaces", "ego_on_map"} <= set(default_sections(nuparquet.open(map_out)))
-    from nuparquet.convert import convert
+    from nuparquet.conversion import convert
     convert_out = tmp_path / "no-map"
     manifest = json.loads((synth_out / "manifest.json").read_text())
     convert(manifest["source"]["dataroot"], manifest["source"]["version"], convert_out, no_map=True)

@@ -297,7 +297,7 @@ def test_cli_exits_2_for_zero_scenes(tmp_path, capsys):
 def test_palette_is_the_devkit_colormap():
     from nuscenes.utils.color_map import get_colormap
 
-    from nuparquet.render.palette import CATEGORY_RGB, category_rgb
+    from nuparquet.rendering.palette import CATEGORY_RGB, category_rgb
 
     assert CATEGORY_RGB == get_colormap()
     assert category_rgb("vehicle.car") == (255, 158, 0)

@@ -1,0 +1,100 @@
+"""`annotations/`: one row per sample_annotation, joined, with velocity (as the devkit's box_velocity), yaw and
+distance to the ego vehicle."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+
+from nuparquet.geometry import quaternions
+from nuparquet.columns import to_numpy
+from nuparquet.conversion.builders.common import reference_poses, samples
+from nuparquet.conversion.builder import BuildContext, Builder, SceneBatch
+
+# devkit NuScenes.box_velocity's default: neighbours further apart than this (doubled for a centred
+# difference) give NaN.
+MAX_VELOCITY_TIME_DIFF_S = 1.5
+
+
+def build_annotations(tables: dict[str, pl.DataFrame], annotations: pl.DataFrame, samples: pl.DataFrame,
+                      references: pl.DataFrame) -> pl.DataFrame:
+    """One row per row of `annotations` (sample_annotation rows of a batch of scenes). `references` is
+    `lookups.reference_poses(tables, samples)`."""
+    names = dict(zip(tables["attribute"]["token"].to_list(), tables["attribute"]["name"].to_list()))  # a handful
+    ann = annotations.with_columns(attribute_names=pl.col("attribute_tokens").list.eval(
+        pl.element().replace_strict(names, return_dtype=pl.String)))
+    ego = references.select("sample_token", pl.col("ego_translation").alias("_ego"))
+    ann = (
+        ann.lazy()
+        .join(samples.lazy(), on="sample_token", how="left")
+        .rename({"sample_timestamp": "timestamp"})
+        .join(tables["instance"].lazy().select(pl.col("token").alias("instance_token"), "category_token"),
+              on="instance_token", how="left")
+        .join(tables["category"].lazy().select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
+              on="category_token", how="left")
+        .join(ego.lazy(), on="sample_token", how="left")
+        .join(visibility_levels(tables["visibility"]).lazy(), on="visibility_token", how="left")
+        .collect()
+    )
+    translation = to_numpy(ann["translation"], (3,))
+    ann = ann.with_columns(
+        velocity=pl.Series(box_velocity(ann), dtype=pl.Array(pl.Float64, 3)),
+        yaw=pl.Series(quaternions.yaw_from_quaternions(to_numpy(ann["rotation"], (4,)))),
+        distance_to_ego_m=pl.Series(_xy_distance(translation, ann["_ego"])).fill_nan(None),
+    )
+    return ann.drop("_ego", "category_token").sort("scene_name", "timestamp", "instance_token", "token")
+
+
+def visibility_levels(visibility: pl.DataFrame) -> pl.DataFrame:
+    """visibility_token -> visibility_level (ordinal), visibility_name, visibility_description, from the table.
+
+    The ordinal exists only where the table gives one: levels that are numeric ranges ("v0-40", "v40-60", ...),
+    ranked by their lower bound (nuScenes: 1..4). Worded levels (T4: "full", "most", ...) get none; the token is
+    never parsed (T4's tokens are hashes)."""
+    bounds = visibility["level"].str.extract(r"^v?(\d+(?:\.\d+)?)\s*-\s*\d+(?:\.\d+)?%?$", 1).cast(pl.Float64, strict=False)
+    ranked = bounds.rank("dense").cast(pl.Int8) if bounds.null_count() == 0 and len(bounds) else pl.repeat(
+        None, len(visibility), dtype=pl.Int8, eager=True)
+    return visibility.select(pl.col("token").alias("visibility_token"),
+                             ranked.alias("visibility_level"), pl.col("level").alias("visibility_name"),
+                             pl.col("description").alias("visibility_description"))
+
+
+def _xy_distance(translation: np.ndarray, ego: pl.Series) -> np.ndarray:
+    """xy distance of each box centre to its ego position; NaN where there is none (null rows are NaN rows)."""
+    return np.linalg.norm(translation[:, :2] - to_numpy(ego, (3,))[:, :2], axis=1)
+
+
+def box_velocity(ann: pl.DataFrame) -> np.ndarray:
+    """(N, 3) velocities exactly as devkit `NuScenes.box_velocity(token, max_time_diff=1.5)`.
+
+    first = prev (or the annotation itself at a track start), last = next (or itself at a track end);
+    v = (pos_last - pos_first) / (1e-6 * t_last - 1e-6 * t_first) with *sample* timestamps; NaN for a
+    track of one, or when the gap exceeds 1.5 s (3 s for a centred difference).
+    """
+    index = pl.DataFrame({"token": ann["token"], "_i": np.arange(ann.height)})
+
+    def position_of(column: str) -> np.ndarray:
+        joined = ann.select(pl.col(column).alias("token")).join(index, on="token", how="left", maintain_order="left")
+        return joined["_i"].fill_null(-1).to_numpy()
+
+    own = np.arange(ann.height)
+    prev_i, next_i = position_of("prev"), position_of("next")
+    has_prev, has_next = prev_i >= 0, next_i >= 0
+    first = np.where(has_prev, prev_i, own)
+    last = np.where(has_next, next_i, own)
+    translation = to_numpy(ann["translation"], (3,))
+    seconds = 1e-6 * ann["timestamp"].to_numpy().astype(np.float64)  # the devkit's 1e-6 * timestamp
+    time_diff = seconds[last] - seconds[first]
+    limit = np.where(has_prev & has_next, 2 * MAX_VELOCITY_TIME_DIFF_S, MAX_VELOCITY_TIME_DIFF_S)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        velocity = (translation[last] - translation[first]) / time_diff[:, None]
+    invalid = ~(has_prev | has_next) | (time_diff > limit)
+    velocity[invalid] = np.nan
+    return velocity
+
+
+def build(ctx: BuildContext, batch: SceneBatch) -> pl.DataFrame:
+    return build_annotations(ctx.tables, batch.rows["sample_annotation"], samples(ctx), reference_poses(ctx))
+
+
+BUILDER = Builder("annotations", build, schema="annotations")

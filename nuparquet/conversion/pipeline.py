@@ -1,0 +1,153 @@
+"""`nuparquet convert`: nuScenes JSON -> typed tables/ + every registered dataset (frames, annotations, scenes,
+instances, ...; see `registry.py`).
+
+    read the sources (DuckDB) -> tables/ -> validate (polars) -> registered datasets, a batch of scenes at a
+    time (`run.py`) -> manifest -> rename into place
+
+Memory: each source table exists once as Arrow (until its tables/ file is written) and then once as polars;
+the per-sample datasets never exist whole, only a batch of scenes of them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+import polars as pl
+
+from nuparquet import __version__
+from nuparquet.atomic import atomic_directory, check_apart, check_target
+from nuparquet.channels import channel_facts
+from nuparquet.conversion.builder import BuildContext
+from nuparquet.conversion.options import ConvertOptions
+from nuparquet.conversion.registry import BUILDERS
+from nuparquet.conversion.run import build_datasets, count_steps
+from nuparquet.conversion.write import utc_now, write_manifest, write_parquet
+from nuparquet.engine.options import EngineOptions
+from nuparquet.engine.run import check_engine
+from nuparquet.errors import EnvironmentFault, UsageError
+from nuparquet.format import FORMAT_NAME, FORMAT_VERSION
+from nuparquet.options import resolve, split_fields
+from nuparquet.problems import Problem, ProblemsFound, split_warnings
+from nuparquet.progress import OnProgress, Reporter
+from nuparquet.schemas import fingerprint, table_schemas
+from nuparquet.sources.integrity import check_integrity
+from nuparquet.sources.tables import read_tables
+
+__all__ = ["ConvertOptions", "Validation", "convert", "validate"]
+
+
+@dataclass(frozen=True)
+class Validation:
+    """What `validate` found: `problems` (each would stop a conversion; file, record index and token named),
+    `warnings` (accepted as the devkit accepts them, worth knowing) and the records read per table."""
+
+    problems: list[Problem]
+    warnings: list[Problem]
+    records: dict[str, int]
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+
+def validate(dataroot: Path | str, version: str, *, on_progress: OnProgress | None = None) -> Validation:
+    """Parse and check `dataroot/version` without converting: every problem and warning found, all at once."""
+    with Reporter(on_progress, "validate", total=len(table_schemas()) + 1) as reporter:
+        result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"))
+        reporter.advance(step="check integrity")
+        tables = {name: pl.from_arrow(source.table) for name, source in result.tables.items()}
+        problems, warnings = split_warnings(result.problems + check_integrity(tables))
+        return Validation(problems, warnings, {name: frame.height for name, frame in tables.items()})
+
+
+def convert(dataroot: Path | str, version: str, out: Path | str, options: ConvertOptions | None = None, *,
+            engine: EngineOptions | None = None, on_progress: OnProgress | None = None, **fields: Any) -> dict:
+    """Convert `dataroot/version` into the dataset directory `out`; returns the manifest.
+
+    `options` (`ConvertOptions`) and `engine` (`EngineOptions`: where `--sensors` scenes run) may also be given as
+    keyword fields of either (`overwrite=True`, `sensors=("lidar",)`, `workers=2`). Progress goes to `on_progress`
+    (see `nuparquet.progress`). Raises ProblemsFound (naming file, record and token of each problem) if the input
+    is malformed or inconsistent, UsageError for bad paths or options or an existing `out` without `overwrite`.
+    """
+    convert_fields, engine_fields = split_fields(fields, ConvertOptions, EngineOptions)
+    opts = resolve(ConvertOptions, options, convert_fields)
+    engine = resolve(EngineOptions, engine, engine_fields)
+    if not version or not str(version).strip():
+        raise UsageError("--version must name the version folder (e.g. v1.0-mini)")
+    check_apart(out, dataroot, what="the dataroot")
+    check_target(out, overwrite=opts.overwrite)
+    if opts.sensors:
+        check_engine(engine)  # Ray installed: say so before the tables are converted, not after
+    try:
+        return _convert(dataroot, version, out, opts, engine, on_progress)
+    except OSError as exc:  # the machine refused (read-only folder, full disk): the partial output is already gone
+        where = str(exc.filename or out)
+        if Path(where).name.startswith(f".{Path(out).name}.partial-"):  # the hidden folder is ours; name what the user gave
+            where = f"cannot write {out} in {Path(out).parent}"
+        raise EnvironmentFault(f"{where}: {exc.strerror or exc}") from exc
+
+
+def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertOptions, engine: EngineOptions,
+             on_progress: OnProgress | None) -> dict:
+    with Reporter(on_progress, "convert", total=2 * len(table_schemas()) + 2) as reporter, \
+            atomic_directory(Path(out), overwrite=opts.overwrite) as tmp:
+        result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"))
+        datasets: dict[str, dict] = {}
+        files: list[dict] = []
+        tables: dict[str, pl.DataFrame] = {}
+        for name, source in result.tables.items():
+            reporter.advance(step=f"write tables/{name}")
+            size = write_parquet(source.table, tmp / "tables" / name)
+            datasets[f"tables/{name}"] = {"path": f"tables/{name}", "rows": source.table.num_rows,
+                                          "schema_fingerprint": fingerprint(source.table.schema), "bytes": size}
+            entry = {"path": f"{version}/{source.path.name}", "kind": "table", "dataset": f"tables/{name}"}
+            if source.inferred is not None:  # an extra table (T4's object_ann, ...): typed by inference
+                entry |= {"kind": "table_inferred", **source.inferred}
+            files.append(entry)
+            tables[name] = pl.from_arrow(source.table)
+            source.table = None  # the polars copy is all we need from here on
+        reporter.advance(step="check integrity")
+        problems, warnings = split_warnings(result.problems + check_integrity(tables))
+        if problems:
+            raise ProblemsFound(problems)
+        channels = _channel_facts(tables)
+        ctx = BuildContext(Path(dataroot), version, opts, engine, tables, tmp, reporter)
+        reporter.grow(count_steps(ctx, BUILDERS))
+        built, skipped = build_datasets(ctx, BUILDERS)
+        manifest = {
+            "format": FORMAT_NAME,
+            "format_version": FORMAT_VERSION,
+            "nuparquet_version": __version__,
+            "created_utc": utc_now(),
+            "source": {"dataroot": str(Path(dataroot).resolve()), "version": version, "files": result.files},
+            "options": _recorded_options(opts, engine),
+            "datasets": datasets | built,
+            "skipped": skipped,
+            "channels": channels,
+            "warnings": [str(w) for w in warnings] + ctx.warnings,
+            "files": files + ctx.files,
+            "tables": {name: {"key_order": s.key_order, "float_fields": s.float_fields, "json_fields": s.json_fields,
+                              **({"layouts": s.layouts} if s.layouts else {})}
+                       for name, s in result.tables.items() if s.inferred is None},
+        }
+        reporter.advance(step="write manifest")
+        write_manifest(tmp, manifest)
+    return manifest
+
+
+def _recorded_options(opts: ConvertOptions, engine: EngineOptions) -> dict:
+    """The options manifest.json records: the conversion's own, then where its points were converted."""
+    recorded = {f.name: getattr(opts, f.name) for f in fields(opts) if f.name != "overwrite"}
+    return recorded | {"jobs": engine.workers or 0, "engine": engine.engine, "ray_address": engine.ray_address}
+
+
+def _channel_facts(tables: dict[str, pl.DataFrame]) -> dict:
+    """The dataset's channels (`nuparquet.channels.channel_facts`): names, modalities, one calibration's yaw each."""
+    sensors = tables["sensor"]
+    calibrations = (tables["calibrated_sensor"].join(sensors.select(pl.col("token").alias("sensor_token"), "channel"),
+                                                on="sensor_token")
+                    .sort("channel", "token").unique("channel", keep="first", maintain_order=True))
+    rotations = dict(zip(calibrations["channel"].to_list(), calibrations["rotation"].to_list()))
+    return channel_facts(sensors["channel"].to_list(), sensors["modality"].to_list(), rotations)

@@ -1,0 +1,148 @@
+"""Lidar points for camera tiles: each keyframe camera row paired with its sample's reference-lidar keyframe,
+the poses read once from the stored transforms, the points projected straight into the tile's camera.
+
+Points come from `lidar_points/` when the output has them (`convert --sensors lidar`; `ds.points` reads only the
+frame's row groups), else from the `.pcd.bin` files. Colours (`--lidar-color`): depth (default), intensity (the
+devkit's `render_intensity` scaling), lidarseg (the category colours, `palette.category_rgb`, which are the
+devkit's colormap for nuScenes names and a stable hash colour for others) or panoptic (one stable colour per
+instance; points without an instance in their class colour). Labels need `lidar_points/` with labels.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+import polars as pl
+
+from nuparquet.geometry import Cameras
+from nuparquet.errors import UsageError
+from nuparquet.rendering.palette import category_rgb
+from nuparquet.sources.points import read_lidar_bin
+from nuparquet.frames.poses import sensor_poses
+from nuparquet.frames.points_in_image import lidar_for_cameras, points_in_image
+from nuparquet.rendering.options import LIDAR_COLORS
+
+_LABEL_COLUMN = {"lidarseg": "lidarseg_label", "panoptic": "panoptic_label"}
+_POINT_COLUMNS = ["x", "y", "z", "intensity"]
+
+
+def intensity_levels(intensity: np.ndarray) -> np.ndarray:
+    """(P,) values in [0, 0.5] the devkit colours by when `render_intensity=True`: min-max scaled over the whole
+    cloud, to the power 0.1, minus 0.5, floored at 0."""
+    intensity = np.asarray(intensity, dtype=np.float64)
+    span = intensity.max() - intensity.min() if intensity.size else 0.0
+    scaled = (intensity - intensity.min()) / span if span > 0 else np.zeros_like(intensity)
+    return np.maximum(0.0, scaled ** 0.1 - 0.5)
+
+
+def label_colors_rgb(labels: np.ndarray, mode: str, names_by_index: dict[int, str]) -> np.ndarray:
+    """(P, 3) uint8 RGB of point labels: lidarseg -> the class colour; panoptic -> a stable colour per label
+    with an instance id (label % 1000 > 0), else the class colour of label // 1000."""
+    labels = np.asarray(labels, dtype=np.int64)
+    unique, inverse = np.unique(labels, return_inverse=True)
+    colours = np.zeros((unique.size, 3), dtype=np.uint8)
+    for k, label in enumerate(unique.tolist()):
+        index = label if mode == "lidarseg" else label // 1000
+        if mode == "panoptic" and label % 1000:
+            digest = hashlib.md5(str(label).encode()).digest()
+            colours[k] = [40 + b % 176 for b in digest[:3]]
+        else:
+            colours[k] = category_rgb(names_by_index.get(index, f"class {index}"))
+    return colours[inverse.reshape(-1)]
+
+
+@dataclass(frozen=True)
+class CloudReader:
+    """The reference-lidar clouds of a render, by lidar row: read from `lidar_points/` when the output has them,
+    else from their files, with the labels the colour mode needs; and their colours. Shared by the camera tiles and
+    the bird's-eye view."""
+
+    paths: list[str]  # (L,) point cloud files
+    tokens: list[str] = field(default_factory=list)  # (L,) sample_data tokens (to read lidar_points/)
+    dataset: object | None = None  # a nuparquet Dataset holding lidar_points/, else None: read the files
+    color: str = "depth"
+    names_by_index: dict[int, str] = field(default_factory=dict)  # category index -> name (label colours)
+
+    @classmethod
+    def build(cls, lidar: pl.DataFrame, dataroot: Path, *, dataset=None, color: str = "depth") -> CloudReader:
+        """For the lidar rows `lidar` (`filename`, `token`); UsageError if `color` needs labels the output lacks."""
+        if color not in LIDAR_COLORS:
+            raise UsageError(f"--lidar-color must be one of {', '.join(LIDAR_COLORS)}, got {color!r}")
+        has_points = dataset is not None and "lidar_points" in getattr(dataset, "datasets", ())
+        names: dict[int, str] = {}
+        if color in _LABEL_COLUMN:
+            from nuparquet.queries.points import has_labels
+
+            if not has_points or not has_labels(dataset, color):
+                raise UsageError(f"--lidar-color {color} needs lidar_points/ with {color} labels (convert the "
+                                 "dataroot with --sensors lidar; its lidarseg/panoptic files must be present)")
+            categories = dataset.scan("tables/category").select("index", "name").drop_nulls("index").collect()
+            names = dict(zip(categories["index"].to_list(), categories["name"].to_list()))
+        return cls([str(dataroot / name) for name in lidar["filename"].to_list()],
+                   lidar["token"].to_list() if "token" in lidar.columns else [], dataset if has_points else None,
+                   color, names)
+
+    def cloud(self, lidar: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """(P, 4) x, y, z, intensity of lidar row `lidar` and its (P,) labels for the colour mode (or None):
+        from lidar_points/ when the frame was converted, else from its file."""
+        label = _LABEL_COLUMN.get(self.color)
+        if self.dataset is not None and self.tokens:
+            try:
+                frame = self.dataset.points(self.tokens[lidar], columns=_POINT_COLUMNS + ([label] if label else []))
+            except UsageError:  # this frame is not in lidar_points/ (its file was missing at conversion)
+                frame = None
+            if frame is not None:
+                labels = frame[label].to_numpy() if label else None
+                return frame.select(_POINT_COLUMNS).to_numpy().astype(np.float32), labels
+        if label:
+            raise FileNotFoundError(self.paths[lidar])
+        return read_lidar_bin(self.paths[lidar])[:, :4], None
+
+    def colors_bgr(self, points: np.ndarray, labels: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
+        """(K, 3) BGR uint8 colours of the kept points `index`, or None for the depth colouring."""
+        if self.color == "depth":
+            return None
+        if self.color == "intensity":
+            levels = np.rint(255.0 * 2.0 * intensity_levels(points[:, 3])[index]).astype(np.uint8)  # [0, .5] -> [0, 255]
+            return cv2.applyColorMap(levels.reshape(-1, 1), cv2.COLORMAP_VIRIDIS).reshape(-1, 3)
+        return label_colors_rgb(labels[index], self.color, self.names_by_index)[:, ::-1].copy()
+
+
+@dataclass(frozen=True)
+class LidarPoints:
+    """The lidar keyframes of a render and, per camera row, which one it shows."""
+
+    tile_cameras: Cameras  # (F,) the cameras of the camera rows, resized to the tile
+    lidar_of_camera: np.ndarray  # (F,) row of the lidar keyframe each camera row shows, -1 for none
+    global_from_ego: np.ndarray  # (L, 4, 4)
+    ego_from_sensor: np.ndarray  # (L, 4, 4)
+    reader: CloudReader
+
+    @classmethod
+    def build(cls, tile_cameras: Cameras, cameras: pl.DataFrame, lidar: pl.DataFrame, dataroot: Path, *,
+              dataset=None, color: str = "depth") -> LidarPoints:
+        reader = CloudReader.build(lidar, dataroot, dataset=dataset, color=color)
+        global_from_ego, ego_from_sensor = sensor_poses(lidar)
+        return cls(tile_cameras, lidar_for_cameras(cameras, lidar), global_from_ego, ego_from_sensor, reader)
+
+    @property
+    def paths(self) -> list[str]:
+        return self.reader.paths
+
+    def load(self, row: int) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray | None] | None, str | None]:
+        """(uv (K, 2) tile pixels, depth (K,), colours (K, 3) BGR uint8 or None for the depth colours) of camera
+        row `row`'s lidar points, or None; and the path of a missing or unreadable point cloud (else None)."""
+        lidar = int(self.lidar_of_camera[row])
+        if lidar < 0:
+            return None, None
+        try:
+            points, labels = self.reader.cloud(lidar)
+        except (OSError, ValueError):
+            return None, self.reader.paths[lidar]
+        uv, depth, index = points_in_image(points, self.global_from_ego[lidar], self.ego_from_sensor[lidar],
+                                          self.tile_cameras.take([row]))
+        return (uv, depth, self.reader.colors_bgr(points, labels, index)), None

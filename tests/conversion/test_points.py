@@ -1,0 +1,221 @@
+"""`convert --sensors lidar,radar` on synthetic data with lidarseg/panoptic labels: the point and label columns
+against the files read another way (numpy), the same bytes whatever --jobs, `ds.points` reading one frame, and
+clean problems for broken sensor and label files."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import polars as pl
+import pyarrow.parquet as pq
+import pytest
+
+from conftest import SYNTH_VERSION
+from nuparquet.conversion import convert
+from nuparquet.problems import ProblemsFound
+
+
+@pytest.fixture(scope="module")
+def labelled_out(labelled_root, tmp_path_factory):
+    out = tmp_path_factory.mktemp("labelled-out") / "out"
+    convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar", "radar"), sweeps=True, workers=1)
+    return out
+
+
+def _lidar_frames(root, keyframes_only: bool) -> list[dict]:
+    sample_data = json.loads((root / SYNTH_VERSION / "sample_data.json").read_text())
+    return [r for r in sample_data if r["filename"].endswith(".pcd.bin") and (r["is_key_frame"] or not keyframes_only)]
+
+
+def test_lidar_points_and_labels_equal_the_files(labelled_root, labelled_out):
+    lidarseg = {r["sample_data_token"]: r["filename"] for r in json.loads((labelled_root / SYNTH_VERSION / "lidarseg.json").read_text())}
+    panoptic = {r["sample_data_token"]: r["filename"] for r in json.loads((labelled_root / SYNTH_VERSION / "panoptic.json").read_text())}
+    table = pl.read_parquet(str(labelled_out / "lidar_points" / "*.parquet")).with_columns(pl.col("sample_data_token").cast(pl.String))
+    by_token = table.partition_by("sample_data_token", as_dict=True)
+    frames = _lidar_frames(labelled_root, keyframes_only=False)
+    assert len(by_token) == len(frames) and any(not f["is_key_frame"] for f in frames)
+    labelled = 0
+    for f in frames:
+        rows = by_token[(f["token"],)]
+        raw = np.fromfile(labelled_root / f["filename"], dtype=np.float32).reshape(-1, 5)
+        stored = np.stack([rows[c].cast(pl.Float32).to_numpy() for c in ("x", "y", "z", "intensity", "ring")], axis=1)
+        assert np.array_equal(stored.view(np.uint32), raw.view(np.uint32)), f["filename"]
+        assert rows["is_key_frame"].unique().to_list() == [f["is_key_frame"]]
+        assert rows["timestamp"].unique().to_list() == [f["timestamp"]]
+        if f["token"] in lidarseg:
+            labelled += 1
+            assert np.array_equal(rows["lidarseg_label"].to_numpy(), np.fromfile(labelled_root / lidarseg[f["token"]], np.uint8))
+            assert np.array_equal(rows["panoptic_label"].to_numpy(), np.load(labelled_root / panoptic[f["token"]])["data"])
+        else:  # sweeps have no label files: nulls, not zeros
+            assert rows["lidarseg_label"].null_count() == rows["panoptic_label"].null_count() == rows.height
+    assert labelled == len(lidarseg) == 6  # every keyframe of LIDAR_TOP
+
+
+def test_points_are_sorted_by_scene_channel_timestamp_point_index(labelled_out):
+    for dataset in ("lidar_points", "radar_points"):
+        table = pl.read_parquet(str(labelled_out / dataset / "*.parquet"),
+                                columns=["scene_name", "channel", "timestamp", "point_index"]).with_columns(
+            pl.col("scene_name", "channel").cast(pl.String))
+        assert table.equals(table.sort("scene_name", "channel", "timestamp", "point_index")), dataset
+
+
+def test_output_is_byte_identical_whatever_jobs(labelled_root, labelled_out, tmp_path):
+    out = tmp_path / "jobs2"
+    convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar", "radar"), sweeps=True, workers=2)
+    for dataset in ("lidar_points", "radar_points"):
+        ours = sorted(p.name for p in (labelled_out / dataset).glob("*.parquet"))
+        assert ours == sorted(p.name for p in (out / dataset).glob("*.parquet")) and len(ours) == 2  # one per scene
+        for name in ours:
+            assert (labelled_out / dataset / name).read_bytes() == (out / dataset / name).read_bytes(), (dataset, name)
+
+
+def test_ds_points_returns_one_frame_a_list_and_a_scene_as_the_files_hold_them(labelled_root, labelled_out):
+    import nuparquet
+
+    ds = nuparquet.open(labelled_out)
+    frames = _lidar_frames(labelled_root, keyframes_only=False)
+    raw = {f["token"]: np.fromfile(labelled_root / f["filename"], dtype=np.float32).reshape(-1, 5) for f in frames}
+    one = frames[7]["token"]
+    points = ds.points(one)
+    assert points.dtype == np.float32 and np.array_equal(points, raw[one])
+    pair = [frames[9]["token"], frames[2]["token"]]  # the order asked for, not the dataset's
+    assert np.array_equal(ds.points(pair), np.concatenate([raw[t] for t in pair]))
+    scene_tokens = sorted((f for f in frames if f["token"] in raw), key=lambda f: f["timestamp"])
+    scene = pl.scan_parquet(str(labelled_out / "frames" / "*.parquet")).filter(pl.col("token") == one).select("scene_name").collect().item()
+    in_scene = set(pl.scan_parquet(str(labelled_out / "frames" / "*.parquet")).filter(pl.col("scene_name") == scene)
+                   .select("token").collect()["token"].to_list())
+    expected = np.concatenate([raw[f["token"]] for f in scene_tokens if f["token"] in in_scene])
+    assert np.array_equal(ds.points(scene=scene), expected)
+    labels = ds.points(one, columns=["lidarseg_label"])
+    assert labels.height == len(raw[one])
+
+
+def test_ds_points_chooses_every_row_group_holding_the_frame_and_not_all(labelled_out):
+    import nuparquet
+
+    ds = nuparquet.open(labelled_out)
+    index = ds._points_index("lidar_points")
+    token = pl.read_parquet(str(labelled_out / "lidar_points" / "part-00001.parquet"), columns=["sample_data_token"])[
+        "sample_data_token"].cast(pl.String)[0]
+    wanted = index.groups_for_tokens([token])
+    holding = np.array([token in set(pq.ParquetFile(index.paths[f]).read_row_group(int(g), columns=["sample_data_token"])
+                                     .column(0).to_pylist()) for f, g in zip(index.file, index.group)])
+    assert holding.sum() == 1  # a frame never spans two row groups
+    assert (wanted >= holding).all() and wanted.sum() < wanted.size  # (one exactly for real 35k-point frames)
+
+
+def test_radar_points_keep_every_pcd_field_typed_as_its_header(labelled_root, labelled_out):
+    from nuparquet.sources.points import read_radar_pcd
+
+    sample_data = json.loads((labelled_root / SYNTH_VERSION / "sample_data.json").read_text())
+    first = next(r for r in sample_data if r["filename"].endswith(".pcd"))
+    header = read_radar_pcd(labelled_root / first["filename"]).dtype
+    schema = pq.read_schema(next((labelled_out / "radar_points").glob("*.parquet")))
+    pcd = [f for f in schema if f.name in header.names]
+    assert [f.name for f in pcd] == list(header.names)
+    assert [f.type.to_pandas_dtype() for f in pcd] == [header[n].type for n in header.names]
+
+
+# -- broken inputs -------------------------------------------------------------------------------------------------
+
+@pytest.fixture()
+def small_root(labelled_root, tmp_path):
+    root = tmp_path / "data"
+    shutil.copytree(labelled_root, root)
+    return root
+
+
+def _first(root, table: str) -> dict:
+    return json.loads((root / SYNTH_VERSION / f"{table}.json").read_text())[0]
+
+
+def _problems(root, tmp_path, **options) -> str:
+    out = tmp_path / "broken-out"
+    with pytest.raises(ProblemsFound) as info:
+        convert(root, SYNTH_VERSION, out, sensors=("lidar", "radar"), workers=1, **options)
+    assert not out.exists() and not list(tmp_path.glob(".broken-out*"))  # nothing half-written is left
+    return str(info.value)
+
+
+def test_truncated_pcd_bin_is_a_problem_naming_the_file(small_root, tmp_path):
+    name = _lidar_frames(small_root, keyframes_only=True)[1]["filename"]
+    data = (small_root / name).read_bytes()
+    (small_root / name).write_bytes(data[:-6])
+    message = _problems(small_root, tmp_path)
+    assert name in message and "not a whole number of 5-float32 points" in message
+
+
+def test_pcd_with_an_unexpected_header_is_a_problem_naming_the_file(small_root, tmp_path):
+    sample_data = json.loads((small_root / SYNTH_VERSION / "sample_data.json").read_text())
+    name = next(r["filename"] for r in sample_data if r["filename"].endswith(".pcd") and r["is_key_frame"])
+    data = (small_root / name).read_bytes()
+    (small_root / name).write_bytes(data.replace(b"DATA binary", b"DATA ascii", 1))
+    message = _problems(small_root, tmp_path)
+    assert name in message and "DATA 'ascii' is not supported" in message
+    (small_root / name).write_bytes(data.replace(b"\nCOUNT 1 1 1", b"\nCOUNT 2 1 1", 1))
+    assert "COUNT" in _problems(small_root, tmp_path)
+
+
+def test_label_count_mismatch_names_both_files(small_root, tmp_path):
+    record = _first(small_root, "lidarseg")
+    labels = np.fromfile(small_root / record["filename"], np.uint8)
+    labels[:-1].tofile(small_root / record["filename"])
+    sensor = next(f["filename"] for f in _lidar_frames(small_root, True) if f["token"] == record["sample_data_token"])
+    message = _problems(small_root, tmp_path)
+    assert record["filename"] in message and sensor in message
+    assert f"{labels.size - 1} labels but {sensor} has {labels.size} points" in message
+
+
+def test_missing_label_file_names_both_files(small_root, tmp_path):
+    record = _first(small_root, "panoptic")
+    (small_root / record["filename"]).unlink()
+    sensor = next(f["filename"] for f in _lidar_frames(small_root, True) if f["token"] == record["sample_data_token"])
+    message = _problems(small_root, tmp_path)
+    assert record["filename"] in message and sensor in message and "missing" in message
+
+
+def test_missing_sensor_files_are_listed_and_warned_once_or_an_error_with_strict(small_root, tmp_path):
+    frames = _lidar_frames(small_root, keyframes_only=True)
+    gone = sorted(f["filename"] for f in frames[:2])
+    for name in gone:
+        (small_root / name).unlink()
+    manifest = convert(small_root, SYNTH_VERSION, tmp_path / "out", sensors=("lidar",), workers=1)
+    entry = manifest["datasets"]["lidar_points"]
+    assert sorted(entry["missing_files"]) == gone and entry["frames"] == len(frames) - 2
+    warnings = [w for w in manifest["warnings"] if "lidar_points" in w]
+    assert len(warnings) == 1 and "2 sensor file(s) missing" in warnings[0]
+    message = _problems(small_root, tmp_path, strict=True)
+    assert all(name in message for name in gone)
+
+
+def test_stats_gains_lidarseg_sections_and_a_chart_when_labels_were_converted(labelled_out, tmp_path):
+    import nuparquet
+    from nuparquet.rendering.charts import write_plots
+    from nuparquet.queries.sections import default_sections
+
+    labelled = nuparquet.open(labelled_out)
+    assert {"lidarseg", "panoptic"} <= set(default_sections(labelled))
+    paths = write_plots(labelled, tmp_path / "plots")
+    chart = tmp_path / "plots" / "lidarseg_points_per_class.png"
+    assert chart in paths and chart.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_stats_has_no_lidarseg_sections_for_points_without_labels(extract_points_out):
+    import nuparquet
+    from nuparquet.queries.sections import default_sections
+
+    unlabelled = nuparquet.open(extract_points_out)  # real lidar points, no label files
+    assert "lidar_points" in unlabelled.datasets and not {"lidarseg", "panoptic"} & set(default_sections(unlabelled))
+
+
+def test_bad_sensor_options_are_usage_errors(labelled_root, tmp_path, capsys):
+    from nuparquet.cli.main import main
+
+    for flags, message in ((["--sensors", "lidar,camera"], "--sensors takes lidar, radar"),
+                           (["--sensors", "lidar", "--jobs", "-1"], "--workers must be"),
+                           (["--sensors", "lidar", "--lidar-columns", "7"], "--lidar-columns must be 4 or 5")):
+        code = main(["convert", str(labelled_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "o"), *flags])
+        assert code == 2 and message in capsys.readouterr().err
+        assert not (tmp_path / "o").exists()

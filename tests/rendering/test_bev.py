@@ -1,0 +1,144 @@
+"""The bird's-eye view: `render --channel bev` writes an H.264 video with one frame per reference-lidar
+keyframe, its pixels show the map where the devkit's map says each layer is (north-up and ego-up), boxes and
+the ego are drawn, and `--bev` adds the view as a tile beside the cameras of `--channel all`."""
+
+from __future__ import annotations
+
+import av
+import cv2
+import numpy as np
+import polars as pl
+import pytest
+import shapely
+
+import nuparquet
+from nuparquet.cli.main import main
+
+# Independent statement of the documented draw order and colours (nuparquet.rendering.bev.MAP_STYLE), top layer last.
+FILLS = [("drivable_area", (78, 78, 78)), ("carpark_area", (60, 90, 120)), ("walkway", (70, 115, 70)),
+         ("lane", (98, 98, 98)), ("ped_crossing", (165, 165, 165)), ("stop_line", (50, 50, 200))]
+BACKGROUND = (32, 32, 32)
+SCENE = "scene-0001"
+
+
+def _probe(path):
+    with av.open(str(path)) as container:
+        stream = container.streams.video[0]
+        frames = sum(1 for _ in container.decode(stream))
+        return stream.codec_context.name, stream.codec_context.pix_fmt, frames
+
+
+def _lidar_keyframes(out, scene):
+    return (nuparquet.open(out).scan("frames")
+            .filter((pl.col("scene_name") == scene) & pl.col("is_key_frame") & (pl.col("channel").cast(pl.String) == "LIDAR_TOP"))
+            .sort("timestamp").select("ego_translation", "ego_rotation").collect())
+
+
+def _yaw(q):
+    w, x, y, z = q
+    return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+def _expected(nusc_map, x, y):
+    """(BGR of the top polygon layer at the point, distance to the nearest drawn edge, m)."""
+    patch = (x - 3, y - 3, x + 3, y + 3)
+    records = nusc_map.get_records_in_patch(patch, [l for l, _ in FILLS] + ["road_divider", "lane_divider"])
+    color, point, edge_m = BACKGROUND, shapely.Point(x, y), np.inf
+    for layer, bgr in FILLS:
+        for token in records[layer]:
+            record = nusc_map.get(layer, token)
+            polygons = [nusc_map.extract_polygon(t) for t in record["polygon_tokens"]] if layer == "drivable_area" \
+                else [nusc_map.extract_polygon(record["polygon_token"])]
+            for polygon in polygons:
+                edge_m = min(edge_m, polygon.boundary.distance(point))
+                if polygon.contains(point):
+                    color = bgr
+    for layer in ("road_divider", "lane_divider"):
+        for token in records[layer]:
+            edge_m = min(edge_m, nusc_map.extract_line(nusc_map.get(layer, token)["line_token"]).distance(point))
+    return color, edge_m
+
+
+def _boxes_near(out, scene, k):
+    annotations = nuparquet.open(out).scan("annotations").filter(pl.col("scene_name") == scene).collect()
+    samples = annotations.select("sample_token", "timestamp").unique().sort("timestamp")["sample_token"]
+    rows = annotations.filter(pl.col("sample_token") == samples[k])
+    return np.array([t[:2] for t in rows["translation"].to_list()]), np.array([max(s[:2]) for s in rows["size"].to_list()])
+
+
+@pytest.fixture(scope="module")
+def bev_north(map_out, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("bev")
+    assert main(["render", str(map_out), "--scene", SCENE, "--channel", "bev", "--bev-up", "north",
+                 "--out", str(folder / "bev.mp4"), "--frames-dir", str(folder / "frames"), "--frame-format", "png",
+                 "--quiet"]) == 0
+    return folder
+
+
+def test_bev_video_decodes_with_one_frame_per_keyframe(bev_north, map_out):
+    codec, pix_fmt, frames = _probe(bev_north / "bev.mp4")
+    assert (codec, pix_fmt) == ("h264", "yuv420p")
+    assert frames == _lidar_keyframes(map_out, SCENE).height == len(list((bev_north / "frames").glob("*.png")))
+
+
+@pytest.mark.parametrize("up", ["north", "ego"])
+def test_bev_pixels_show_the_map_where_the_devkit_says(bev_north, map_out, devkit_maps, tmp_path, up):
+    folder = bev_north
+    if up == "ego":
+        folder = tmp_path
+        assert main(["render", str(map_out), "--scene", SCENE, "--channel", "bev", "--frames-dir", str(tmp_path / "frames"),
+                     "--frame-format", "png", "--quiet", "--bev-range-m", "30", "--bev-size", "400"]) == 0
+    location = nuparquet.open(map_out).scan("scenes").filter(pl.col("name") == SCENE).collect()["log_location"][0]
+    nusc_map = devkit_maps[location]
+    poses = _lidar_keyframes(map_out, SCENE)
+    rng = np.random.default_rng(0)
+    checked = {}
+    for k in (0, poses.height - 1):
+        image = cv2.imread(str(folder / "frames" / f"{k:05d}.png"))
+        h, w = image.shape[:2]
+        s = h / (2 * (50.0 if up == "north" else 30.0))  # pixels per metre
+        ex, ey = poses["ego_translation"][k][:2]
+        yaw = _yaw(poses["ego_rotation"][k]) if up == "ego" else np.pi / 2  # the direction shown as "up"
+        centres, sizes = _boxes_near(map_out, SCENE, k)
+        for u, v in rng.integers([0, 0], [w, h], (250, 2)):
+            if u < 0.3 * w and v < 0.35 * h:  # the legend
+                continue
+            right, forward = (u - (w - 1) / 2) / s, ((h - 1) / 2 - v) / s
+            x = ex + forward * np.cos(yaw) + right * np.sin(yaw)
+            y = ey + forward * np.sin(yaw) - right * np.cos(yaw)
+            if np.hypot(x - ex, y - ey) < 3.5 or (len(centres) and (np.hypot(*(centres - [x, y]).T) < sizes / 2 + 1.0).any()):
+                continue  # the ego, a box
+            color, edge_m = _expected(nusc_map, x, y)
+            if edge_m < 2.0 / s + 0.3:
+                continue  # an edge or a divider line
+            pixel = tuple(int(c) for c in image[v, u])
+            if pixel in [tuple(c) for _, c in FILLS] + [BACKGROUND]:  # else a lidar point (none here) or a label
+                assert pixel == color, (k, u, v, x, y)
+                checked[color] = checked.get(color, 0) + 1
+    assert checked.get((78, 78, 78), 0) + checked.get((98, 98, 98), 0) > 30  # road under the ego's path
+    assert checked.get((70, 115, 70), 0) > 5  # walkways beside it
+
+
+def test_bev_tile_beside_the_cameras(synth_out, tmp_path):
+    assert main(["render", str(synth_out), "--scene", SCENE, "--channel", "all", "--bev", "--scale", "0.25",
+                 "--out", str(tmp_path / "all.mp4"), "--frames-dir", str(tmp_path / "f"), "--frame-format", "png",
+                 "--quiet"]) == 0
+    image = cv2.imread(str(next((tmp_path / "f").glob("*.png"))))
+    tile_h = image.shape[0] // 2
+    tile_w = image.shape[1] // 4
+    assert image.shape[1] == 4 * tile_w  # the front row holds three cameras and the view
+    bev = image[:tile_h, 3 * tile_w:]
+    white = np.all(bev == 255, axis=2)  # the ego, at the tile's centre
+    assert white[tile_h // 2 - 4:tile_h // 2 + 4, tile_w // 2 - 4:tile_w // 2 + 4].any()
+    assert (bev == (70, 115, 70)).all(axis=2).sum() > 50  # walkway pixels: the map is drawn
+    codec, pix_fmt, frames = _probe(tmp_path / "all.mp4")
+    assert (codec, pix_fmt) == ("h264", "yuv420p") and frames == len(list((tmp_path / "f").glob("*.png")))
+
+
+def test_bev_option_errors(map_out, tmp_path, capsys):
+    assert main(["render", str(map_out), "--scene", SCENE, "--channel", "CAM_FRONT", "--bev", "--out",
+                 str(tmp_path / "a.mp4"), "--quiet"]) == 2
+    assert "--bev adds the bird's-eye view beside the cameras" in capsys.readouterr().err
+    assert main(["render", str(map_out), "--scene", "scene-9999", "--channel", "bev", "--out",
+                 str(tmp_path / "a.mp4"), "--quiet"]) == 2
+    assert "unknown scene 'scene-9999'" in capsys.readouterr().err

@@ -1,0 +1,150 @@
+"""`render --lidar-color`: points read from lidar_points/ and coloured by lidarseg class land where the devkit's
+`map_pointcloud_to_image(show_lidarseg=True)` puts them, in its colours; the file fallback gives the same points."""
+
+from __future__ import annotations
+
+import numpy as np
+import polars as pl
+import pytest
+
+from conftest import SYNTH_VERSION
+from nuparquet.cli.main import main
+
+LIDAR_TOLERANCE_PX_M = 0.5  # as tests/parity/test_box_projection.py: pixel error x depth, the devkit rounds to float32
+
+
+@pytest.fixture(scope="module")
+def labelled_images(tmp_path_factory):
+    from nuparquet.conversion import convert
+    from nuparquet.synth import synthesize
+
+    root = synthesize(tmp_path_factory.mktemp("colors") / "data", scenes=1, samples_per_scene=3, with_images=True,
+                      with_lidar=True, seed=4, version=SYNTH_VERSION, with_can_bus=False)
+    out = tmp_path_factory.mktemp("colors-out") / "out"
+    convert(root, SYNTH_VERSION, out, sensors=("lidar",), workers=1)
+    return root, out
+
+
+def _lidar_points(out, root, color: str, *, from_dataset: bool = True):
+    import nuparquet
+    from nuparquet.frames.poses import cameras_from_frames
+    from nuparquet.rendering.points import LidarPoints
+
+    ds = nuparquet.open(out)
+    frames = ds.scan("frames").filter(pl.col("is_key_frame")).collect()
+    cameras = frames.filter(pl.col("channel") == "CAM_FRONT")
+    lidar = frames.filter(pl.col("channel") == "LIDAR_TOP")
+    points = LidarPoints.build(cameras_from_frames(cameras), cameras, lidar, root,
+                               dataset=ds if from_dataset else None, color=color)
+    return points, cameras, lidar
+
+
+def test_lidarseg_colours_and_pixels_equal_devkit_map_pointcloud_to_image(labelled_images):
+    from nuscenes.nuscenes import NuScenes
+    from nuscenes.utils.color_map import get_colormap
+
+    root, out = labelled_images
+    nusc = NuScenes(SYNTH_VERSION, str(root), verbose=False)
+    points, cameras, lidar = _lidar_points(out, root, "lidarseg")
+    compared = 0
+    for row, camera in enumerate(cameras.iter_rows(named=True)):
+        loaded, missing = points.load(row)
+        assert missing is None
+        uv, depth_m, colours_bgr = loaded
+        lidar_token = lidar.filter(pl.col("sample_token") == camera["sample_token"])["token"].item()
+        kept, coloring, _ = nusc.explorer.map_pointcloud_to_image(lidar_token, camera["token"], show_lidarseg=True)
+        assert uv.shape[0] == kept.shape[1] > 0  # the same points kept
+        assert (np.abs(uv - kept[:2].T).max(axis=1) * depth_m).max() < LIDAR_TOLERANCE_PX_M
+        expected_rgb = np.rint(coloring[:, :3] * 255).astype(np.uint8)  # the devkit colours by its colormap / 255
+        assert np.array_equal(colours_bgr[:, ::-1], expected_rgb)
+        assert len(np.unique(expected_rgb, axis=0)) > 1  # ground and at least one object class
+        compared += uv.shape[0]
+    assert compared > 100 and get_colormap()["flat.driveable_surface"] == (0, 207, 191)
+
+
+def test_points_from_lidar_points_equal_points_from_the_files(labelled_images):
+    root, out = labelled_images
+    from_dataset, cameras, _ = _lidar_points(out, root, "depth")
+    from_files, _, _ = _lidar_points(out, root, "depth", from_dataset=False)
+    assert from_dataset.reader.dataset is not None and from_files.reader.dataset is None
+    for row in range(cameras.height):
+        (uv_a, depth_a, _), _ = from_dataset.load(row)
+        (uv_b, depth_b, _), _ = from_files.load(row)
+        assert np.array_equal(uv_a, uv_b) and np.array_equal(depth_a, depth_b)
+
+
+@pytest.mark.parametrize("color", ["lidarseg", "panoptic", "intensity"])
+def test_render_lidar_color_draws_points_in_more_than_one_colour(labelled_images, tmp_path, color):
+    import cv2
+
+    _, out = labelled_images
+    common = ["render", str(out), "--scene", "scene-0001", "--frame-format", "png", "--quiet"]
+    assert main([*common, "--frames-dir", str(tmp_path / "plain")]) == 0
+    assert main([*common, "--frames-dir", str(tmp_path / color), "--lidar-color", color]) == 0  # implies --lidar
+    plain = cv2.imread(str(tmp_path / "plain" / "00001.png"))
+    drawn = cv2.imread(str(tmp_path / color / "00001.png"))
+    changed = drawn[(plain != drawn).any(axis=2)]
+    assert len(changed) > 50 and len(np.unique(changed, axis=0)) > 1
+
+
+def test_label_colours_need_converted_labels(labelled_images, tmp_path, capsys):
+    root, _ = labelled_images
+    from nuparquet.conversion import convert
+
+    out = tmp_path / "no-points"
+    convert(root, SYNTH_VERSION, out)
+    code = main(["render", str(out), "--scene", "scene-0001", "--frames-dir", str(tmp_path / "f"),
+                 "--lidar-color", "lidarseg", "--quiet"])
+    assert code == 2 and "--sensors lidar" in capsys.readouterr().err
+
+
+def test_bev_points_take_their_lidarseg_class_colour(labelled_images, tmp_path):
+    """`--channel bev --lidar-color lidarseg`: each LIDAR_TOP keyframe point, moved to the global frame with the
+    devkit's poses (pyquaternion), lies at the north-up view pixel of its x, y and shows the devkit colormap's
+    colour of its lidarseg class (read with numpy from the label file)."""
+    import cv2
+    from nuscenes.nuscenes import NuScenes
+    from nuscenes.utils.color_map import get_colormap
+    from nuscenes.utils.data_classes import LidarPointCloud
+    from pyquaternion import Quaternion
+
+    root, out = labelled_images
+    assert main(["render", str(out), "--scene", "scene-0001", "--channel", "bev", "--bev-up", "north",
+                 "--lidar-color", "lidarseg", "--frames-dir", str(tmp_path / "frames"), "--frame-format", "png",
+                 "--quiet"]) == 0
+    nusc = NuScenes(SYNTH_VERSION, str(root), verbose=False)
+    colormap, names = get_colormap(), {c["index"]: c["name"] for c in nusc.category if "index" in c}
+    scene = nusc.get("scene", nusc.field2token("scene", "name", "scene-0001")[0])
+    sample_token, k, checked, equal = scene["first_sample_token"], 0, 0, 0
+    while sample_token:
+        sample = nusc.get("sample", sample_token)
+        lidar = nusc.get("sample_data", sample["data"]["LIDAR_TOP"])
+        cloud = LidarPointCloud.from_file(str(root / lidar["filename"]))
+        labels = np.fromfile(root / nusc.get("lidarseg", lidar["token"])["filename"], dtype=np.uint8)
+        calibration = nusc.get("calibrated_sensor", lidar["calibrated_sensor_token"])
+        pose = nusc.get("ego_pose", lidar["ego_pose_token"])
+        cloud.rotate(Quaternion(calibration["rotation"]).rotation_matrix)
+        cloud.translate(np.array(calibration["translation"]))
+        cloud.rotate(Quaternion(pose["rotation"]).rotation_matrix)
+        cloud.translate(np.array(pose["translation"]))
+        image = cv2.imread(str(tmp_path / "frames" / f"{k:05d}.png"))
+        h, w = image.shape[:2]
+        s = h / 100.0  # default range +-50 m
+        u = np.round((w - 1) / 2 + (cloud.points[0] - pose["translation"][0]) * s).astype(int)
+        v = np.round((h - 1) / 2 - (cloud.points[1] - pose["translation"][1]) * s).astype(int)
+        inside = (u >= 0) & (u < w) & (v >= 0) & (v < h) & ~((u < 0.3 * w) & (v < 0.35 * h))  # not the legend
+        pixel = v[inside] * w + u[inside]
+        # pixels that points of one class only fall on (a later point of another class would paint over)
+        unique_pixels, first = np.unique(pixel, return_index=True)
+        classes = {p: set() for p in unique_pixels.tolist()}
+        for p, label in zip(pixel.tolist(), labels[inside].tolist()):
+            classes[p].add(label)
+        for p, label_set in classes.items():
+            if len(label_set) != 1:
+                continue
+            expected = tuple(int(c) for c in colormap[names[label_set.pop()]][::-1])  # RGB -> BGR
+            checked += 1
+            equal += tuple(int(c) for c in image[p // w, p % w]) == expected
+        k, sample_token = k + 1, sample["next"]
+    assert checked > 500
+    assert equal / checked > 0.9, (equal, checked)  # the rest: under boxes and the ego, drawn on top

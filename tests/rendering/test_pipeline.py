@@ -1,0 +1,45 @@
+"""The render job's seams: progress events for the caller, and CLI flags generated from `RenderOptions`."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+
+import nuparquet
+from nuparquet.cli import render as render_cli
+from nuparquet.cli.arguments import options_from
+from nuparquet.engine import EngineOptions
+from nuparquet.rendering.options import RenderOptions, SceneSelection
+from nuparquet.rendering.pipeline import render
+
+
+def test_render_reports_one_frame_per_output_picture(synth_out, tmp_path):
+    scene = nuparquet.open(synth_out).scan("scenes").select("name").collect()["name"].sort()[0]
+    events = []
+    result = render(synth_out, scene, RenderOptions(out=tmp_path / "x.mp4", scale=0.1), on_progress=events.append)
+    assert result.channel == "CAM_FRONT"  # the default camera, chosen from the data
+    assert {e.task for e in events} == {f"render {scene} CAM_FRONT"} and {e.unit for e in events} == {"frame"}
+    assert [e.done for e in events if not e.finished] == list(range(result.frames_written + 1))
+    assert events[-1].finished and events[-1].total == result.frames_written
+    assert all(not e.finished for e in events[:-1])
+
+
+def test_every_cli_render_option_is_a_flag_with_the_library_default():
+    parser = argparse.ArgumentParser()
+    render_cli.register(parser.add_subparsers())
+    args = parser.parse_args(["render", "OUT", "--scene", "s1"])
+    defaults = options_from(args, RenderOptions)
+    assert defaults == RenderOptions() and args.scene == "s1"
+    flags = ["--channel", "all", "--out", "v.mp4", "--frames-dir", "d", "--frame-format", "png", "--all-frames",
+             "--fps", "3", "--scale", "0.3", "--crf", "30", "--lidar", "--labels", "track", "--clip",
+             "--on-missing", "error", "--dataroot", "root"]
+    given = options_from(parser.parse_args(["render", "OUT", "--scene", "s1", *flags]), RenderOptions)
+    assert given == RenderOptions(channel="all", out="v.mp4", frames_dir="d", frame_format="png",
+                                  all_frames=True, fps=3.0, scale=0.3, crf=30, lidar=True, labels="track", clip=True,
+                                  on_missing="error", dataroot="root")
+    # Every field is either a flag or explicitly library-only; the other flags choose scenes and the engine.
+    flagged = {f.name for option_class in (RenderOptions, SceneSelection, EngineOptions)
+               for f in dataclasses.fields(option_class) if f.metadata["cli"]}
+    assert flagged == {a.dest for a in parser._subparsers._group_actions[0].choices["render"]._actions} - {
+        "help", "dataset", "scene", "quiet"}
+    assert options_from(args, SceneSelection) == SceneSelection() and options_from(args, EngineOptions) == EngineOptions()
