@@ -204,3 +204,20 @@ def test_an_attribute_outside_the_converters_list_is_an_input_error(lidarseg_out
     attributes[seen[3]] = "vehicle.flying"
     with pytest.raises(InputError, match=f"{inputs.ann_token[seen[3]]} has the attribute 'vehicle.flying'"):
         camera_instances(dataclasses.replace(inputs, ann_attribute=attributes), DEFAULT_CAMERAS, legacy=True)
+
+
+def test_image_file_names_follow_the_converters_split_on_data_nuscenes(lidarseg_out, tmp_path):
+    """`cam_info['data_path'].split('data/nuscenes/')[-1]`: relative only when the prefix ends in data/nuscenes;
+    the infos' paths keep the prefix, the annotations' file names are the table's."""
+    for prefix, relative in (("/mnt/data/nuscenes", True), ("/data/sets/nuscenes", False)):
+        out = tmp_path / prefix.replace("/", "_")
+        build_index(lidarseg_out, IndexOptions(out=str(out), version="v1.0-trainval", format="mmdet3d-legacy",
+                                               data_prefix=prefix, split="val"))
+        coco = json.loads((out / "nuscenes_infos_val_mono3d.coco.json").read_text())
+        info = pickle.loads((out / "nuscenes_infos_val.pkl").read_bytes())["infos"][0]
+        image = coco["images"][0]
+        table_name = info["cams"]["CAM_FRONT"]["data_path"][len(prefix) + 1:]
+        assert info["cams"]["CAM_FRONT"]["data_path"] == f"{prefix}/{table_name}"
+        assert image["file_name"] == (table_name if relative else f"{prefix}/{table_name}")
+        names = {a["file_name"] for a in coco["annotations"]}
+        assert names and all(name.startswith("samples/CAM_") for name in names)
