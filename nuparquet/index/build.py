@@ -83,6 +83,7 @@ def build_index(path: str | Path | Dataset, options: IndexOptions, on_progress: 
             if is_legacy:
                 infos = records.v1_infos(computed, samples, tuple(options.cameras), options.data_prefix, test)
                 write_pickle(target, {"infos": legacy.legacy_infos(infos), "metadata": {"version": version}})
+                written[split] = target
                 progress.advance(step=f"write {split}")
                 coco = out / f"nuscenes_infos_{split}_mono3d.coco.json"
                 legacy.write_mono3d_coco(coco, computed, legacy_records, samples, options.data_prefix, width, height)
