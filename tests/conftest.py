@@ -117,6 +117,22 @@ def labelled_root(tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
+def lidarseg_root(tmp_path_factory) -> Path:
+    """3 scenes x 4 samples with images, lidar files and lidarseg labels: scene-0001/0002 are in the devkit's
+    trainval train list, scene-0003 in val (the training-index tests need both splits)."""
+    from nuparquet.synth import synthesize
+
+    return generated_root(tmp_path_factory, "lidarseg", lambda root: synthesize(
+        root, scenes=3, samples_per_scene=4, with_images=True, with_lidar=True, seed=13, version=SYNTH_VERSION,
+        with_can_bus=False))
+
+
+@pytest.fixture(scope="session")
+def lidarseg_out(lidarseg_root, tmp_path_factory) -> Path:
+    return converted(tmp_path_factory, "lidarseg-out", lidarseg_root, SYNTH_VERSION)
+
+
+@pytest.fixture(scope="session")
 def synth_root(tmp_path_factory) -> Path:
     """A small synthetic dataset with images and lidar: 2 scenes x 6 samples."""
     from nuparquet.synth import synthesize

@@ -13,9 +13,10 @@ def register(sub) -> None:
         "index",
         help="write mmdetection3d training infos (nuscenes_infos_<split>.pkl) and DIR/infos/ Parquet",
         description="Write the info pickles mmdetection3d's `create_data.py nuscenes` writes (v1, or v2 after "
-        "update_infos_to_v2; or the BEVFormer variant), equal to its output for the same dataroot, plus "
-        "DIR/infos/<split>.parquet (one row per sample, nested columns). Everything comes from the converted "
-        "tables; no sensor file is opened. Exit 1 when OUT lacks a dataset the index needs.",
+        "update_infos_to_v2; or the BEVFormer variant; or mmdetection3d 0.17's infos and mono3d COCO file), equal "
+        "to its output for the same dataroot, plus DIR/infos/<split>.parquet (one row per sample, nested "
+        "columns). Everything comes from the converted tables; no sensor file is opened. Exit 1 when OUT lacks a "
+        "dataset the index needs.",
     )
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
     add_options(p, IndexOptions)

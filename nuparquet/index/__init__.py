@@ -8,8 +8,9 @@ paths = build_index("OUT", IndexOptions(out="infos", info_version=2))   # {"val"
 Modules: `build` (`build_index`), `inputs` (what is read, checked first), `splits`, `replay/` (blas, quaternions, transforms: the
 converter's arithmetic over arrays, bit for bit), `sweeps` (the lidar prev chain), `compute` (all numbers,
 vectorised over samples), `cam_instances` (v2 camera boxes), `v2_arrays` (one split's values with offsets),
-`records` (the dicts, v1 and v2), `bevformer`, `parquet` (DIR/infos/ from the same arrays), `write` (atomic
-files, the streamed pickle).
+`records` (the dicts, v1 and v2), `lidarseg` (pts_semantic_mask_path), `bevformer`, `legacy` (mmdetection3d
+0.17's infos and mono3d COCO file), `parquet` (DIR/infos/ from the same arrays), `write` (atomic files, the
+streamed pickle).
 """
 
 from __future__ import annotations

@@ -12,6 +12,7 @@ from nuparquet.columns import to_numpy
 from nuparquet.dataset import Dataset
 from nuparquet.errors import InputError
 from nuparquet.index.compute import Computed
+from nuparquet.index.legacy import DROPPED_V1_KEYS, boxes_v0
 
 CAN_BUS_DATASET = "sample_can_bus"
 CAN_BUS_WIDTH = 18
@@ -50,9 +51,9 @@ def bevformer_infos(c: Computed, v1: list[dict], samples: np.ndarray, sample_pre
         head = {"lidar_path": info["lidar_path"], "token": info["token"], "prev": sample_prev[s],
                 "next": sample_next[s], "can_bus": can_bus[s].copy(), "frame_idx": int(frame_idx[s]),
                 "sweeps": info["sweeps"], "cams": info["cams"], "scene_token": inp.sample_scene[s]}
-        rest = {k: v for k, v in info.items() if k not in head and k != "num_features"}
+        # its converter is mmdetection3d 0.17's with these keys added: no num_features, no lidarseg path
+        rest = {k: v for k, v in info.items() if k not in head and k not in DROPPED_V1_KEYS}
         if "gt_boxes" in rest:
-            b = rest["gt_boxes"]  # x, y, z, l, w, h, yaw -> x, y, z, w, l, h, -yaw - pi/2
-            rest["gt_boxes"] = np.concatenate([b[:, :3], b[:, [4, 3, 5]], -b[:, 6:7] - np.pi / 2], axis=1)
+            rest["gt_boxes"] = boxes_v0(rest["gt_boxes"])  # x, y, z, w, l, h, -yaw - pi/2
         out.append(head | rest)
     return out

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from nuparquet.errors import InputError
 from nuparquet.index.replay import blas, quaternions, transforms
 from nuparquet.index.labels import ATTRIBUTES, label_of
 
@@ -20,12 +21,13 @@ CANVAS_PX = (1600, 900)  # the converter's fixed image size (post_process_coords
 @dataclass
 class CamInstances:
     sample: np.ndarray  # (K,) sample row, records sorted by sample, camera, annotation
+    ann: np.ndarray  # (K,) annotation row (Inputs.ann_*)
     camera: np.ndarray  # (K,) camera index
     label: np.ndarray  # (K,) int
     bbox: np.ndarray  # (K, 4) x1, y1, x2, y2
     bbox_3d: np.ndarray  # (K, 7) x, y, z, l, h, w, -yaw in the camera frame
     velocity: np.ndarray  # (K, 2) vx, vz in the camera frame
-    center_2d: np.ndarray  # (K, 2) float32 arithmetic, like mmdet3d's points_cam2img
+    center_2d: np.ndarray  # (K, 2) float32 arithmetic, like mmdet3d's points_cam2img (float64 with `legacy`)
     depth: np.ndarray  # (K,)
     attr_label: np.ndarray  # (K,) int
 
@@ -96,7 +98,17 @@ def _boxes_2d(center, size_wlh, orientation, k, canvas=CANVAS_PX) -> tuple[np.nd
 BLOCK_BOXES = 200_000  # box-camera pairs per vectorised pass: bounds the temporaries (~0.5 GB) at trainval
 
 
-def _camera_block(inputs, c: int, a: np.ndarray, r: np.ndarray, labels_all: np.ndarray) -> dict:
+def _center_image_f64(center: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """(N, 3) mmdetection3d 0.17's `box_np_ops.points_cam2img` before its division, in float64 numpy:
+    `[x, y, z, 1] @ P.T` with P the 3x3 intrinsic `k` (N, 3, 3) padded into eye(4), which numpy hands to
+    BLAS as a dgemv_t (4 terms summed (p0 + p2) + (p1 + p3): `blas.gemv_rows`)."""
+    p = np.zeros(k.shape[:-2] + (4, 4))
+    p[..., :3, :3] = k
+    p[..., 3, 3] = 1.0
+    return blas.gemv_rows(p, np.concatenate([center, np.ones(center.shape[:-1] + (1,))], axis=-1))[..., :3]
+
+
+def _camera_block(inputs, c: int, a: np.ndarray, r: np.ndarray, labels_all: np.ndarray, legacy: bool = False) -> dict:
     """The camera instances of annotations `a` (rows) seen by camera `c` through its readings `r`."""
     d = inputs.data
     rough = transforms.rough_boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], r, d.ego_t, d.ego_q,
@@ -106,9 +118,12 @@ def _camera_block(inputs, c: int, a: np.ndarray, r: np.ndarray, labels_all: np.n
     center, orientation = transforms.boxes_to_sensor(inputs.ann_center[a], inputs.ann_rotation[a], r, d.ego_t,
                                                      d.ego_q, d.sensor_t, d.sensor_q)
     k = d.intrinsic[r]
-    center32, k32 = center.astype(np.float32), k.astype(np.float32)
-    image = (k32[:, :, 0] * center32[:, None, 0] + k32[:, :, 1] * center32[:, None, 1]) \
-        + k32[:, :, 2] * center32[:, None, 2]
+    if legacy:
+        image = _center_image_f64(center, k)
+    else:
+        center32, k32 = center.astype(np.float32), k.astype(np.float32)
+        image = (k32[:, :, 0] * center32[:, None, 0] + k32[:, :, 1] * center32[:, None, 1]) \
+            + k32[:, :, 2] * center32[:, None, 2]
     depth = image[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         center_2d = image[:, :2] / depth[:, None]
@@ -126,7 +141,10 @@ def _camera_block(inputs, c: int, a: np.ndarray, r: np.ndarray, labels_all: np.n
         depth=depth[ok].astype(np.float64), attr_label=np.searchsorted(ATTRIBUTES_SORTED, inputs.ann_attribute[a]))
 
 
-def camera_instances(inputs, cameras: tuple[str, ...]) -> CamInstances:
+def camera_instances(inputs, cameras: tuple[str, ...], *, legacy: bool = False) -> CamInstances:
+    """Every (sample, camera, box) record of mmdetection3d v1.4.0's `get_nuscenes_2d_boxes`; `legacy`: of
+    0.17's `get_2d_boxes` (the same records and numbers, but its centre and depth are float64 numpy, and its
+    depth filter runs on them)."""
     labels_all = label_of(inputs.ann_category)
     # generate_record drops classes outside the ten: never a record, so never computed
     keep_ann = np.flatnonzero(np.isin(inputs.ann_visibility, VISIBILITIES) & (labels_all >= 0))
@@ -136,12 +154,19 @@ def camera_instances(inputs, cameras: tuple[str, ...]) -> CamInstances:
         for block in range(0, max(len(keep_ann), 1), BLOCK_BOXES):  # one (maybe empty) block at least
             rows = cam_row[block:block + BLOCK_BOXES]
             parts.append(_camera_block(inputs, c, keep_ann[block:block + BLOCK_BOXES][rows >= 0], rows[rows >= 0],
-                                       labels_all))
+                                       labels_all, legacy))
     merged = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+    unknown = ~np.isin(inputs.ann_attribute[merged["ann"]], ATTRIBUTES)
+    if unknown.any():  # the converter's nus_attributes.index(attr_name) raises there
+        row = merged["ann"][np.argmax(unknown)]
+        raise InputError(f"sample_annotation {inputs.ann_token[row]} has the attribute "
+                         f"{inputs.ann_attribute[row]!r}, which mmdetection3d's nuScenes attributes lack "
+                         f"({', '.join(ATTRIBUTES)}): its converter stops there")
     sample = inputs.ann_sample[merged["ann"]]
     order = np.lexsort((merged["ann"], merged["camera"], sample))
     attr = ATTRIBUTE_ORDER[merged["attr_label"][order]]
-    return CamInstances(sample=sample[order], camera=merged["camera"][order], label=merged["label"][order],
+    return CamInstances(sample=sample[order], ann=merged["ann"][order], camera=merged["camera"][order],
+                        label=merged["label"][order],
                         bbox=merged["bbox"][order], bbox_3d=merged["bbox_3d"][order],
                         velocity=merged["velocity"][order], center_2d=merged["center_2d"][order],
                         depth=merged["depth"][order], attr_label=attr)

@@ -17,11 +17,14 @@ DEFAULT_LIDAR = "LIDAR_TOP"
 class IndexOptions:
     out: str = option(help="output directory for the info files and infos/ (created; written atomically)",
                       flag="--out", metavar="DIR")
-    format: Literal["mmdet3d", "bevformer"] = option(
-        "mmdet3d", help="mmdet3d: mmdetection3d's nuScenes infos; bevformer: the BEVFormer/UniAD v1 variant "
-        "(needs the sample_can_bus dataset)")
+    format: Literal["mmdet3d", "bevformer", "mmdet3d-legacy"] = option(
+        "mmdet3d", help="mmdet3d: mmdetection3d v1.4's nuScenes infos; bevformer: the BEVFormer/UniAD v1 variant "
+        "(needs the sample_can_bus dataset); mmdet3d-legacy: mmdetection3d 0.17's infos (gt_boxes as x, y, z, w, "
+        "l, h, -yaw-pi/2) and its nuscenes_infos_<split>_mono3d.coco.json (BEVDet, PETR, FCOS3D...)")
     info_version: Literal[1, 2] = option(2, help="1: create_data.py's first pass (infos + metadata); "
-                                         "2: after update_infos_to_v2.py (metainfo + data_list, what mmdet3d 1.x reads)")
+                                         "2: after update_infos_to_v2.py (metainfo + data_list, what mmdet3d 1.x "
+                                         "reads). --format mmdet3d only (bevformer needs 1; mmdet3d-legacy has one "
+                                         "form and ignores it)")
     max_sweeps: int = option(10, help="lidar sweeps per sample, following the lidar's prev chain")
     split: Literal["train", "val", "test", "all"] = option(
         "all", help="which info files to write; all: every file the converter writes for this version "
@@ -35,7 +38,7 @@ class IndexOptions:
     corrected: bool = option(False, help="also write *_corrected.pkl beside each file: float64 matrices, "
                              "sweep paths like keyframe paths with num_pts_feats, every unmapped class in "
                              "metainfo (see docs)")
-    parquet: bool = option(True, help="also write DIR/infos/ (one row per sample, nested columns)")
+    parquet: bool = option(True, help="also write DIR/infos/ (one row per sample, nested columns) with v2 infos")
 
     def __post_init__(self) -> None:
         cameras = self.cameras.split(",") if isinstance(self.cameras, str) else self.cameras
@@ -46,3 +49,5 @@ class IndexOptions:
             raise UsageError("--max-sweeps must be >= 0")
         if self.format == "bevformer" and self.info_version != 1:
             raise UsageError("--format bevformer writes v1 infos (--info-version 1)")
+        if self.corrected and self.format != "mmdet3d":
+            raise UsageError("--corrected writes corrected v2 infos: --format mmdet3d only")

@@ -99,7 +99,9 @@ def infos_table(v: V2Arrays, split: str) -> pa.Table | None:
     columns = dict(
         sample_idx=pa.array(np.arange(s, dtype=np.int64)), token=_strings(v.token),
         timestamp=pa.array(v.timestamp_s, pa.float64()), ego2global=_matrices(v.ego2global), images=images,
-        lidar_points=lidar_points, lidar_sweeps=sweeps, instances=instances, cam_instances=cam_instances,
+        lidar_points=lidar_points, lidar_sweeps=sweeps, instances=instances,
+        pts_semantic_mask_path=_strings([None] * s if v.semantic_mask_path is None else v.semantic_mask_path),
+        cam_instances=cam_instances,
         split=_strings([split] * s), ego2global_f64=_matrices(v.ego2global_f64), lidar2ego_f64=_matrices(v.lidar2ego_f64))
     names = [c["name"] for c in schema_doc()["columns"]]
     return pa.table({name: columns[name] for name in names})

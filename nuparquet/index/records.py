@@ -25,8 +25,10 @@ def _reading(c: Computed, row: int, kind: str, prefix: str, r: np.ndarray, t: np
     }
 
 
-def v1_infos(c: Computed, samples: np.ndarray, cameras: tuple[str, ...], prefix: str, test: bool) -> list[dict]:
-    """One v1 info dict per sample row in `samples`."""
+def v1_infos(c: Computed, samples: np.ndarray, cameras: tuple[str, ...], prefix: str, test: bool,
+             mask_files: np.ndarray | None = None) -> list[dict]:
+    """One v1 info dict per sample row in `samples`. `mask_files` (S,): each sample's lidarseg label file
+    (`lidarseg.semantic_mask_files`), None without lidarseg."""
     inp, d = c.inputs, c.inputs.data
     sweep_offsets = offsets(c.sweep_owner, len(inp.sample_token))
     names = mapped_names(inp.ann_category[c.ann_order])
@@ -55,6 +57,8 @@ def v1_infos(c: Computed, samples: np.ndarray, cameras: tuple[str, ...], prefix:
             info["num_lidar_pts"] = np.array(inp.ann_num_lidar_pts[rows].tolist())
             info["num_radar_pts"] = np.array(inp.ann_num_radar_pts[rows].tolist())
             info["valid_flag"] = (inp.ann_num_lidar_pts[rows] + inp.ann_num_radar_pts[rows]) > 0
+            if mask_files is not None:
+                info["pts_semantic_mask_path"] = os.path.join(prefix, mask_files[s])
         infos.append(info)
     return infos
 
@@ -130,6 +134,8 @@ def v2_infos(v: V2Arrays, *, corrected: bool = False, first_index: int = 0) -> l
             entry["lidar_sweeps"] = sweeps[lo:hi]
         lo, hi = ann_offsets[i], ann_offsets[i + 1]
         entry["instances"] = instances[lo:hi]
+        if v.semantic_mask_path is not None:  # the template's key, after instances (cam_instances is added later)
+            entry["pts_semantic_mask_path"] = v.semantic_mask_path[i]
         if cam_instances is not None:
             entry["cam_instances"] = {cam: cam_instances[ci_offsets[i * n_cam + k]:ci_offsets[i * n_cam + k + 1]]
                                       for k, cam in enumerate(cameras)}

@@ -49,6 +49,7 @@ class V2Arrays:
     ann_num_lidar_pts: np.ndarray  # (A,) int64
     ann_num_radar_pts: np.ndarray  # (A,) int64
     ann_velocity: np.ndarray  # (A, 2)
+    semantic_mask_path: list | None  # (S,) lidarseg label file basenames; None without lidarseg (or in test)
     ci_offsets: np.ndarray | None  # (S * C + 1,) camera instances per (sample, camera), sample-major
     ci_label: np.ndarray | None  # (K,)
     ci_bbox: np.ndarray | None  # (K, 4)
@@ -65,6 +66,7 @@ class V2Arrays:
                       "lidar2ego_f64", "cam2img", "cam2ego", "cam_token", "cam_timestamp_s", "lidar2cam")
         out = {name: getattr(self, name)[lo:hi] for name in per_sample}
         out["cam_path"] = self.cam_path[lo * n_cam:hi * n_cam]
+        out["semantic_mask_path"] = None if self.semantic_mask_path is None else self.semantic_mask_path[lo:hi]
         segments = (("sweep_offsets", lo, hi, ("sweep_timestamp_s", "sweep_ego2global", "sweep_path",
                                                "sweep_lidar2ego", "sweep_lidar2sensor", "sweep_token")),
                     ("ann_offsets", lo, hi, ("ann_label", "ann_name", "ann_box", "ann_valid", "ann_num_lidar_pts",
@@ -91,9 +93,10 @@ def gather_segments(segment_offsets: np.ndarray, picked: np.ndarray) -> tuple[np
 
 
 def v2_arrays(c: Computed, samples: np.ndarray, cameras: tuple[str, ...], prefix: str, *,
-              corrected: bool = False) -> V2Arrays:
+              corrected: bool = False, mask_files: np.ndarray | None = None) -> V2Arrays:
     """The arrays of the samples `samples` (rows, in output order). `corrected`: float64 matrices and sweep
-    paths without the data prefix (the reference's quirks undone)."""
+    paths without the data prefix (the reference's quirks undone). `mask_files` (S,): lidarseg label files of
+    all samples (`Path(v1 path).name` becomes `pts_semantic_mask_path`), None without lidarseg."""
     inp, d = c.inputs, c.inputs.data
     n = len(inp.sample_token)
     lid, cam = c.lidar_row[samples], c.cam_row[samples]
@@ -130,6 +133,8 @@ def v2_arrays(c: Computed, samples: np.ndarray, cameras: tuple[str, ...], prefix
         ann_box=c.gt_boxes[anns], ann_num_lidar_pts=inp.ann_num_lidar_pts[rows],
         ann_num_radar_pts=inp.ann_num_radar_pts[rows],
         ann_valid=(inp.ann_num_lidar_pts[rows] + inp.ann_num_radar_pts[rows]) > 0, ann_velocity=c.gt_velocity[anns],
+        semantic_mask_path=None if mask_files is None
+        else [_basename(os.path.join(prefix, f)) for f in mask_files[samples].tolist()],
         ci_offsets=None, ci_label=None, ci_bbox=None, ci_bbox_3d=None, ci_velocity=None, ci_center_2d=None,
         ci_depth=None, ci_attr_label=None)
     ci = c.cam_instances
