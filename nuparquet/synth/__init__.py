@@ -49,7 +49,7 @@ CATEGORY_LABEL_INDEX = np.array([c.index for c in CATEGORIES])  # position in CA
 def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images: bool = False,
                with_lidar: bool = False, seed: int = 0, version: str = "v1.0-synth",
                on_progress: OnProgress | None = None, rig: str = "nuscenes", with_can_bus: bool = True,
-               profile: str = "regular") -> Path:
+               profile: str = "regular", wild_can_bus: bool = False) -> Path:
     """Write a synthetic nuScenes-format dataroot and return its path (`out_dir`).
 
     scenes: number of scenes (named scene-0001, ...), spread over logs of several locations.
@@ -65,6 +65,8 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
     profile: "regular", or "irregular" for the test cases regular data lacks (gapped tracks, hills, boxes
     just in front of a camera, clock ties, a late first camera frame, and a `<version>-test` folder with empty
     annotation tables; `synth.irregular`).
+    wild_can_bus: the CAN bus files in the shapes real ones take beyond the regular (`synth.can_bus`, wild): late
+    streams, dropped messages, a zoesensors stream, mixed-case meta keys, var_stats objects.
 
     The tables are written to a temporary sibling and renamed to `out_dir/<version>` when complete; an
     existing `out_dir/<version>` is replaced.
@@ -89,7 +91,7 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
         _write_tables_and_files(dataroot, partial_dir, logs, seed, scenes, samples_per_scene,
                                 images=with_images, point_clouds=with_lidar, can_bus=with_can_bus,
                                 on_progress=on_progress, roads=roads, version=version,
-                                irregular_profile=profile == "irregular")
+                                irregular_profile=profile == "irregular", wild_can_bus=wild_can_bus)
     except BaseException:  # interrupted or failed: leave nothing that could pass for a complete version folder
         shutil.rmtree(partial_dir, ignore_errors=True)
         raise
@@ -106,7 +108,8 @@ def synthesize(out_dir, *, scenes: int, samples_per_scene: int = 40, with_images
 
 def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, scenes: int, samples_per_scene: int,
                             *, images: bool, point_clouds: bool, can_bus: bool, on_progress: OnProgress | None,
-                            roads: dict[str, list], version: str = "v1.0-synth", irregular_profile: bool = False) -> None:
+                            roads: dict[str, list], version: str = "v1.0-synth", irregular_profile: bool = False,
+                            wild_can_bus: bool = False) -> None:
     """Generate the scenes one by one (one scene in memory at a time) and stream them into the tables."""
     writers = {name: TableWriter(table_dir / f"{name}.json") for name in TABLES}
     task = "synth" + (" (with sensor files)" if images or point_clouds else "")
@@ -138,7 +141,7 @@ def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, sc
                 if can_bus and (scenes == 1 or scene_index != scenes - 1):
                     write_scene_can_bus(dataroot, _scene_name(scene_index, scenes), np.random.default_rng([seed, 2, scene_index]),
                                         world.timeline.sample_timestamp_us, world.timeline.frame_timestamp_us,
-                                        world.ego_translation_m, yaw_of(world.ego_rotation))
+                                        world.ego_translation_m, yaw_of(world.ego_rotation), wild=wild_can_bus)
                 if images or point_clouds:
                     sensors = SceneSensors(world, log.rig, seed, scene_index)
                     sensors.write(dataroot, filenames, images=images, point_clouds=point_clouds)
