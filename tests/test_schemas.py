@@ -28,7 +28,8 @@ def test_every_nuscenes_table_and_derived_dataset_has_a_schema():
     assert set(table_schemas()) == {"attribute", "calibrated_sensor", "category", "ego_pose", "instance", "log", "map",
                                     "sample", "sample_annotation", "sample_data", "scene", "sensor", "visibility",
                                     "lidarseg", "panoptic"}
-    assert set(dataset_schemas()) == {"frames", "annotations", "scenes", "instances", "lidar_points", "radar_points"}
+    assert set(dataset_schemas()) == {"frames", "annotations", "scenes", "instances", "lidar_points", "radar_points",
+                                      "findings"}
 
 
 def test_every_reference_names_a_table():

@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+from dataclasses import fields
+
+from nuparquet.cli.arguments import add_options
+from nuparquet.convert.options import ConvertOptions
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -14,6 +19,7 @@ def register(sub) -> None:
     )
     p.add_argument("dataroot", help="dataset root holding the version folder")
     p.add_argument("--version", required=True, help="version folder name, e.g. v1.0-mini")
+    add_options(p, ConvertOptions, skip=tuple(f.name for f in fields(ConvertOptions) if f.name != "allow_dangling"))
     p.add_argument("--max-problems", type=int, default=50, help="problems to print (the rest are counted)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -22,8 +28,10 @@ def register(sub) -> None:
 def run(args) -> int:
     from nuparquet.cli.progress import bars
     from nuparquet.convert import validate
+    from nuparquet.dangling import Finding
     from nuparquet.problems import count_problems, format_problems, split_warnings
-    result, found = validate(args.dataroot, args.version, on_progress=bars(not args.quiet))
+    result, found = validate(args.dataroot, args.version, on_progress=bars(not args.quiet),
+                             allow_dangling=args.allow_dangling)
     problems, warnings = split_warnings(found)
     if warnings:
         print(format_problems(warnings, limit=args.max_problems))
@@ -33,5 +41,7 @@ def run(args) -> int:
         print(f"{n} problem{'s' if n != 1 else ''} found")
         return 1
     rows = sum(t.table.num_rows for t in result.tables.values())
-    print(f"ok: {len(result.tables)} tables, {rows:,} records, no problems")
+    accepted = count_problems([w for w in warnings if isinstance(w, Finding)])
+    print(f"ok: {len(result.tables)} tables, {rows:,} records, no problems"
+          + (f" ({accepted:,} dangling references and count mismatches accepted: --allow-dangling)" if accepted else ""))
     return 0

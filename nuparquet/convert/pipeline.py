@@ -16,30 +16,35 @@ from typing import Any
 
 import polars as pl
 
-from nuparquet import __version__
+from nuparquet import __version__, dangling
 from nuparquet.channels import channel_facts
 from nuparquet.convert.options import ConvertOptions
 from nuparquet.convert.registry import BUILDERS, BuildContext
-from nuparquet.convert.run import build_datasets, count_steps
+from nuparquet.convert.run import build_datasets, count_steps, to_schema
 from nuparquet.convert.write import atomic_directory, check_target, utc_now, write_manifest, write_parquet
 from nuparquet.format import FORMAT_NAME, FORMAT_VERSION
 from nuparquet.partials import check_apart
 from nuparquet.errors import EnvironmentFault
 from nuparquet.problems import Problem, ProblemsFound, split_warnings
 from nuparquet.progress import OnProgress, Reporter
-from nuparquet.schemas import fingerprint, table_schemas
+from nuparquet.schemas import dataset_schemas, fingerprint, table_schemas
 from nuparquet.sources.tables import ReadResult, read_tables
 from nuparquet.validate import check_integrity
 
 __all__ = ["ConvertOptions", "convert", "validate"]
 
 
-def validate(dataroot: Path | str, version: str, *, on_progress: OnProgress | None = None) -> tuple[ReadResult, list[Problem]]:
-    """Parse and check a dataroot without converting: (parsed tables, every problem found)."""
+def validate(dataroot: Path | str, version: str, *, on_progress: OnProgress | None = None,
+             allow_dangling: bool = False) -> tuple[ReadResult, list[Problem]]:
+    """Parse and check a dataroot without converting: (parsed tables, every problem found). `allow_dangling`: the
+    references that name no record and the count fields that disagree are warnings (`nuparquet.dangling`), as
+    `convert --allow-dangling` accepts them."""
     with Reporter(on_progress, "validate", total=len(table_schemas()) + 1) as reporter:
         result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"))
         reporter.advance(step="check integrity")
         tables = {name: pl.from_arrow(source.table) for name, source in result.tables.items()}
+        if allow_dangling:
+            return result, result.problems + check_integrity(tables, references=False) + dangling.warnings(dangling.find(tables))
         return result, result.problems + check_integrity(tables)
 
 
@@ -84,9 +89,12 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
             tables[name] = pl.from_arrow(source.table)
             source.table = None  # the polars copy is all we need from here on
         reporter.advance(step="check integrity")
-        problems, warnings = split_warnings(result.problems + check_integrity(tables))
+        problems, warnings = split_warnings(result.problems + check_integrity(tables, references=not opts.allow_dangling))
         if problems:
             raise ProblemsFound(problems)
+        findings = dangling.find(tables) if opts.allow_dangling else None
+        if findings is not None:  # before the scene batches release sample_data
+            datasets[dangling.DATASET] = _write_findings(findings, tmp)
         channels = _channel_facts(tables)
         ctx = BuildContext(Path(dataroot), version, opts, tables, tmp, reporter)
         reporter.grow(count_steps(ctx, BUILDERS))
@@ -101,15 +109,26 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
             "datasets": datasets | built,
             "skipped": skipped,
             "channels": channels,
-            "warnings": [str(w) for w in warnings] + ctx.warnings,
+            "warnings": [str(w) for w in warnings] + (dangling.summary_lines(findings) if findings is not None else [])
+                        + ctx.warnings,
             "files": files + ctx.files,
             "tables": {name: {"key_order": s.key_order, "float_fields": s.float_fields, "json_fields": s.json_fields,
                               **({"layouts": s.layouts} if s.layouts else {})}
                        for name, s in result.tables.items() if s.inferred is None},
         }
+        if findings is not None:
+            manifest["dangling"] = dangling.manifest_entry(findings)
         reporter.advance(step="write manifest")
         write_manifest(tmp, manifest)
     return manifest
+
+
+def _write_findings(findings: pl.DataFrame, root: Path) -> dict:
+    """`findings/` (schemas/findings.json) and its manifest entry."""
+    table = to_schema(findings, dataset_schemas()[dangling.DATASET])
+    size = write_parquet(table, root / dangling.DATASET)
+    return {"path": dangling.DATASET, "rows": table.num_rows, "schema_fingerprint": fingerprint(table.schema),
+            "bytes": size, "parts": 1}
 
 
 def _channel_facts(t: dict[str, pl.DataFrame]) -> dict:

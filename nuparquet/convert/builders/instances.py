@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import polars as pl
 
+from nuparquet.convert.builders.common import declared_fields
 from nuparquet.convert.builders.scenes import path_lengths
 from nuparquet.convert.registry import BuildContext, Builder
 
@@ -13,7 +14,7 @@ def build_instances(t: dict[str, pl.DataFrame], annotation_times: pl.DataFrame, 
     annotation; `track_lengths`: path_lengths of the annotation centres per instance_token."""
     by_token = annotation_times.select("token", "scene_token", "scene_name", "timestamp")
     return (
-        t["instance"]
+        declared_fields(t["instance"], "instance")
         .join(t["category"].select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
               on="category_token", how="left")
         .join(by_token.rename({"token": "first_annotation_token", "timestamp": "first_timestamp"}),

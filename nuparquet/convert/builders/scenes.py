@@ -6,7 +6,7 @@ import numpy as np
 import polars as pl
 
 from nuparquet.columns import to_numpy
-from nuparquet.convert.builders.common import reference_poses
+from nuparquet.convert.builders.common import declared_fields, reference_poses
 from nuparquet.convert.lookups import as_int, split_of
 from nuparquet.convert.registry import BuildContext, Builder
 
@@ -30,7 +30,7 @@ def build_scenes(t: dict[str, pl.DataFrame], references: pl.DataFrame, counts: p
     ego_path = path_lengths(references, "scene_name", "timestamp", "ego_translation").rename(
         {"_step": "ego_distance_m"})
     scenes = (
-        t["scene"]
+        declared_fields(t["scene"], "scene")
         .join(t["log"].select(pl.col("token").alias("log_token"), "logfile", "vehicle", "date_captured",
                               pl.col("location").alias("log_location")), on="log_token", how="left")
         .join(sample_ts.rename({"token": "first_sample_token", "timestamp": "first_timestamp"}),
