@@ -106,6 +106,8 @@ def write_scene_can_bus(dataroot: Path, scene_name: str, rng: np.random.Generato
         period_us = 1e6 / rate
         n = int((end_us - start_us) // period_us) + 1
         times = start_us + np.round(np.arange(n) * period_us + rng.normal(0, period_us * 0.02, n)).astype(np.int64)
+        if wild:  # no jitter before the start: every stream begins after the second keyframe
+            times = np.maximum(times, start_us)
         times = np.maximum.accumulate(times + np.arange(n))  # strictly increasing
         if wild and name in WILD_GAPS_US:
             times = _drop_messages(times, WILD_GAPS_US[name])
