@@ -28,6 +28,7 @@ from nuparquet.errors import EnvironmentFault
 from nuparquet.problems import Problem, ProblemsFound, split_warnings
 from nuparquet.progress import OnProgress, Reporter
 from nuparquet.schemas import dataset_schemas, fingerprint, table_schemas
+from nuparquet.sources import json_layout
 from nuparquet.sources.tables import ReadResult, read_tables
 from nuparquet.validate import check_integrity
 
@@ -83,6 +84,9 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
             datasets[f"tables/{name}"] = {"path": f"tables/{name}", "rows": source.table.num_rows,
                                           "schema_fingerprint": fingerprint(source.table.schema), "bytes": size}
             entry = {"path": f"{version}/{source.path.name}", "kind": "table", "dataset": f"tables/{name}"}
+            layout = json_layout.detect(source.path)
+            if layout is not None:  # export-json writes the file back byte for byte
+                entry["layout"] = layout
             if source.inferred is not None:  # an extra table (T4's object_ann, ...): typed by inference
                 entry |= {"kind": "table_inferred", **source.inferred}
             files.append(entry)

@@ -67,6 +67,7 @@ def test_strict_default_converts_exactly_or_refuses_naming_every_problem(case, t
         for path in sorted((root / VERSION).glob("*.json")):
             same_json(json.loads(path.read_text()), json.loads((tmp_path / "back" / VERSION / path.name).read_text()),
                       path.name)
+            assert (tmp_path / "back" / VERSION / path.name).read_bytes() == path.read_bytes(), path.name
         return
     n = len(dangling) + len(mismatches)
     assert code == 1 and not out.exists()
@@ -115,8 +116,7 @@ def test_export_json_returns_every_file_exactly(case, tmp_path):
                   if "expansion" not in p.parts) == originals
     for path in originals:
         same_json(json.loads((root / path).read_text()), json.loads((tmp_path / "back" / path).read_text()), str(path))
-        if path.parts[0] == "can_bus":  # written as the expansion writes them: byte for byte
-            assert (root / path).read_bytes() == (tmp_path / "back" / path).read_bytes(), path
+        assert (root / path).read_bytes() == (tmp_path / "back" / path).read_bytes(), path  # byte for byte
 
 
 def test_derived_datasets_keep_every_row_with_nulls_exactly_where_no_partner(case):
