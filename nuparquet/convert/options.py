@@ -27,9 +27,10 @@ class ConvertOptions:
         help=f"scenes built together (default {SCENES_PER_BATCH}); fewer lowers peak memory, more lowers overhead")
     no_map: bool = option(False, help="do not convert the map expansion (maps/expansion/*.json) into map/ datasets")
     allow_dangling: bool = option(
-        False, help="accept references that name no record (and count fields that disagree with them), as trimmed "
-        "extracts hold: each is listed in findings/ and counted by table and field in manifest.json 'dangling'; the "
-        "derived datasets keep their rows with nulls where a join finds no partner. Default: such input is refused")
+        False, help="accept references that name no record and count fields that disagree with them, as trimmed "
+        "extracts hold (validate: reported as warnings; convert: each listed in findings/ and counted by table and "
+        "field in manifest.json 'dangling', the derived datasets keeping their rows with nulls where a join finds no "
+        "partner). Default: such input is refused (docs/trimmed_extracts.md)")
 
     sensors: tuple[str, ...] = option(
         (), metavar="LIST",
