@@ -11,7 +11,7 @@ import functools
 import hashlib
 import json
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 
@@ -42,6 +42,9 @@ class Field:
     non_negative: bool = False  # every value (every element of a list) must be >= 0
     json_float_ok: bool = False  # the source may store it as a JSON float: kept as float64, losslessly
     empty_list_is_null: bool = False  # [] in the JSON, null in Arrow (camera_intrinsic)
+    # A derived column filled by a join: null where the join has no partner, which only `convert --allow-dangling`
+    # lets through (a trimmed extract); the strict default keeps the column non-null (`Schema.allowing_dangling`).
+    null_if_dangling: bool = False
 
     @property
     def arrow_type(self) -> pa.DataType:
@@ -74,6 +77,10 @@ class Schema:
             if f.name == name:
                 return f
         raise KeyError(f"{self.name} has no field {name!r}")
+
+    def allowing_dangling(self) -> "Schema":
+        """This schema as `convert --allow-dangling` writes it: the `null_if_dangling` columns nullable."""
+        return replace(self, fields=tuple(replace(f, nullable=True) if f.null_if_dangling else f for f in self.fields))
 
     def arrow_schema(self) -> pa.Schema:
         metadata = {k: v if isinstance(v, str) else json.dumps(v, sort_keys=True) for k, v in self.metadata.items()}
@@ -258,6 +265,8 @@ def docs_markdown() -> str:
                 notes = []
                 if f.nullable:
                     notes.append("nullable")
+                elif f.null_if_dangling:
+                    notes.append("null only with `--allow-dangling`")
                 if f.ref:
                     notes.append(f"→ `{f.ref}`")
                 note = f" ({', '.join(notes)})" if notes else ""

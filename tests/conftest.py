@@ -155,6 +155,23 @@ def devkit():
     return nuscenes.nuscenes
 
 
+@pytest.fixture(scope="session")
+def wild_can_root(tmp_path_factory) -> Path:
+    """3 scenes x 8 samples, tables only, with the CAN bus files of scenes 1 and 2 in the shapes real ones take
+    (`synth.can_bus`, wild): every stream starting after the second keyframe, a zoesensors stream, a pose gap of
+    exactly 1 s and a steeranglefeedback gap of 1 s + 1 us, a vehicle_monitor message missing, mixed-case meta keys,
+    var_stats objects (VEHICLE_MONITOR's in scene-0001 only)."""
+    from nuparquet.synth import synthesize
+
+    return generated_root(tmp_path_factory, "wild-can", lambda root: synthesize(
+        root, scenes=3, samples_per_scene=8, seed=4, version=SYNTH_VERSION, wild_can_bus=True))
+
+
+@pytest.fixture(scope="session")
+def wild_can_out(wild_can_root, tmp_path_factory) -> Path:
+    return converted(tmp_path_factory, "wild-can-out", wild_can_root, SYNTH_VERSION)
+
+
 LYFT_RIG_VERSION = "v1.0-lyft-rig"
 
 

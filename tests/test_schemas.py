@@ -28,7 +28,8 @@ def test_every_nuscenes_table_and_derived_dataset_has_a_schema():
                                     "sample", "sample_annotation", "sample_data", "scene", "sensor", "visibility",
                                     "lidarseg", "panoptic"}
     assert set(dataset_schemas()) == {"frames", "annotations", "scenes", "instances", "lidar_points", "radar_points",
-                                      "sample_can_bus", "map/<layer>", "map/<lane layer>", "map/lane_centerlines"}
+                                      "sample_can_bus", "map/<layer>", "map/<lane layer>", "map/lane_centerlines",
+                                      "findings"}
 
 
 def test_every_reference_names_a_table():

@@ -23,6 +23,11 @@ class ConvertOptions:
         SCENES_PER_BATCH, metavar="N",
         help=f"scenes built together (default {SCENES_PER_BATCH}); fewer lowers peak memory, more lowers overhead")
     no_map: bool = option(False, help="do not convert the map expansion (maps/expansion/*.json) into map/ datasets")
+    allow_dangling: bool = option(
+        False, help="accept references that name no record and count fields that disagree with them, as trimmed "
+        "extracts hold (validate: reported as warnings; convert: each listed in findings/ and counted by table and "
+        "field in manifest.json 'dangling', the derived datasets keeping their rows with nulls where a join finds no "
+        "partner). Default: such input is refused (docs/trimmed_extracts.md)")
     sensors: tuple[str, ...] = option(
         (), metavar="LIST",
         help="also convert these sensors' point files into lidar_points/ and radar_points/ (comma-separated: "

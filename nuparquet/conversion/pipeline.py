@@ -22,7 +22,7 @@ from nuparquet.channels import channel_facts
 from nuparquet.conversion.builder import BuildContext
 from nuparquet.conversion.options import ConvertOptions
 from nuparquet.conversion.registry import BUILDERS
-from nuparquet.conversion.run import build_datasets, count_steps
+from nuparquet.conversion.run import build_datasets, count_steps, to_schema
 from nuparquet.conversion.write import utc_now, write_manifest, write_parquet
 from nuparquet.engine.options import EngineOptions
 from nuparquet.engine.run import check_engine
@@ -31,7 +31,8 @@ from nuparquet.format import FORMAT_NAME, FORMAT_VERSION
 from nuparquet.options import resolve, split_fields
 from nuparquet.problems import Problem, ProblemsFound, split_warnings
 from nuparquet.progress import OnProgress, Reporter
-from nuparquet.schemas import fingerprint, table_schemas
+from nuparquet.schemas import dataset_schemas, fingerprint, table_schemas
+from nuparquet.sources import dangling, json_layout
 from nuparquet.sources.integrity import check_integrity
 from nuparquet.sources.tables import read_tables
 
@@ -52,13 +53,19 @@ class Validation:
         return not self.problems
 
 
-def validate(dataroot: Path | str, version: str, *, on_progress: OnProgress | None = None) -> Validation:
-    """Parse and check `dataroot/version` without converting: every problem and warning found, all at once."""
+def validate(dataroot: Path | str, version: str, *, on_progress: OnProgress | None = None,
+             allow_dangling: bool = False) -> Validation:
+    """Parse and check `dataroot/version` without converting: every problem and warning found, all at once.
+    `allow_dangling`: the references that name no record and the count fields that disagree are warnings
+    (`nuparquet.sources.dangling`), as `convert --allow-dangling` accepts them."""
     with Reporter(on_progress, "validate", total=len(table_schemas()) + 1) as reporter:
         result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"))
         reporter.advance(step="check integrity")
         tables = {name: pl.from_arrow(source.table) for name, source in result.tables.items()}
-        problems, warnings = split_warnings(result.problems + check_integrity(tables))
+        found = result.problems + check_integrity(tables, references=not allow_dangling)
+        if allow_dangling:
+            found += dangling.warnings(dangling.find(tables))
+        problems, warnings = split_warnings(found)
         return Validation(problems, warnings, {name: frame.height for name, frame in tables.items()})
 
 
@@ -103,15 +110,21 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
             datasets[f"tables/{name}"] = {"path": f"tables/{name}", "rows": source.table.num_rows,
                                           "schema_fingerprint": fingerprint(source.table.schema), "bytes": size}
             entry = {"path": f"{version}/{source.path.name}", "kind": "table", "dataset": f"tables/{name}"}
+            layout = json_layout.detect(source.path)
+            if layout is not None:  # export-json writes the file back byte for byte
+                entry["layout"] = layout
             if source.inferred is not None:  # an extra table (T4's object_ann, ...): typed by inference
                 entry |= {"kind": "table_inferred", **source.inferred}
             files.append(entry)
             tables[name] = pl.from_arrow(source.table)
             source.table = None  # the polars copy is all we need from here on
         reporter.advance(step="check integrity")
-        problems, warnings = split_warnings(result.problems + check_integrity(tables))
+        problems, warnings = split_warnings(result.problems + check_integrity(tables, references=not opts.allow_dangling))
         if problems:
             raise ProblemsFound(problems)
+        findings = dangling.find(tables) if opts.allow_dangling else None
+        if findings is not None:  # before the scene batches release sample_data
+            datasets[dangling.DATASET] = _write_findings(findings, tmp)
         channels = _channel_facts(tables)
         ctx = BuildContext(Path(dataroot), version, opts, engine, tables, tmp, reporter)
         reporter.grow(count_steps(ctx, BUILDERS))
@@ -126,12 +139,15 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
             "datasets": datasets | built,
             "skipped": skipped,
             "channels": channels,
-            "warnings": [str(w) for w in warnings] + ctx.warnings,
+            "warnings": [str(w) for w in warnings] + (dangling.summary_lines(findings) if findings is not None else [])
+                        + ctx.warnings,
             "files": files + ctx.files,
             "tables": {name: {"key_order": s.key_order, "float_fields": s.float_fields, "json_fields": s.json_fields,
                               **({"layouts": s.layouts} if s.layouts else {})}
                        for name, s in result.tables.items() if s.inferred is None},
         }
+        if findings is not None:
+            manifest["dangling"] = dangling.manifest_entry(findings)
         reporter.advance(step="write manifest")
         write_manifest(tmp, manifest)
     return manifest
@@ -141,6 +157,14 @@ def _recorded_options(opts: ConvertOptions, engine: EngineOptions) -> dict:
     """The options manifest.json records: the conversion's own, then where its points were converted."""
     recorded = {f.name: getattr(opts, f.name) for f in fields(opts) if f.name != "overwrite"}
     return recorded | {"jobs": engine.workers or 0, "engine": engine.engine, "ray_address": engine.ray_address}
+
+
+def _write_findings(findings: pl.DataFrame, root: Path) -> dict:
+    """`findings/` (schemas/findings.json) and its manifest entry."""
+    table = to_schema(findings, dataset_schemas()[dangling.DATASET])
+    size = write_parquet(table, root / dangling.DATASET)
+    return {"path": dangling.DATASET, "rows": table.num_rows, "schema_fingerprint": fingerprint(table.schema),
+            "bytes": size, "parts": 1}
 
 
 def _channel_facts(tables: dict[str, pl.DataFrame]) -> dict:

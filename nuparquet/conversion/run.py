@@ -90,6 +90,13 @@ def _batches(ctx: BuildContext):
         scenes = scene_batch.filter(pl.col("_batch") == index)["scene_token"].to_list()
         rows = {table: parts[table].pop((index,), None) for table in PER_SAMPLE_TABLES}
         yield SceneBatch(index, scenes, {t: empty[t] if r is None else r for t, r in rows.items()})
+    # Rows of no scene (their sample or its scene is absent: only `--allow-dangling` lets such input through) are
+    # kept, as a last batch of their own, after every scene.
+    orphans = {table: parts[table].pop((None,), None) for table in PER_SAMPLE_TABLES}
+    if any(rows is not None for rows in orphans.values()):
+        if ctx.reporter:
+            ctx.reporter.grow(1)
+        yield SceneBatch(n_batches, [], {t: empty[t] if r is None else r for t, r in orphans.items()})
 
 
 def _named(builder: Builder, result: BuildResult) -> list[tuple[str, pl.DataFrame | pa.Table]]:
@@ -115,6 +122,8 @@ class _Writers:
             self.ctx._written[name] = name
             return
         schema = dataset_schemas()[builder.schema] if builder.schema else None
+        if schema and self.ctx.options.allow_dangling:  # nulls where a join has no partner (nuparquet.sources.dangling)
+            schema = schema.allowing_dangling()
         table = to_schema(frame, schema) if schema else _to_arrow(frame)
         part = batch if builder.parts == "per_batch" else 0
         key = (name, part)

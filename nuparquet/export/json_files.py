@@ -20,7 +20,7 @@ from nuparquet.atomic import check_apart
 from nuparquet.errors import FormatError
 from nuparquet.format import MANIFEST
 from nuparquet.progress import OnProgress, Reporter
-from nuparquet.sources import table_layouts
+from nuparquet.sources import json_layout, table_layouts
 from nuparquet.sources.json_records import to_records
 from nuparquet.schemas import table_schemas
 
@@ -68,7 +68,7 @@ def _write_table_file(dataset_dir: Path, manifest: dict, entry: dict, target: Pa
     name = entry["dataset"].removeprefix("tables/")
     info = manifest["tables"][name]
     _write_table(dataset_dir / manifest["datasets"][entry["dataset"]]["path"], target, info["key_order"], name,
-                 set(info.get("json_fields", ())), info.get("layouts") or [info["key_order"]])
+                 set(info.get("json_fields", ())), info.get("layouts") or [info["key_order"]], entry.get("layout"))
 
 
 def _scene_rows(dataset_dir: Path, manifest: dict, entry: dict) -> list[dict]:
@@ -106,6 +106,10 @@ def _write_inferred_table(dataset_dir: Path, manifest: dict, entry: dict, target
     rows = pl.read_parquet(dataset_dir / manifest["datasets"][entry["dataset"]]["path"]).to_dicts()
     records = to_records(rows, entry["keys"], entry.get("json_fields", []), entry.get("int_values", {}),
                          entry.get("key_orders", {}))
+    if "layout" in entry:  # the source's whitespace (sources/json_layout.py): byte for byte
+        with target.open("w") as out:
+            json_layout.write_array(out, records, entry["layout"])
+        return
     target.write_text(json.dumps(records, indent=0))
 
 
@@ -153,12 +157,13 @@ WRITERS: dict[str, Callable[[Path, dict, dict, Path], None]] = {
 
 
 def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str, json_fields: set[str],
-                 layouts: list[list[str]]) -> None:
+                 layouts: list[list[str]], layout: dict | None = None) -> None:
+    """`layout`: the source's whitespace (`sources.json_layout`; None: one record a line)."""
     schema = table_schemas().get(name)
     empty_list_fields = {f.name for f in schema.fields if f.empty_list_is_null} if schema else set()
     files = sorted(parquet_dir.glob("*.parquet"))
+    opening, separator, closing, empty = json_layout.delimiters(layout)
     with path.open("w") as out:
-        out.write("[")
         first = True
         for file in files:
             parquet = pq.ParquetFile(file)
@@ -179,7 +184,7 @@ def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str,
                         record = {k: record[k] for k in layouts[layout_ids[i]]}
                     if marks is not None and marks[i]:
                         table_layouts.restore(record, marks[i], int_columns)
-                    out.write("\n" if first else ",\n")
+                    out.write(opening if first else separator)
                     first = False
-                    out.write(json.dumps(record))
-        out.write("\n]\n")
+                    out.write(json_layout.dumps(record, layout))
+        out.write(empty if first else closing)

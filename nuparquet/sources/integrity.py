@@ -25,10 +25,11 @@ _COUNTS = [("scene", "nbr_samples", "sample", "scene_token"),
            ("instance", "nbr_annotations", "sample_annotation", "instance_token")]
 
 
-def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) -> list[Problem]:
+def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED, *, references: bool = True) -> list[Problem]:
     """All problems across the parsed tables (by table name): unique tokens, resolving foreign keys
     (including every non-empty prev/next), count fields, and finite unit quaternions. At most `limit`
-    problems per check, plus a count of the rest."""
+    problems per check, plus a count of the rest. `references=False` leaves out the foreign keys and count fields
+    (`--allow-dangling`: `nuparquet.sources.dangling` finds those in full)."""
     # Extra tables (typed by inference, no schema) have no declared keys to check.
     frames = {name: df.with_row_index("_idx") for name, df in tables.items() if name in table_schemas()}
     files = {name: table_schemas()[name].source for name in frames}
@@ -46,7 +47,7 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) 
         dups = df.filter(pl.col("token").is_duplicated())
         report(name, dups, lambda r: "duplicate token")
         for f in schema.fields:
-            if f.ref is None or f.ref not in frames or f.name not in df.columns:
+            if f.ref is None or f.ref not in frames or f.name not in df.columns or not references:
                 continue
             targets = frames[f.ref].select(pl.col("token").alias("_ref"))
             values = df.select("_idx", "token", pl.col(f.name).alias("_ref"))
@@ -73,7 +74,7 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED) 
                           "must be >= 0" if not f.finite else "must be finite and >= 0"))
     problems += _timestamp_units(frames, files)
     for table, count_field, referring, ref_field in _COUNTS:
-        if table not in frames or referring not in frames:
+        if table not in frames or referring not in frames or not references:
             continue
         counts = frames[referring].group_by(ref_field).agg(pl.len().alias("_actual"))
         joined = frames[table].join(counts, left_on="token", right_on=ref_field, how="left").with_columns(

@@ -6,6 +6,14 @@ files' field names, key order (sorted) and value styles (ints where the real fil
 data, messages start a few milliseconds after the scene's first sample, so the first sample has no message at
 or before it. Values are functions of the ego trajectory (position, heading, speed, yaw rate), so CAN speed
 and ego-pose speed agree within the noise.
+
+With `wild=True` the files take the shapes real CAN bus data has beyond the regular ones (issue 27): every stream
+starts after the scene's second keyframe (two samples precede every message); a `zoesensors` stream (brake, steering
+and throttle sensors, the real files' ~1 kHz message, here at `WILD_RATES_HZ`); messages dropped (`WILD_GAPS_US`:
+pose has a gap of exactly 1 s, steeranglefeedback one of 1 s + 1 µs, vehicle_monitor misses one message); and the
+meta file as the real ones are: keys in mixed case that are not the file names (`SteerAngleFeedback`,
+`ZoeSensors`), `var_stats` with `utime` statistics (integer min/max), an object for ZOE_VEH_INFO and, in scenes of
+odd number, for VEHICLE_MONITOR (null in the others, as in the real extract).
 """
 
 from __future__ import annotations
@@ -21,6 +29,12 @@ RATES_HZ = {"pose": 50.0, "ms_imu": 100.0, "steeranglefeedback": 100.0, "vehicle
 WHEELBASE_M = 2.588  # a Renault Zoe, nuScenes' Singapore and Boston car
 STEERING_RATIO = 15.0
 GRAVITY_MPS2 = 9.80665
+WILD_RATES_HZ = {"zoesensors": 500.0}  # real files: ~958 Hz; halved to keep the test files small
+# Gaps cut into the streams of the wild files (messages dropped): exactly this long, or None for one message missing.
+WILD_GAPS_US = {"pose": 1_000_000, "steeranglefeedback": 1_000_001, "vehicle_monitor": None}
+# The real meta files' keys, in their order: mixed case, not the file names.
+META_KEYS = {"ms_imu": "MS_IMU", "pose": "POSE", "steeranglefeedback": "SteerAngleFeedback",
+             "vehicle_monitor": "VEHICLE_MONITOR", "zoe_veh_info": "ZOE_VEH_INFO", "zoesensors": "ZoeSensors"}
 
 
 def _trajectory(times_us: np.ndarray, frame_times_us: np.ndarray, frame_xy: np.ndarray, frame_yaw: np.ndarray):
@@ -48,26 +62,56 @@ def _var_stats(values: np.ndarray) -> dict:
             "std": float(values.std()), "std_diff": float(diff.std())}
 
 
+def _record_stats(records: list[dict]) -> dict:
+    """var_stats as the real meta files write them: per field (utime too, with integer min and max) in key order."""
+    out = {}
+    for key in records[0]:
+        values = np.array([r[key] for r in records])
+        out[key] = _var_stats(values)
+        if key == "utime":
+            out[key]["max"], out[key]["min"] = int(values.max()), int(values.min())
+    return out
+
+
 def yaw_of(rotation_wxyz: np.ndarray) -> np.ndarray:
     """Heading of each ego rotation (the generator keeps its own maths, independent of the library)."""
     w, x, y, z = rotation_wxyz.T
     return np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
+def _drop_messages(times: np.ndarray, gap_us: int | None) -> np.ndarray:
+    """`times` without the messages of one gap a third of the way in: exactly `gap_us` long (the first message after
+    it moved onto its end), or (None) one message missing."""
+    k = len(times) // 3
+    if gap_us is None:
+        return np.delete(times, k + 1)
+    end = times[k] + gap_us
+    return np.r_[times[: k + 1], end, times[times > end]]
+
+
 def write_scene_can_bus(dataroot: Path, scene_name: str, rng: np.random.Generator, sample_times_us: np.ndarray,
-                        frame_times_us: np.ndarray, frame_translation_m: np.ndarray, frame_yaw: np.ndarray) -> None:
-    """Write every CAN bus file of one scene into `dataroot/can_bus/`."""
+                        frame_times_us: np.ndarray, frame_translation_m: np.ndarray, frame_yaw: np.ndarray,
+                        *, wild: bool = False) -> None:
+    """Write every CAN bus file of one scene into `dataroot/can_bus/` (`wild`: the real files' other shapes, see the
+    module's docstring)."""
     folder = dataroot / "can_bus"
     folder.mkdir(exist_ok=True)
-    start_us = int(sample_times_us[0]) + int(rng.integers(2_000, 15_000))
+    first_us = int(sample_times_us[min(1, len(sample_times_us) - 1)] if wild else sample_times_us[0])
+    start_us = first_us + int(rng.integers(2_000, 15_000))
     end_us = int(sample_times_us[-1]) - int(rng.integers(0, 20_000))
     messages: dict[str, list[dict]] = {}
     stats: dict[str, dict] = {}
-    for name, rate in RATES_HZ.items():
+    odd_scene = int(scene_name.rsplit("-", 1)[-1]) % 2 == 1
+    for name, rate in (RATES_HZ | WILD_RATES_HZ if wild else RATES_HZ).items():
         period_us = 1e6 / rate
         n = int((end_us - start_us) // period_us) + 1
         times = start_us + np.round(np.arange(n) * period_us + rng.normal(0, period_us * 0.02, n)).astype(np.int64)
+        if wild:  # no jitter before the start: every stream begins after the second keyframe
+            times = np.maximum(times, start_us)
         times = np.maximum.accumulate(times + np.arange(n))  # strictly increasing
+        if wild and name in WILD_GAPS_US:
+            times = _drop_messages(times, WILD_GAPS_US[name])
+            n = len(times)
         x, y, heading, speed, yaw_rate, accel = _trajectory(times, frame_times_us, frame_translation_m[:, :2], frame_yaw)
         noise = lambda scale, *shape: rng.normal(0, scale, (n, *shape))  # noqa: E731
         if name == "pose":
@@ -105,6 +149,11 @@ def write_scene_can_bus(dataroot: Path, scene_name: str, rng: np.random.Generato
                            np.clip(-accel * 30, 0, 60).astype(int), rpm, steering_deg, np.gradient(steering_deg),
                            np.clip(accel * 40, 0, 100).astype(int), times, speed, yaw_rate))]
             stats["VEHICLE_MONITOR"] = None
+        elif name == "zoesensors":  # raw pedal and steering sensor voltages
+            records = [{"brake_sensor": float(b), "steering_sensor": float(s), "throttle_sensor": float(t), "utime": int(u)}
+                       for b, s, t, u in zip(0.18 + np.clip(-accel, 0, None) * 0.02 + noise(0.001),
+                                             0.1887 + yaw_rate * 0.01 + noise(0.0005),
+                                             0.12 + np.clip(accel, 0, None) * 0.03 + noise(0.001), times)]
         else:  # zoe_veh_info: wheel speeds and pedal positions
             records = [{"FL_wheel_speed": float(v * 9.1), "FR_wheel_speed": float(v * 9.1 * 1.002),
                         "RL_wheel_speed": float(v * 9.05), "RR_wheel_speed": float(v * 9.05 * 1.001),
@@ -120,12 +169,16 @@ def write_scene_can_bus(dataroot: Path, scene_name: str, rng: np.random.Generato
     for name, records in messages.items():
         (folder / f"{scene_name}_{name}.json").write_text(json.dumps(records))
     meta = {}
-    for key, name in (("MS_IMU", "ms_imu"), ("POSE", "pose"), ("SteerAngleFeedback", "steeranglefeedback"),
-                      ("VEHICLE_MONITOR", "vehicle_monitor"), ("ZOE_VEH_INFO", "zoe_veh_info")):
+    for name, key in META_KEYS.items():
+        if name not in messages:
+            continue
         utimes = [r["utime"] for r in messages[name]]
         span_s = (utimes[-1] - utimes[0]) / 1e6
+        var_stats = stats.get(key)
+        if wild:
+            var_stats = None if key == "VEHICLE_MONITOR" and not odd_scene else _record_stats(messages[name])
         meta[key] = {"message_count": len(utimes), "message_freq": len(utimes) / span_s if span_s else 0.0,
-                     "timespan": span_s, "var_stats": stats[key]}
+                     "timespan": span_s, "var_stats": var_stats}
     (folder / f"{scene_name}_meta.json").write_text(json.dumps(meta, indent=0))
     route_times = np.arange(int(frame_times_us.min()), int(frame_times_us.max()), 200_000)
     rx, ry, *_ = _trajectory(route_times, frame_times_us, frame_translation_m[:, :2], np.zeros(len(frame_times_us)))

@@ -44,6 +44,8 @@ def synthesize(out_dir, options: SynthOptions | None = None, *, on_progress: OnP
     camera, 3 lidars, no radar; `taxonomy.RIGS`).
     with_can_bus: write the CAN bus expansion (`can_bus/scene-XXXX_<message>.json`) of every scene but the last
     (a scene without CAN bus data, as some real scenes are); see `synth.can_bus`.
+    wild_can_bus: the CAN bus files in the shapes real ones take beyond the regular (`synth.can_bus`, wild): late
+    streams, dropped messages, a zoesensors stream, mixed-case meta keys, var_stats objects.
     profile: "regular", or "irregular" for the test cases regular data lacks (gapped tracks, hills, boxes
     just in front of a camera, clock ties, a late first camera frame, and a `<version>-test` folder with empty
     annotation tables; `synth.irregular`).
@@ -64,7 +66,7 @@ def synthesize(out_dir, options: SynthOptions | None = None, *, on_progress: OnP
         _write_tables_and_files(dataroot, partial_dir, logs, seed, scenes, samples_per_scene,
                                 images=options.with_images, point_clouds=options.with_lidar,
                                 can_bus=options.with_can_bus, on_progress=on_progress, roads=roads, version=version,
-                                irregular_profile=options.profile == "irregular")
+                                irregular_profile=options.profile == "irregular", wild_can_bus=options.wild_can_bus)
         _write_maps(dataroot, sorted({log.location.name for log in logs}))
         write_map_expansions(dataroot, seed, roads, {log.location.name: log.location.drives_on_right for log in logs},
                              sorted({log.location.name for log in logs}))
@@ -75,7 +77,8 @@ def synthesize(out_dir, options: SynthOptions | None = None, *, on_progress: OnP
 
 def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, scenes: int, samples_per_scene: int,
                             *, images: bool, point_clouds: bool, can_bus: bool, on_progress: OnProgress | None,
-                            roads: dict[str, list], version: str = "v1.0-synth", irregular_profile: bool = False) -> None:
+                            roads: dict[str, list], version: str = "v1.0-synth", irregular_profile: bool = False,
+                            wild_can_bus: bool = False) -> None:
     """Generate the scenes one by one (one scene in memory at a time) and stream them into the tables."""
     writers = {name: TableWriter(table_dir / f"{name}.json") for name in TABLES}
     task = "synth" + (" (with sensor files)" if images or point_clouds else "")
@@ -107,7 +110,7 @@ def _write_tables_and_files(dataroot: Path, table_dir: Path, logs, seed: int, sc
                 if can_bus and (scenes == 1 or scene_index != scenes - 1):
                     write_scene_can_bus(dataroot, _scene_name(scene_index, scenes), np.random.default_rng([seed, 2, scene_index]),
                                         world.timeline.sample_timestamp_us, world.timeline.frame_timestamp_us,
-                                        world.ego_translation_m, yaw_of(world.ego_rotation))
+                                        world.ego_translation_m, yaw_of(world.ego_rotation), wild=wild_can_bus)
                 if images or point_clouds:
                     sensors = SceneSensors(world, log.rig, seed, scene_index)
                     sensors.write(dataroot, filenames, images=images, point_clouds=point_clouds)

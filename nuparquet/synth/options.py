@@ -26,6 +26,10 @@ class SynthOptions:
     with_can_bus: bool = option(
         True, flag="--can-bus", help="write the CAN bus expansion (can_bus/: every scene's files but the last's); "
         "--no-can-bus leaves it out")
+    wild_can_bus: bool = option(
+        False, help="write the CAN bus files in the shapes real ones take beyond the regular: streams starting after "
+        "the first keyframes, dropped messages and 1 s gaps, a zoesensors stream, mixed-case meta keys, var_stats "
+        "objects (for tests)")
     seed: int = option(0, help="random seed (default 0); same seed, same dataset")
     version: str = option("v1.0-synth", help="version folder name (default v1.0-synth)")
     rig: Literal["nuscenes", "lyft"] = option(  # the names of `taxonomy.RIGS`

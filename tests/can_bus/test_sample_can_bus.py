@@ -15,10 +15,12 @@ from nuparquet.can_bus.align import MAX_INTERPOLATION_GAP_US
 from references import bevformer_can_bus
 
 
-@pytest.fixture(scope="module", params=["extract", "synth"])
+@pytest.fixture(scope="module", params=["extract", "synth", "wild"])
 def case(request):
     if request.param == "extract":
         root, version, out = request.getfixturevalue("extract_root"), EXTRACT_VERSION, request.getfixturevalue("extract_out")
+    elif request.param == "wild":  # late streams, dropped messages, zoesensors (synth.can_bus, wild)
+        root, version, out = request.getfixturevalue("wild_can_root"), SYNTH_VERSION, request.getfixturevalue("wild_can_out")
     else:
         root, version, out = request.getfixturevalue("synth_root"), SYNTH_VERSION, request.getfixturevalue("synth_out")
     samples = json.loads((root / version / "sample.json").read_text())
@@ -31,6 +33,11 @@ def _messages(root, scene, message):
     return json.loads(path.read_text()) if path.exists() else None
 
 
+def _message_types(root) -> list[str]:
+    """The CAN message types of the dataroot's files (not meta, route)."""
+    return sorted({p.stem.split("_", 1)[1] for p in (root / "can_bus").glob("scene-*_*.json")} - {"meta", "route"})
+
+
 def test_one_row_per_sample(case):
     _, _, samples, _, aligned = case
     assert sorted(aligned["sample_token"]) == sorted(s["token"] for s in samples)
@@ -40,7 +47,7 @@ def test_asof_message_and_age_equal_a_plain_search(case):
     root, _, samples, scenes, aligned = case
     rows = {r["sample_token"]: r for r in aligned.iter_rows(named=True)}
     checked_none = checked_some = 0
-    for message in ("pose", "ms_imu", "steeranglefeedback", "vehicle_monitor"):
+    for message in _message_types(root):
         for sample in samples:
             messages = _messages(root, scenes[sample["scene_token"]], message)
             row = rows[sample["token"]]
@@ -63,7 +70,9 @@ def test_interpolation_equals_plain_python_with_the_gap_rule(case):
     rows = {r["sample_token"]: r for r in aligned.iter_rows(named=True)}
     seen = {"between": 0, "gap": 0, "none": 0}
     for message, fields in (("pose", ("pos", "vel", "orientation")), ("vehicle_monitor", ("vehicle_speed", "steering")),
-                            ("steeranglefeedback", ("value",))):
+                            ("steeranglefeedback", ("value",)), ("zoesensors", ("brake_sensor", "throttle_sensor"))):
+        if message not in _message_types(root):
+            continue
         for sample in samples:
             t = sample["timestamp"]
             messages = _messages(root, scenes[sample["scene_token"]], message) or []

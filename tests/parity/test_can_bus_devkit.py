@@ -14,10 +14,12 @@ from nuparquet.export.json_files import export_json
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 
-@pytest.fixture(scope="module", params=["extract", "synth"])
+@pytest.fixture(scope="module", params=["extract", "synth", "wild"])
 def case(request):
     if request.param == "extract":
         root, out = request.getfixturevalue("extract_root"), request.getfixturevalue("extract_out")
+    elif request.param == "wild":  # the shapes real files take beyond ours (synth.can_bus, wild)
+        root, out = request.getfixturevalue("wild_can_root"), request.getfixturevalue("wild_can_out")
     else:
         root, out = request.getfixturevalue("synth_root"), request.getfixturevalue("synth_out")
     from nuscenes.can_bus.can_bus_api import NuScenesCanBus

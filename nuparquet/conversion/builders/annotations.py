@@ -8,7 +8,7 @@ import polars as pl
 
 from nuparquet.geometry import quaternions
 from nuparquet.columns import to_numpy
-from nuparquet.conversion.builders.common import reference_poses, samples
+from nuparquet.conversion.builders.common import declared_fields, reference_poses, samples
 from nuparquet.conversion.builder import BuildContext, Builder, SceneBatch
 
 # devkit NuScenes.box_velocity's default: neighbours further apart than this (doubled for a centred
@@ -17,12 +17,14 @@ MAX_VELOCITY_TIME_DIFF_S = 1.5
 
 
 def build_annotations(tables: dict[str, pl.DataFrame], annotations: pl.DataFrame, samples: pl.DataFrame,
-                      references: pl.DataFrame) -> pl.DataFrame:
+                      references: pl.DataFrame, *, allow_dangling: bool = False) -> pl.DataFrame:
     """One row per row of `annotations` (sample_annotation rows of a batch of scenes). `references` is
-    `lookups.reference_poses(tables, samples)`."""
+    `lookups.reference_poses(tables, samples)`. `allow_dangling` (a trimmed extract): velocity is null where the devkit's
+    box_velocity fails (`velocity_defined`); joins without a partner give nulls in any case."""
     names = dict(zip(tables["attribute"]["token"].to_list(), tables["attribute"]["name"].to_list()))  # a handful
-    ann = annotations.with_columns(attribute_names=pl.col("attribute_tokens").list.eval(
-        pl.element().replace_strict(names, return_dtype=pl.String)))
+    ann = declared_fields(annotations, "sample_annotation").with_columns(
+        attribute_names=pl.col("attribute_tokens").list.eval(
+            pl.element().replace_strict(names, default=None, return_dtype=pl.String)))
     ego = references.select("sample_token", pl.col("ego_translation").alias("_ego"))
     ann = (
         ann.lazy()
@@ -37,8 +39,11 @@ def build_annotations(tables: dict[str, pl.DataFrame], annotations: pl.DataFrame
         .collect()
     )
     translation = to_numpy(ann["translation"], (3,))
+    velocity = pl.Series(box_velocity(ann), dtype=pl.Array(pl.Float64, 3))
+    if allow_dangling:
+        velocity = pl.select(pl.when(pl.Series(velocity_defined(ann))).then(velocity)).to_series()
     ann = ann.with_columns(
-        velocity=pl.Series(box_velocity(ann), dtype=pl.Array(pl.Float64, 3)),
+        velocity=velocity,
         yaw=pl.Series(quaternions.yaw_from_quaternions(to_numpy(ann["rotation"], (4,)))),
         distance_to_ego_m=pl.Series(_xy_distance(translation, ann["_ego"])).fill_nan(None),
     )
@@ -93,8 +98,27 @@ def box_velocity(ann: pl.DataFrame) -> np.ndarray:
     return velocity
 
 
+def velocity_defined(ann: pl.DataFrame) -> np.ndarray:
+    """(N,) False where devkit `box_velocity` raises instead of answering, as it does on a trimmed extract: a
+    non-empty prev or next naming no annotation (of `ann`), or no sample timestamp for the annotation or for the
+    neighbours it reads (both for a centred difference, itself and one for a track end). A track of one answers
+    NaN without reading anything: defined."""
+    index = pl.DataFrame({"token": ann["token"], "_i": np.arange(ann.height)})
+    known = ann["timestamp"].is_not_null().to_numpy()
+    defined = np.ones(ann.height, dtype=bool)
+    named = {}
+    for column in ("prev", "next"):
+        named[column] = (ann[column] != "").to_numpy()
+        joined = ann.select(pl.col(column).alias("token")).join(index, on="token", how="left", maintain_order="left")
+        position = joined["_i"].fill_null(-1).to_numpy()
+        defined &= ~named[column] | ((position >= 0) & known[np.maximum(position, 0)])
+    reads_itself = named["prev"] ^ named["next"]
+    return defined & (known | ~reads_itself)
+
+
 def build(ctx: BuildContext, batch: SceneBatch) -> pl.DataFrame:
-    return build_annotations(ctx.tables, batch.rows["sample_annotation"], samples(ctx), reference_poses(ctx))
+    return build_annotations(ctx.tables, batch.rows["sample_annotation"], samples(ctx), reference_poses(ctx),
+                             allow_dangling=ctx.options.allow_dangling)
 
 
 BUILDER = Builder("annotations", build, schema="annotations")

@@ -6,6 +6,7 @@ import polars as pl
 
 from nuparquet.conversion import lookups
 from nuparquet.conversion.builder import BuildContext
+from nuparquet.schemas import table_schemas
 
 
 def samples(ctx: BuildContext) -> pl.DataFrame:
@@ -16,3 +17,10 @@ def samples(ctx: BuildContext) -> pl.DataFrame:
 def reference_poses(ctx: BuildContext) -> pl.DataFrame:
     """`lookups.reference_poses`: per sample, the reference lidar keyframe's timestamp and ego translation."""
     return ctx.shared("reference_poses", lambda: lookups.reference_poses(ctx.tables, samples(ctx)))
+
+
+def declared_fields(rows: pl.DataFrame, table: str) -> pl.DataFrame:
+    """`rows` of source table `table` with only the fields its schema declares: a field the source adds (a
+    `category_name` in sample_annotation, kept as JSON text in tables/) must not shadow a column a join adds."""
+    names = [f.name for f in table_schemas()[table].fields if f.name in rows.columns]
+    return rows if len(names) == rows.width else rows.select(names)

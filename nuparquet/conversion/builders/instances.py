@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import polars as pl
 
+from nuparquet.conversion.builders.common import declared_fields
 from nuparquet.conversion.builders.scenes import path_lengths
 from nuparquet.conversion.builder import BuildContext, Builder
 
@@ -13,7 +14,7 @@ def build_instances(tables: dict[str, pl.DataFrame], annotation_times: pl.DataFr
     annotation; `track_lengths`: path_lengths of the annotation centres per instance_token."""
     by_token = annotation_times.select("token", "scene_token", "scene_name", "timestamp")
     return (
-        tables["instance"]
+        declared_fields(tables["instance"], "instance")
         .join(tables["category"].select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
               on="category_token", how="left")
         .join(by_token.rename({"token": "first_annotation_token", "timestamp": "first_timestamp"}),

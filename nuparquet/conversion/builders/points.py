@@ -88,6 +88,10 @@ def build_points(ctx: BuildContext, modality: str, name: str) -> dict[str, Writt
     directory = ctx.out / name
     directory.mkdir(parents=True, exist_ok=True)
     frames = sensor_frames(ctx, modality)
+    # Frames of no scene (their sample or its scene is absent: only --allow-dangling lets them through) belong to no
+    # scene's part file: counted and left out.
+    no_scene = frames.filter(pl.col("scene_name").is_null()).height
+    frames = frames.filter(pl.col("scene_name").is_not_null())
     tasks = [SceneTask(str(ctx.dataroot), str(directory / parquet_part_name(part)), part, scene, modality,
                        rows.drop("scene_name").to_dict(as_series=False), ctx.options.lidar_columns)
              for part, ((scene,), rows) in enumerate(frames.partition_by("scene_name", as_dict=True, maintain_order=True).items())]
@@ -120,6 +124,10 @@ def build_points(ctx: BuildContext, modality: str, name: str) -> dict[str, Writt
                             f"datasets.{name}.missing_files{listed}; --strict makes this an error)")
     extra = {"frames": frames.height - len(missing), "missing_count": len(missing),
              "missing_files": missing[:MAX_LISTED_MISSING]}  # a partial trainval download misses ~10^5 sweeps
+    if no_scene:
+        extra["no_scene_frames"] = no_scene
+        ctx.warnings.append(f"{name}: {no_scene} frame(s) of no scene (their sample or its scene is absent) not "
+                            f"converted (counted in manifest.json datasets.{name}.no_scene_frames)")
     if len(missing) > MAX_LISTED_MISSING:
         extra["missing_files_truncated"] = True
     if modality == "lidar":

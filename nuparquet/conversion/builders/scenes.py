@@ -6,7 +6,7 @@ import numpy as np
 import polars as pl
 
 from nuparquet.columns import to_numpy
-from nuparquet.conversion.builders.common import reference_poses
+from nuparquet.conversion.builders.common import declared_fields, reference_poses
 from nuparquet.conversion.lookups import as_int
 from nuparquet.splits import known_split
 from nuparquet.conversion.builder import BuildContext, Builder
@@ -31,7 +31,7 @@ def build_scenes(tables: dict[str, pl.DataFrame], references: pl.DataFrame, coun
     ego_path = path_lengths(references, "scene_name", "timestamp", "ego_translation").rename(
         {"_step": "ego_distance_m"})
     scenes = (
-        tables["scene"]
+        declared_fields(tables["scene"], "scene")
         .join(tables["log"].select(pl.col("token").alias("log_token"), "logfile", "vehicle", "date_captured",
                               pl.col("location").alias("log_location")), on="log_token", how="left")
         .join(sample_ts.rename({"token": "first_sample_token", "timestamp": "first_timestamp"}),
