@@ -237,7 +237,7 @@ class Dataset:
         `nuparquet.frames.sensor_boxes.boxes_at` for the columns."""
         from nuparquet.frames.sensor_boxes import boxes_at
 
-        return boxes_at(self.frame_rows(frames), self.scan("annotations"), self.scan("tables/sample"),
+        return boxes_at(self.frame_rows(frames), self.annotations_in_file_order(), self.scan("tables/sample"),
                         visibility=visibility, at=at)
 
     def project_boxes(self, frames: Frames, *, visibility: str = "any") -> ProjectedBoxes:
@@ -246,8 +246,14 @@ class Dataset:
         annotations and samples."""
         from nuparquet.frames.projection import project_boxes
 
-        return project_boxes(self.frame_rows(frames), self.scan("annotations"), self.scan("tables/sample"),
+        return project_boxes(self.frame_rows(frames), self.annotations_in_file_order(), self.scan("tables/sample"),
                              visibility=visibility)
+
+    def annotations_in_file_order(self) -> pl.LazyFrame:
+        """`annotations` in sample_annotation.json's record order, which is the devkit's `sample['anns']` order
+        (the dataset itself is sorted by scene and time): boxes come out in the order the devkit lists them."""
+        order = self.scan("tables/sample_annotation").select("token").with_row_index("_file_order")
+        return self.scan("annotations").join(order, on="token", how="left").sort("_file_order").drop("_file_order")
 
     def map(self, location: str) -> MapLayers:
         """The map expansion of `location` (`nuparquet.map.queries.MapLayers`: `layers_on_point`,

@@ -1,0 +1,136 @@
+"""The face of one converted output (`nuparquet.open` -> `Dataset`) and how every verb takes its options: names
+`scan` accepts, wrong arguments that are errors (never silent empties), and options as objects or fields."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import polars as pl
+import pytest
+
+import nuparquet
+from conftest import SYNTH_VERSION
+from nuparquet.errors import UsageError
+
+
+@pytest.fixture(scope="module")
+def points_out(labelled_root, tmp_path_factory):
+    """The labelled synthetic set (2 scenes x 3 samples) converted with its lidar and radar points."""
+    out = tmp_path_factory.mktemp("api-points") / "out"
+    nuparquet.convert(labelled_root, SYNTH_VERSION, out, sensors=("lidar", "radar"), workers=1)
+    return out
+
+
+def test_scan_takes_every_name_sql_takes(synth_out):
+    ds = nuparquet.open(synth_out)
+    table = ds.scan("tables/sample").collect()
+    assert table.height > 0
+    for alias in ("sample", "tables_sample"):
+        assert ds.scan(alias).collect().equals(table)
+        assert ds.sql(f"SELECT COUNT(*) AS n FROM {alias}")["n"].item() == table.height
+    assert ds.scan("map/lane").collect().height == ds.sql('SELECT COUNT(*) AS n FROM "map/lane"')["n"].item()
+    with pytest.raises(UsageError, match="no dataset 'samples'.*valid names: frames"):
+        ds.scan("samples")
+
+
+def test_unknown_scenes_are_named_with_close_matches_and_the_valid_ones(synth_out):
+    ds = nuparquet.open(synth_out)
+    names = ds.scene_names()
+    assert names == sorted(names) and len(names) == 2
+    ds.check_scenes(names)  # every known name passes
+    with pytest.raises(UsageError) as error:
+        ds.check_scenes([names[0], names[0][:-1] + "9", "nowhere"])
+    message = str(error.value)
+    assert message.startswith(f"unknown scenes '{names[0][:-1]}9', 'nowhere' (did you mean ")
+    assert f"valid scenes: {', '.join(names)}" in message
+    ds._scene_names = [f"scene-{i:04d}" for i in range(25)]  # a long listing is cut at 20 and counted
+    with pytest.raises(UsageError, match=r"valid scenes: scene-0000, .*scene-0019 \.\.\. \(25 in all\)$"):
+        ds.check_scenes(["x"])
+
+
+def test_points_of_an_unknown_scene_or_channel_are_errors_not_empty_results(points_out):
+    ds = nuparquet.open(points_out)
+    scene = ds.scene_names()[0]
+    assert len(ds.points(scene=scene)) > 0 and len(ds.radar_points(scene=scene)) > 0
+    with pytest.raises(UsageError, match="unknown scene 'scene-9999'"):
+        ds.points(scene="scene-9999")
+    with pytest.raises(UsageError, match="unknown lidar channel 'CAM_FRONT'; valid: LIDAR_TOP"):
+        ds.points(scene=scene, channel="CAM_FRONT")
+    with pytest.raises(UsageError, match="unknown radar channel 'LIDAR_TOP'; valid: RADAR_BACK_LEFT"):
+        ds.radar_points(scene=scene, channel="LIDAR_TOP")
+    # a channel of the right kind that this scene happens to lack would be empty, not an error: both radars exist
+    assert len(ds.radar_points(scene=scene, channel="RADAR_FRONT")) > 0
+
+
+def test_frames_given_by_token_must_exist_and_keep_their_order(synth_out):
+    ds = nuparquet.open(synth_out)
+    tokens = ds.scan("frames").select("token").head(3).collect()["token"].to_list()[::-1]
+    assert ds.frame_rows(tokens).collect()["token"].to_list() == tokens
+    with pytest.raises(UsageError, match="no frame \\(sample_data\\) 'nope'"):
+        ds.boxes([tokens[0], "nope"])
+    with pytest.raises(ValueError, match="visibility must be one of any, all, none"):
+        ds.boxes(tokens, visibility="some")
+    with pytest.raises(ValueError, match="at must be one of global, ego, sensor"):
+        ds.boxes(tokens, at="camera")
+
+
+def test_the_map_of_a_location_is_read_once_and_refuses_unknown_lanes(synth_out):
+    ds = nuparquet.open(synth_out)
+    location = ds.scan("map/lane").select("location").unique().collect()["location"][0]
+    layers = ds.map(location)
+    assert ds.map(location) is layers
+    lane = ds.scan("map/lane").filter(pl.col("location") == location).select("token").head(1).collect().item()
+    assert len(layers.discretize_lanes([lane], 0.5)[lane]) > 1
+    with pytest.raises(UsageError, match=f"no lane or lane connector 'unknown' in the map of {location}"):
+        layers.discretize_lanes([lane, "unknown"], 0.5)
+
+
+def test_options_are_an_object_keyword_fields_or_both_and_a_typo_is_an_error():
+    from nuparquet.options import resolve, split_fields
+
+    base = nuparquet.RenderOptions(channel="all", scale=0.3)
+    assert resolve(nuparquet.RenderOptions, None, {"scale": 0.3}) == nuparquet.RenderOptions(scale=0.3)
+    assert resolve(nuparquet.RenderOptions, base, {}) is base
+    assert resolve(nuparquet.RenderOptions, base, {"scale": 1.0}) == dataclasses.replace(base, scale=1.0)
+    with pytest.raises(TypeError, match="unknown option\\(s\\) scael for RenderOptions; valid: all_frames"):
+        resolve(nuparquet.RenderOptions, None, {"scael": 1.0})
+    with pytest.raises(TypeError, match="expected RenderOptions, got ConvertOptions"):
+        resolve(nuparquet.RenderOptions, nuparquet.ConvertOptions(), {})
+    convert_fields, engine_fields = split_fields({"sensors": ("lidar",), "workers": 2},
+                                                 nuparquet.ConvertOptions, nuparquet.EngineOptions)
+    assert convert_fields == {"sensors": ("lidar",)} and engine_fields == {"workers": 2}
+    with pytest.raises(TypeError, match="unknown option 'jobs'"):
+        split_fields({"jobs": 2}, nuparquet.ConvertOptions, nuparquet.EngineOptions)
+
+
+def test_values_are_checked_once_when_the_options_are_built():
+    with pytest.raises(UsageError, match="--scale must be in \\(0, 4\\]"):
+        nuparquet.RenderOptions(scale=0)
+    with pytest.raises(UsageError, match="--workers must be 0 \\(every core\\) or more"):
+        nuparquet.EngineOptions(workers=-1)
+    assert nuparquet.EngineOptions(workers=0).workers is None  # 0: every core, as --jobs 0 always meant
+    with pytest.raises(UsageError, match="--sensors takes lidar, radar"):
+        nuparquet.ConvertOptions(sensors="lidar,camera")
+    with pytest.raises(UsageError, match="--max-sweeps must be >= 0"):
+        nuparquet.IndexOptions(out="x", max_sweeps=-1)
+    assert nuparquet.IndexOptions(out="x", cameras="CAM_BACK, CAM_FRONT").cameras == ("CAM_BACK", "CAM_FRONT")
+    with pytest.raises(UsageError, match="--scenes must be a positive integer"):
+        nuparquet.SynthOptions(scenes=0)
+
+
+def test_convert_takes_an_options_object_or_fields_alike(labelled_root, tmp_path):
+    by_object = nuparquet.convert(labelled_root, SYNTH_VERSION, tmp_path / "a",
+                                  nuparquet.ConvertOptions(scenes_per_batch=1, no_map=True))
+    by_fields = nuparquet.convert(labelled_root, SYNTH_VERSION, tmp_path / "b", scenes_per_batch=1, no_map=True)
+    assert by_object["options"] == by_fields["options"]
+    assert by_object["options"]["scenes_per_batch"] == 1 and by_object["options"]["no_map"] is True
+    assert {k: v["rows"] for k, v in by_object["datasets"].items()} == {k: v["rows"] for k, v in by_fields["datasets"].items()}
+    assert not any(name.startswith("map/") for name in by_object["datasets"])
+
+
+def test_the_jobs_flag_is_kept_as_the_spelling_of_workers(labelled_root, tmp_path):
+    from nuparquet.cli.main import main
+
+    assert main(["convert", str(labelled_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "o"),
+                 "--sensors", "lidar", "--jobs", "1", "--quiet"]) == 0
+    assert nuparquet.open(tmp_path / "o").manifest["options"]["jobs"] == 1
