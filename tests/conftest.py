@@ -78,16 +78,31 @@ def extract_out(extract_root, tmp_path_factory) -> Path:
 def generated_root(tmp_path_factory, name: str, make) -> Path:
     """A dataroot written by `make(root)` (the generator): in a fresh temporary directory, or, when
     NUPARQUET_TEST_CACHE names a directory (the mutation runs, which start pytest once per mutant), made once
-    there and reused. The generator is deterministic and never mutated, so the cache cannot go stale within a run."""
+    there and reused. The generator is deterministic and never mutated, so the cache cannot go stale within a run.
+
+    Several pytest-xdist workers may ask for the same cached dataset at once: the first takes an exclusive lock on
+    `<cache>/<name>.lock` and builds; the others wait on the lock, then find it complete. The build writes into a
+    private folder renamed into place, so a reader never sees half a dataset (and a killed build leaves none)."""
     cache = os.environ.get("NUPARQUET_TEST_CACHE")
     if not cache:
         root = tmp_path_factory.mktemp(name) / "data"
         make(root)
         return root
-    root = Path(cache) / name / "data"
-    if not (root.parent / ".complete").exists():
-        make(root)
-        (root.parent / ".complete").touch()
+    import fcntl
+    import shutil
+
+    home = Path(cache) / name
+    root, complete = home / "data", home / ".complete"
+    home.parent.mkdir(parents=True, exist_ok=True)
+    with open(Path(cache) / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes, or when the process dies
+        if not complete.exists():
+            building = Path(cache) / f".{name}.building-{os.getpid()}"
+            shutil.rmtree(building, ignore_errors=True)
+            shutil.rmtree(home, ignore_errors=True)  # an earlier, killed build
+            make(building / "data")
+            (building / ".complete").touch()
+            os.replace(building, home)
     return root
 
 

@@ -39,3 +39,34 @@ def test_convert_removes_a_killed_runs_partial_folder(synth_root, tmp_path):
     (stale / "tables").mkdir(parents=True)
     assert main(["convert", str(synth_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "out"), "--quiet"]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_a_leftover_partial_with_this_process_pid_is_removed_as_stale(tmp_path):
+    """pids are reused (containers start every run as pid 1..n): a partial named with our own pid cannot be a live
+    run's (we are not writing it now), so it is an earlier attempt's and goes; the live parent's stays."""
+    target = tmp_path / "out"
+    own, live = tmp_path / f".out.partial-{os.getpid()}", tmp_path / f".out.partial-{os.getppid()}"
+    own.mkdir()
+    (own / "half.parquet").write_text("x")
+    live.mkdir()
+    assert remove_stale(target) == [own]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [live.name]
+
+
+def test_atomic_file_replaces_the_target_whole_or_leaves_it_as_it_was(tmp_path):
+    from nuparquet.atomic import atomic_file, partial_path
+
+    target = tmp_path / "infos.pkl"
+    target.write_text("old")
+    stale = tmp_path / f".infos.pkl.partial-{_dead_pid()}"  # a killed index run's leftover
+    stale.write_text("half")
+    try:
+        with atomic_file(target) as partial:
+            partial.write_text("new, but")
+            raise RuntimeError("killed mid-write")
+    except RuntimeError:
+        pass
+    assert target.read_text() == "old" and not partial_path(target).exists() and not stale.exists()
+    with atomic_file(target) as partial:
+        partial.write_text("new")
+    assert target.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["infos.pkl"]

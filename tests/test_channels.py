@@ -92,3 +92,16 @@ def test_dataset_channels_come_from_the_manifest_or_else_from_the_data(synth_roo
                             "radars": []}
     (copy / "manifest.json").write_text(json.dumps(manifest))
     assert nuparquet.open(copy).channels == manifest["channels"]
+
+
+def test_a_rig_with_one_camera_name_that_says_neither_front_nor_back_is_laid_out_by_yaw():
+    """Names decide only when every camera's name says FRONT or BACK: one unknown name (a side camera looking
+    backwards) puts the whole rig on yaw, which sends that camera to the back row, in yaw order."""
+    cameras = ["CAM_FRONT", "CAM_BACK", "CAM_SIDE_X", "CAM_FRONT_LEFT"]
+    yaws = [0.0, np.pi, np.deg2rad(170.0), np.deg2rad(55.0)]
+    assert channels.camera_layout(cameras, yaws) == (("CAM_FRONT_LEFT", "CAM_FRONT"), ("CAM_SIDE_X", "CAM_BACK"))
+    # the same camera looking forward-right joins the front row, right of CAM_FRONT (decreasing yaw)
+    yaws[2] = np.deg2rad(-60.0)
+    assert channels.camera_layout(cameras, yaws) == (("CAM_FRONT_LEFT", "CAM_FRONT", "CAM_SIDE_X"), ("CAM_BACK",))
+    # without yaws the names alone decide: the unknown name is neither BACK nor LEFT/RIGHT, so front, middle
+    assert channels.camera_layout(cameras) == (("CAM_FRONT_LEFT", "CAM_FRONT", "CAM_SIDE_X"), ("CAM_BACK",))

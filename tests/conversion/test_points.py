@@ -147,6 +147,28 @@ def test_truncated_pcd_bin_is_a_problem_naming_the_file(small_root, tmp_path):
     assert name in message and "not a whole number of 5-float32 points" in message
 
 
+def test_a_pcd_bin_of_whole_floats_but_not_whole_points_is_a_problem_naming_the_file(small_root, tmp_path):
+    """8 bytes short: still a whole number of float32 values (a reader checking only that would reshape garbage
+    into shifted points), not a whole number of 20-byte points."""
+    name = _lidar_frames(small_root, keyframes_only=True)[1]["filename"]
+    data = (small_root / name).read_bytes()
+    assert len(data) % 20 == 0
+    (small_root / name).write_bytes(data[:-8])
+    message = _problems(small_root, tmp_path)
+    assert name in message and f"{len(data) - 8} bytes is not a whole number of 5-float32 points" in message
+
+
+def test_read_lidar_bin_takes_only_whole_points_of_the_given_width(tmp_path):
+    from nuparquet.sources.points import PointFileError, read_lidar_bin
+
+    path = tmp_path / "x.pcd.bin"
+    np.arange(28, dtype="<f4").tofile(path)  # 7 points of 4 values, or 5.6 points of 5
+    assert read_lidar_bin(path, 4).shape == (7, 4)
+    np.testing.assert_array_equal(read_lidar_bin(path, 4)[1], [4, 5, 6, 7])
+    with pytest.raises(PointFileError, match=r"x\.pcd\.bin: 112 bytes is not a whole number of 5-float32 points"):
+        read_lidar_bin(path)
+
+
 def test_pcd_with_an_unexpected_header_is_a_problem_naming_the_file(small_root, tmp_path):
     sample_data = json.loads((small_root / SYNTH_VERSION / "sample_data.json").read_text())
     name = next(r["filename"] for r in sample_data if r["filename"].endswith(".pcd") and r["is_key_frame"])

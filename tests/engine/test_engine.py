@@ -60,6 +60,24 @@ def test_resume_skips_completed_units_and_reruns_the_rest(tmp_path):
     assert not any(o.resumed for o in outcomes) and (tmp_path / "a" / "value.txt").read_text() == "1"
 
 
+def test_a_failed_rerun_without_resume_leaves_no_unit_marked_done_without_its_parts(tmp_path):
+    """Run 1 finishes a and c (markers written, parts not yet committed). Run 2, without --resume, starts afresh:
+    it clears every unit, then stops at its first unit, which fails, so a and c never run again. Run 3 with
+    --resume must not take a and c as done: their markers went with their parts, so they run again."""
+    run_units(square_into_part, [WorkUnit("a", 1), WorkUnit("c", 3)], parts_dir=tmp_path,
+              options=EngineOptions(engine="serial"))
+    assert (tmp_path / "a.done.json").exists() and (tmp_path / "c" / "value.txt").exists()
+    with pytest.raises(UnitsFailed):
+        run_units(square_into_part, [WorkUnit("bad", -1), WorkUnit("a", 1), WorkUnit("c", 3)], parts_dir=tmp_path,
+                  options=EngineOptions(engine="serial"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # cleared: nothing half-done is left to resume
+    outcomes = run_units(square_into_part, [WorkUnit("bad", 2), WorkUnit("a", 1), WorkUnit("c", 3)],
+                         parts_dir=tmp_path, options=EngineOptions(engine="serial", resume=True))
+    assert [(o.name, o.value, o.resumed) for o in outcomes] == [("bad", 4, False), ("a", 1, False), ("c", 9, False)]
+    for outcome in outcomes:  # every unit reported done has its part files
+        assert (tmp_path / outcome.name / "value.txt").read_text() == str(outcome.value)
+
+
 def test_resume_takes_units_the_caller_committed(tmp_path):
     units = [WorkUnit("a", 1), WorkUnit("b", 2)]
     outcomes = run_units(square_into_part, units, parts_dir=tmp_path, committed={"a": 1},

@@ -112,3 +112,38 @@ def test_open_names_what_is_missing(map_out, extract_out):
         nuparquet.open(map_out).map("atlantis")
     with pytest.raises(UsageError, match="has no map/ datasets"):  # the real extract has no maps/expansion/
         nuparquet.open(extract_out).map("boston-seaport")
+
+
+def test_closest_lane_ties_go_to_the_later_candidate_as_the_devkit_does(maps):
+    """A lane connector starts exactly where its incoming lane ends: at that point both lie at distance 0 (a tie
+    at the nearest pose), and the devkit's `<=` scan keeps the later candidate (connectors after lanes)."""
+    ties = 0
+    for nusc_map, ours in maps.values():
+        starts = np.array([nusc_map.arcline_path_3[c["token"]][0]["start_pose"][:2] for c in nusc_map.lane_connector
+                           if nusc_map.arcline_path_3.get(c["token"])])
+        mine = ours.closest_lane(starts[:, 0], starts[:, 1], radius_m=5.0)
+        expected = [nusc_map.get_closest_lane(x, y, radius=5.0) for x, y in starts]
+        assert mine.tolist() == expected
+        connectors = {c["token"] for c in nusc_map.lane_connector}
+        ties += sum(token in connectors for token in expected)
+    assert ties > 5  # the tie is really reached: the connector wins over the lane ending at the same point
+
+
+def test_a_line_node_exactly_on_the_patch_edge_is_not_inside_the_patch(maps):
+    """get_records_in_patch keeps a line layer record when one of its nodes lies strictly inside the patch: a node
+    exactly on an edge does not count. Tiny patches (1e-6 m) with the node on their left, right or bottom edge
+    hold no other node, so the edge rule alone decides; a patch around the node holds it."""
+    checked = 0
+    e = 1e-6
+    for nusc_map, ours in maps.values():
+        for record in nusc_map.lane_divider[:10]:
+            node = nusc_map.get("node", nusc_map.get("line", record["line_token"])["node_tokens"][0])
+            x, y = node["x"], node["y"]
+            for box, holds in (((x, y - e, x + e, y + e), False), ((x - e, y - e, x, y + e), False),
+                               ((x - e, y, x + e, y + e), False), ((x - e, y - e, x + e, y + e), True)):
+                for mode in ("intersect", "within"):
+                    expected = nusc_map.get_records_in_patch(box, ["lane_divider", "road_segment"], mode=mode)
+                    assert ours.records_in_patch(box, ["lane_divider", "road_segment"], mode=mode) == expected
+                    assert (record["token"] in expected["lane_divider"]) == (holds and mode == "intersect"), box
+                checked += 1
+    assert checked >= 20

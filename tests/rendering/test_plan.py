@@ -101,6 +101,19 @@ def test_all_frames_mosaic_matches_each_camera_on_the_clock():
     assert got.tolist() == [[3, -1, 1, 5], [3, -1, 2, 5], [4, -1, 2, 5], [4, -1, 2, 5]]
 
 
+def test_all_frames_mosaic_does_not_depend_on_the_order_of_the_sample_table():
+    """The clock runs from the earliest sample to the latest whatever order the sample rows come in (a scene's
+    samples read back from a dataset sorted otherwise, or a table in file order that is not time order)."""
+    cameras = pl.DataFrame([("A", "s1", 0, True), ("A", "s2", 400_000, False), ("A", "s3", 1_000_000, True)],
+                           schema=["channel", "sample_token", "timestamp", "is_key_frame"], orient="row")
+    in_order = pl.DataFrame({"token": ["s1", "s2", "s3"], "timestamp": [0, 500_000, 1_000_000]})
+    expected = camera_rows_per_output(cameras, in_order, ["A"], mosaic=True, all_frames=True, fps=4.0)
+    assert expected[0].tolist() == [250_000.0, 500_000.0, 750_000.0, 1_000_000.0]
+    for shuffled in (in_order.reverse(), in_order[[1, 2, 0]]):
+        times, rows = camera_rows_per_output(cameras, shuffled, ["A"], mosaic=True, all_frames=True, fps=4.0)
+        assert times.tolist() == expected[0].tolist() and rows.tolist() == expected[1].tolist() == [[1], [2], [2], [2]]
+
+
 def test_output_times_are_float64_microseconds_for_one_camera_and_the_keyframe_mosaic():
     one, _ = camera_rows_per_output(_cameras().filter(pl.col("channel") == "A"), pl.DataFrame(), ["A"],
                                     mosaic=False, all_frames=True, fps=12.0)
