@@ -1,8 +1,8 @@
 """Reading and checking a nuScenes detection submission (`results.json`):
 
-    {"meta": {...}, "results": {sample_token: [{"translation": [x, y, z], "size": [w, l, h],
-        "rotation": [w, x, y, z], "velocity": [vx, vy], "detection_name": "car", "detection_score": 0.9,
-        "attribute_name": "vehicle.moving"}, ...], ...}}
+    {"meta": {...}, "results": {sample_token: [{"sample_token": sample_token, "translation": [x, y, z],
+        "size": [w, l, h], "rotation": [w, x, y, z], "velocity": [vx, vy], "detection_name": "car",
+        "detection_score": 0.9, "attribute_name": "vehicle.moving"}, ...], ...}}
 
 The file is parsed by DuckDB's typed JSON reader straight into Arrow columns (a val submission of 300k boxes
 is ~140 MB of JSON: Python's json module needs several times longer and builds a dict per box). When DuckDB
@@ -15,9 +15,10 @@ a missing "meta" or "results", a sample listed twice, a box that is not an objec
 the wrong length, non-finite numbers (NaN velocities excepted: the devkit evaluates them, as "no velocity",
 which `cummean` skips), sizes that are not positive (the devkit's scale IoU asserts it), a zero rotation
 quaternion, unknown class or attribute names (the devkit's vocabulary), more boxes in a sample than the
-configuration allows, and (`check_samples`) samples missing from or foreign to the evaluated split. Extra
-fields of a box are ignored, as by the devkit, except "num_pts" (the devkit reads it: a prediction claiming
-0 points is filtered out like a ground-truth box without points).
+configuration allows, a box whose "sample_token" is not the sample it is listed under (the devkit would
+match it against that other sample's ground truth), and (`check_samples`) samples missing from or foreign
+to the evaluated split. Extra fields of a box are ignored, as by the devkit, except "num_pts" (the devkit
+reads it: a prediction claiming 0 points is filtered out like a ground-truth box without points).
 """
 
 from __future__ import annotations
@@ -34,9 +35,9 @@ from nuparquet.evaluation.classes import ATTRIBUTE_NAMES, DETECTION_NAMES
 
 MAX_LISTED = 10  # problems named in one error message
 VECTOR_FIELDS = {"translation": 3, "size": 3, "rotation": 4, "velocity": 2}
-REQUIRED_FIELDS = ("translation", "size", "rotation", "velocity", "detection_name", "detection_score",
+REQUIRED_FIELDS = ("sample_token", "translation", "size", "rotation", "velocity", "detection_name", "detection_score",
                    "attribute_name")
-_BOX_TYPE = ("STRUCT(translation DOUBLE[], size DOUBLE[], rotation DOUBLE[], velocity DOUBLE[], "
+_BOX_TYPE = ("STRUCT(sample_token VARCHAR, translation DOUBLE[], size DOUBLE[], rotation DOUBLE[], velocity DOUBLE[], "
              "detection_name VARCHAR, detection_score DOUBLE, attribute_name VARCHAR, num_pts BIGINT)")
 
 
@@ -183,11 +184,14 @@ def _read_with_duckdb(path: Path) -> Submission:
         if (lengths != width).any() or values.null_count:
             raise _Unreadable(f"a {name} of the wrong length")
         columns[name] = values.to_numpy(zero_copy_only=False).astype(np.float64).reshape(-1, width)
-    for name in ("detection_name", "attribute_name", "detection_score"):
+    for name in ("sample_token", "detection_name", "attribute_name", "detection_score"):
         if fields[name].null_count:
             raise _Unreadable(f"a box lacks {name}")
     num_pts = fields["num_pts"]
     box_sample = np.repeat(np.arange(len(tokens), dtype=np.int64), counts)
+    named = np.array(fields["sample_token"].to_pylist(), dtype=object)
+    if len(named) and (named != tokens[box_sample]).any():
+        raise _Unreadable("a box names another sample")
     return Submission(
         meta=meta, sample_tokens=tokens, box_sample=box_sample,
         box_index=np.arange(len(box_sample), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts),
@@ -264,10 +268,13 @@ def _read_with_python(path: Path) -> Submission:
                 if not isinstance(vector, list) or len(vector) != width or not all(_is_number(v) for v in vector):
                     problems.add(f"{where}: {name} must be a list of {width} numbers, got {_short(vector)}")
                     ok = False
-            for name in ("detection_name", "attribute_name"):
+            for name in ("sample_token", "detection_name", "attribute_name"):
                 if not isinstance(box[name], str):
                     problems.add(f"{where}: {name} must be a string, got {_short(box[name])}")
                     ok = False
+            if isinstance(box["sample_token"], str) and box["sample_token"] != sample:
+                problems.add(f"{where}: sample_token {box['sample_token']!r} is not the sample it is listed under")
+                ok = False
             if not _is_number(box["detection_score"]):
                 problems.add(f"{where}: detection_score must be a number, got {_short(box['detection_score'])}")
                 ok = False
