@@ -137,7 +137,8 @@ def load_ground_truth(dataset, split: str, class_names: Sequence[str], *, annota
     class_of = {name: i for i, name in enumerate(class_names)}
     class_index = evaluated["detection_name"].replace_strict(class_of, return_dtype=pl.Int64).to_numpy()
     boxes = _boxes(evaluated, class_index=class_index)
-    table = evaluated.select("token", "sample_token", "scene_name", "timestamp", "detection_name", *extra)
+    base = ("token", "sample_token", "scene_name", "timestamp", "detection_name")
+    table = evaluated.select(*base, *[c for c in dict.fromkeys(annotation_columns) if c not in base])
     return GroundTruth(split=split, split_scenes=len(names), class_names=tuple(class_names), scenes=scenes,
                        samples=samples, boxes=boxes, annotations=table, racks=racks)
 

@@ -119,3 +119,32 @@ def filtered(boxes: EvalBoxes, keep) -> EvalBoxes:
     for token in boxes.sample_tokens:
         out.add_boxes(token, [box for box in boxes[token] if keep(token, box)])
     return out
+
+
+def gt_box_tokens(nusc, gt_boxes: EvalBoxes) -> dict:
+    """{id(ground-truth box): sample_annotation token}: a sample's boxes are its detection-class annotations in
+    `anns` order, less the filtered ones, so they are found in order by position and size."""
+    from nuscenes.eval.detection.utils import category_to_detection_name
+
+    tokens = {}
+    for sample_token in gt_boxes.sample_tokens:
+        candidates = [nusc.get("sample_annotation", t) for t in nusc.get("sample", sample_token)["anns"]]
+        candidates = iter(a for a in candidates if category_to_detection_name(a["category_name"]) is not None)
+        for box in gt_boxes[sample_token]:
+            ann = next(a for a in candidates if tuple(a["translation"]) == tuple(box.translation)
+                       and tuple(a["size"]) == tuple(box.size))
+            tokens[id(box)] = ann["token"]
+    return tokens
+
+
+def pred_box_keys(results_path: Path, pred_boxes: EvalBoxes) -> dict:
+    """{id(prediction box): (sample_token, position in the sample's list of the submission)}."""
+    results = json.loads(Path(results_path).read_text())["results"]
+    keys = {}
+    for sample_token in pred_boxes.sample_tokens:
+        listed = iter(enumerate(results[sample_token]))
+        for box in pred_boxes[sample_token]:
+            index = next(i for i, b in listed if tuple(b["translation"]) == tuple(box.translation)
+                         and b["detection_score"] == box.detection_score and b["detection_name"] == box.detection_name)
+            keys[id(box)] = (sample_token, index)
+    return keys
