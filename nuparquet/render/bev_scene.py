@@ -54,10 +54,12 @@ def _map_layers(dataset, location: str | None):
 
 
 def bev_source(dataset, scene: str, dataroot: Path, view: View, *, all_frames: bool,
-               times_us: np.ndarray | None = None, lidar_color: str = "depth") -> tuple[BevTile, np.ndarray]:
+               times_us: np.ndarray | None = None, lidar_color: str = "depth",
+               predictions=None) -> tuple[BevTile, np.ndarray]:
     """The BEV tile and its output times: the lidar frames' own times, or `times_us` (each output then shows the
     lidar frame nearest in time). Points are coloured by height, or as `lidar_color` says (lidarseg, panoptic,
-    intensity; labels need `lidar_points/` with them)."""
+    intensity; labels need `lidar_points/` with them). `predictions` (`render.predictions.Predictions`) are drawn
+    on the keyframes."""
     lidar, annotations, samples, location = load_bev_rows(dataset, scene, all_frames=all_frames)
     stamps = lidar["timestamp"].to_numpy()
     if times_us is None:
@@ -70,6 +72,13 @@ def bev_source(dataset, scene: str, dataroot: Path, view: View, *, all_frames: b
     boxes = frame_boxes(lidar, annotations, samples)
     raster = MapRaster.build(_map_layers(dataset, location), scene_extent(global_from_ego[rows][:, :2, 3], view),
                              view.px_per_m)
+    predicted, predicted_rgb = None, None
+    if predictions is not None:
+        from nuparquet.render.predictions import prediction_boxes
+
+        predicted, predicted_rows = prediction_boxes(lidar, predictions)
+        predicted_rgb = predictions.colors_rgb(predicted_rows)
     tile = BevTile(rows.astype(np.int64), view, raster, global_from_ego, ego_from_sensor,
-                   CloudReader.build(lidar, dataroot, dataset=dataset, color=lidar_color), boxes)
+                   CloudReader.build(lidar, dataroot, dataset=dataset, color=lidar_color), boxes,
+                   predictions=predicted, prediction_colors_rgb=predicted_rgb)
     return tile, np.asarray(times_us, dtype=np.float64)
