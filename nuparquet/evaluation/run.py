@@ -297,15 +297,9 @@ def _write(out: Path, result: EvalResult, whole: Evaluation, config: DetectionCo
     try:
         _write_json(partial / SUMMARY_NAME, result.summary)
         _write_json(partial / DETAILS_NAME, result.details)
-        meta = {b"nuparquet.evaluation": json.dumps({"config": config.serialize(),
-                                                     "dist_ths": list(config.dist_ths)}).encode()}
         for name, table in (("predictions", result.predictions), ("ground_truth", result.ground_truth)):
             (partial / name).mkdir()
-            arrow = table.to_arrow()
-            arrow = arrow.replace_schema_metadata({**(arrow.schema.metadata or {}), **meta})
-            import pyarrow.parquet as pq
-
-            pq.write_table(arrow, partial / name / "part-00000.parquet", compression="zstd")
+            table.write_parquet(partial / name / "part-00000.parquet")
         if result.slices is not None:
             result.slices.write_parquet(partial / "slices.parquet")
             for (by, label), summary in result.slice_summaries.items():

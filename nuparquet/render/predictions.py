@@ -81,17 +81,14 @@ def _from_submission(path: Path, dataset, scene: str, score_threshold: float) ->
 
 
 def _from_evaluation(folder: Path, scene: str, score_threshold: float) -> Predictions:
-    import pyarrow.parquet as pq
-
     from nuparquet.evaluation.tables import threshold_suffix
 
     files = sorted((folder / "predictions").glob("*.parquet"))
-    if not files:
+    summary = folder / "metrics_summary.json"
+    if not files or not summary.is_file():
         raise UsageError(f"--predictions {folder}: a directory, but not one written by `nuparquet eval` "
-                         "(no predictions/*.parquet)")
-    metadata = pq.read_schema(files[0]).metadata or {}
-    config = json.loads(metadata.get(b"nuparquet.evaluation", b"{}")).get("config", {})
-    tp_column = f"matched_gt_{threshold_suffix(config.get('dist_th_tp', 2.0))}"
+                         "(no predictions/*.parquet and metrics_summary.json)")
+    tp_column = f"matched_gt_{threshold_suffix(json.loads(summary.read_text())['cfg']['dist_th_tp'])}"
     rows = (pl.scan_parquet(files).filter((pl.col("scene_name") == scene)
                                           & (pl.col("detection_score") >= score_threshold))
             .select("sample_token", "detection_name", "translation", "size", "rotation", "detection_score",

@@ -4,7 +4,6 @@ threshold, against the devkit's filtered boxes and its matching loop (transcribe
 from __future__ import annotations
 
 import polars as pl
-import pyarrow.parquet as pq
 import pytest
 from eval_reference import devkit_eval, gt_box_tokens, pred_box_keys, sequential_matches
 
@@ -66,9 +65,6 @@ def test_tables_describe_each_box(submissions, eval_out, tmp_path):
     assert tp.height and fp.height
     assert all(fp[name].null_count() == fp.height for name in ("trans_err", "scale_err", "orient_err", "attr_err"))
     assert (tp["trans_err"] == tp["match_distance_m_2m"]).all() and tp["scale_err"].null_count() == 0
-    # the thresholds and the configuration travel with the files
-    metadata = pq.read_schema(next((tmp_path / "out" / "predictions").glob("*.parquet"))).metadata
-    assert b"nuparquet.evaluation" in metadata
     gt = pl.read_parquet(tmp_path / "out" / "ground_truth")
     assert gt.equals(result.ground_truth)
     assert set(gt["filtered_by"].drop_nulls()) == {"range", "points", "bike_rack"}
