@@ -67,8 +67,8 @@ def make_submission(out: Path, path: Path, boxes_per_sample: int, seed: int = 0)
 
     ds = nuparquet.open(out)
     names = split_scene_names(SPLIT)
-    samples = (ds.scan("tables/sample").join(ds.scan("scenes").filter(pl.col("name").is_in(names))
-                                             .select(pl.col("token").alias("scene_token")), on="scene_token", how="semi")
+    split_scenes = ds.scan("scenes").filter(pl.col("name").is_in(names)).select(pl.col("token").alias("scene_token"))
+    samples = (ds.scan("tables/sample").join(split_scenes, on="scene_token", how="semi")
                .select("token").collect()["token"].to_list())
     ann = (ds.scan("annotations").filter(pl.col("scene_name").is_in(names))
            .with_columns(pl.col("category_name").cast(pl.String).replace_strict(CATEGORY_TO_DETECTION, default=None)
@@ -123,8 +123,9 @@ def submission_path(out: Path, boxes_per_sample: int) -> Path:
     from bench_data import PARAMS, _params_match
 
     folder = out.parent / f"{out.name}-eval-{boxes_per_sample}"
+    dataset = json.loads((out / PARAMS).read_text()) if (out / PARAMS).is_file() else None
     params = {"eval_submission": {"out": str(out.resolve()), "boxes_per_sample": boxes_per_sample,
-                                  "dataset": json.loads((out / PARAMS).read_text()) if (out / PARAMS).is_file() else None}}
+                                  "dataset": dataset}}
     path = folder / "results.json"
     if path.is_file() and _params_match(folder, params):
         return path

@@ -85,7 +85,8 @@ class DetectionConfig:
         if isinstance(max_boxes, bool) or not isinstance(max_boxes, int) or max_boxes < 1:
             raise UsageError(f"{where}: max_boxes_per_sample must be a positive integer, got {max_boxes!r}")
         if not _is_number(content["mean_ap_weight"]) or content["mean_ap_weight"] < 0:
-            raise UsageError(f"{where}: mean_ap_weight must be a non-negative number, got {content['mean_ap_weight']!r}")
+            raise UsageError(f"{where}: mean_ap_weight must be a non-negative number, "
+                             f"got {content['mean_ap_weight']!r}")
         return cls(class_range=dict(class_range), dist_fcn=content["dist_fcn"], dist_ths=tuple(dist_ths),
                    dist_th_tp=content["dist_th_tp"], min_recall=min_recall, min_precision=min_precision,
                    max_boxes_per_sample=max_boxes, mean_ap_weight=content["mean_ap_weight"])
@@ -118,7 +119,8 @@ def config_from_file(path: str | Path) -> DetectionConfig:
     return DetectionConfig.from_dict(content, where=str(path))
 
 
-def resolve_config(config: str | DetectionConfig | None = None, config_file: str | Path | None = None) -> DetectionConfig:
+def resolve_config(config: str | DetectionConfig | None = None,
+                   config_file: str | Path | None = None) -> DetectionConfig:
     """The configuration asked for: a DetectionConfig as given, `config_file`, else the named `config`."""
     if isinstance(config, DetectionConfig):
         if config_file is not None:

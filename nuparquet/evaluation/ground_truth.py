@@ -72,6 +72,9 @@ def load_ground_truth(dataset, split: str, class_names: Sequence[str], *, annota
     for name in ("annotations", "scenes", "frames", "tables/sample", "tables/sample_annotation"):
         if name not in dataset.datasets:
             raise InputError(f"{dataset.root} has no {name} dataset, which the evaluation reads")
+    if dataset.row_count("annotations") == 0:  # the devkit: "you do not have the annotations" (a test set)
+        raise InputError(f"{dataset.root} has no annotations: there is no ground truth to evaluate against "
+                         f"(a test version such as {dataset.version}?)")
     names = split_scene_names(split, dataroot=dataset.dataroot, version=dataset.version)
     wanted_scene_columns = list(dict.fromkeys(["token", "name", "log_location", "description", *scene_columns]))
     scenes = (dataset.scan("scenes").filter(pl.col("name").is_in(names)).select(wanted_scene_columns)

@@ -311,7 +311,8 @@ def _is_number(value) -> bool:
 
 
 def _kind(value) -> str:
-    return {dict: "an object", list: "a list", str: "a string", type(None): "null"}.get(type(value), type(value).__name__)
+    kinds = {dict: "an object", list: "a list", str: "a string", type(None): "null"}
+    return kinds.get(type(value), type(value).__name__)
 
 
 def _short(value) -> str:

@@ -73,7 +73,8 @@ def _from_submission(path: Path, dataset, scene: str, score_threshold: float) ->
         dataset.scan("scenes").filter(pl.col("name") == scene).select(pl.col("token").alias("scene_token")),
         on="scene_token", how="semi").select("token").collect()["token"].to_list())
     box_sample = submission.sample_tokens[submission.box_sample] if len(submission) else np.zeros(0, object)
-    keep = np.isin(box_sample, np.array(sorted(samples), dtype=object)) & (submission.detection_score >= score_threshold)
+    in_scene = np.isin(box_sample, np.array(sorted(samples), dtype=object))
+    keep = in_scene & (submission.detection_score >= score_threshold)
     return Predictions(sample_token=box_sample[keep], detection_name=submission.detection_name[keep],
                        translation_m=submission.translation_m[keep], size_wlh_m=submission.size_wlh_m[keep],
                        rotation_wxyz=submission.rotation_wxyz[keep], score=submission.detection_score[keep],

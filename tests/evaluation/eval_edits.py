@@ -97,8 +97,8 @@ def edit_dataset(root: Path, version: str, split: str = "val") -> dict:
             continue
         seen_samples.add(a["sample_token"])
         x, y, z = a["translation"]
-        done["racks"].append(add(a["sample_token"], "static_object.bicycle_rack", (x + 0.4, y - 0.3, z), (2.0, 5.0, 1.2),
-                                 0.3))
+        done["racks"].append(add(a["sample_token"], "static_object.bicycle_rack", (x + 0.4, y - 0.3, z),
+                                 (2.0, 5.0, 1.2), 0.3))
         done["in_rack"].append(a["token"])
     # racks (yaw 0: length along x, width along y) that miss a cycle's centre by 5 cm along one axis each
     misses = iter(((-2.55, 0.0, 0.0), (0.0, 1.05, 0.0), (0.0, 0.0, 0.65)))

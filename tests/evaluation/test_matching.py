@@ -13,7 +13,8 @@ from nuparquet.evaluation.boxes import Boxes
 def _boxes(rng, n, samples, classes, *, grid: float, score=None) -> Boxes:
     xy = np.round(rng.uniform(0, 6, (n, 2)) / grid) * grid  # on a grid: equal distances happen
     return Boxes(sample_index=rng.integers(0, samples, n), class_index=rng.integers(0, classes, n),
-                 translation_m=np.c_[xy, np.zeros(n)], size_wlh_m=np.ones((n, 3)), rotation_wxyz=np.tile([1.0, 0, 0, 0], (n, 1)),
+                 translation_m=np.c_[xy, np.zeros(n)], size_wlh_m=np.ones((n, 3)),
+                 rotation_wxyz=np.tile([1.0, 0, 0, 0], (n, 1)),
                  velocity_mps=np.zeros((n, 2)), attribute=np.full(n, "", object),
                  score=np.round(rng.uniform(0, 1, n), 1) if score is None else score, num_pts=np.full(n, -1))
 
@@ -51,8 +52,8 @@ def test_greedy_matching_equals_the_sequential_loop(seed):
         expected = _plain_loop(gt, pred, threshold)
         np.testing.assert_array_equal(result.gt[t], expected)
         hit = expected >= 0
-        np.testing.assert_array_equal(result.distance_m[t, hit],
-                                      np.linalg.norm(pred.translation_m[hit, :2] - gt.translation_m[expected[hit], :2], axis=1))
+        offsets = pred.translation_m[hit, :2] - gt.translation_m[expected[hit], :2]
+        np.testing.assert_array_equal(result.distance_m[t, hit], np.linalg.norm(offsets, axis=1))
         assert np.isnan(result.distance_m[t, ~hit]).all()
         ties += hit.sum()
     assert ties > 0

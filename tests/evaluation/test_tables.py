@@ -32,13 +32,14 @@ def test_matches_and_filters_equal_the_devkit(name, submissions, eval_out, eval_
                                                  threshold).items():
                 expected[pred_key[box_id]] = None if gt is None else gt_token[id(gt)]
         suffix = threshold_suffix(threshold)
-        ours = dict(zip(zip(predictions["sample_token"], predictions["box_index"]), predictions[f"matched_gt_{suffix}"]))
+        keys = zip(predictions["sample_token"], predictions["box_index"])
+        ours = dict(zip(keys, predictions[f"matched_gt_{suffix}"]))
         assert ours == expected
         matched_somewhere += sum(v is not None for v in expected.values())
         # the ground-truth side says the same, from the other end
         gt_rows = result.ground_truth.filter(pl.col(f"matched_box_{suffix}").is_not_null())
-        assert {(s, b): t for s, b, t in zip(gt_rows["sample_token"], gt_rows[f"matched_box_{suffix}"], gt_rows["token"])} \
-            == {k: v for k, v in expected.items() if v is not None}
+        taken = zip(gt_rows["sample_token"], gt_rows[f"matched_box_{suffix}"], gt_rows["token"])
+        assert {(s, b): t for s, b, t in taken} == {k: v for k, v in expected.items() if v is not None}
     assert matched_somewhere > 0
 
 
@@ -49,7 +50,8 @@ def test_tables_describe_each_box(submissions, eval_out, tmp_path):
     # the edge submission has boxes beyond a class range, claiming no points, and cycles in racks
     assert set(predictions["filtered_by"].drop_nulls()) == {"range", "points", "bike_rack"}
     assert (predictions["evaluated"] == predictions["filtered_by"].is_null()).all()
-    assert predictions.filter(~pl.col("evaluated"))["rank"].null_count() == predictions.filter(~pl.col("evaluated")).height
+    left_out = predictions.filter(~pl.col("evaluated"))
+    assert left_out["rank"].null_count() == left_out.height
     # rank: 0.. within each class, by descending score, ties to the box later in the submission
     evaluated = predictions.filter(pl.col("evaluated")).with_row_index("position")
     for _, group in evaluated.group_by("detection_name"):
