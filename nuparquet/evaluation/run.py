@@ -79,9 +79,9 @@ class EvalResult:
 
     summary, details: the contents of metrics_summary.json / metrics_details.json; metrics: the
     `DetectionMetrics` behind them; predictions, ground_truth: the tables of `nuparquet.evaluation.tables`;
-    slices: one row per (by, slice) with its counts and headline metrics (None without --by); slice_summaries:
-    {(by, slice): metrics_summary}; out: the directory written (None: nothing written); notes: what a user
-    should know (a split only partly present in the dataset, ...).
+    slices: one row per (by, slice) with its counts and headline metrics (None without --by); slice_summaries,
+    slice_details: {(by, slice): metrics_summary / metrics_details}; out: the directory written (None: nothing
+    written); notes: what a user should know (a split only partly present in the dataset, ...).
     """
 
     summary: dict

@@ -22,7 +22,8 @@ def test_a_submission_without_boxes_scores_zero(eval_out, eval_nusc, tmp_path):
     assert all(v == 1.0 for v in summary["tp_errors"].values())
     assert math.isnan(summary["label_tp_errors"]["traffic_cone"]["orient_err"])
     assert result.predictions.height == 0 and (tmp_path / "out" / "plots" / "summary.png").is_file()
-    assert result.ground_truth.height > 0 and result.ground_truth["matched_box_2m"].null_count() == result.ground_truth.height
+    gt = result.ground_truth
+    assert gt.height > 0 and gt["matched_box_2m"].null_count() == gt.height
 
 
 def test_a_dataset_without_annotations_cannot_be_evaluated(irregular_empty_out, tmp_path):
