@@ -52,13 +52,22 @@ def candidate_pairs(gt: Boxes, pred: Boxes, max_distance_m: float, num_classes: 
                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every (prediction, ground truth) pair of the same sample and class closer than `max_distance_m`:
     (K,) prediction rows, (K,) ground-truth rows, (K,) xy centre distances (the devkit's `center_distance`
-    arithmetic: sqrt(dx^2 + dy^2))."""
-    gt_key = gt.sample_index * num_classes + gt.class_index
+    arithmetic: sqrt(dx^2 + dy^2)).
+
+    The ground truth is sorted on one number per box, its (sample, class) group's band plus its x (bands
+    further apart than twice the distance), so each prediction finds by binary search the boxes of its group
+    within `max_distance_m` in x; only those pairs are measured."""
+    if not len(gt) or not len(pred):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+    pad = 1e-3  # the keys round at ~1e-7 m: a wider window, the exact distance decides
+    x_min = min(gt.translation_m[:, 0].min(), pred.translation_m[:, 0].min())
+    span = max(gt.translation_m[:, 0].max(), pred.translation_m[:, 0].max()) - x_min + 2 * (max_distance_m + pad) + 1
+    gt_key = (gt.sample_index * num_classes + gt.class_index) * span + (gt.translation_m[:, 0] - x_min)
     gt_order = np.argsort(gt_key, kind="stable")
     sorted_keys = gt_key[gt_order]
-    pred_key = pred.sample_index * num_classes + pred.class_index
-    first = np.searchsorted(sorted_keys, pred_key, "left")
-    count = np.searchsorted(sorted_keys, pred_key, "right") - first
+    pred_key = (pred.sample_index * num_classes + pred.class_index) * span + (pred.translation_m[:, 0] - x_min)
+    first = np.searchsorted(sorted_keys, pred_key - (max_distance_m + pad), "left")
+    count = np.searchsorted(sorted_keys, pred_key + (max_distance_m + pad), "right") - first
     preds_out, gts_out, distances_out = [], [], []
     ends = np.cumsum(count)
     start = 0
@@ -77,8 +86,6 @@ def candidate_pairs(gt: Boxes, pred: Boxes, max_distance_m: float, num_classes: 
         gts_out.append(g[near])
         distances_out.append(distance[near])
         start = stop
-    if not preds_out:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
     return np.concatenate(preds_out), np.concatenate(gts_out), np.concatenate(distances_out)
 
 

@@ -86,3 +86,24 @@ def test_no_ground_truth_or_no_prediction_matches_nothing():
     assert result.gt.shape == (2, 0)
     result = matching.match_boxes(Boxes.empty(), gt, (1.0, 2.0), 2)
     assert (result.gt == -1).all() and np.isnan(result.distance_m).all()
+
+
+def test_candidate_search_finds_every_pair_closer_than_the_distance():
+    """The x-window search against all pairs measured: coordinates far from the origin and negative, boxes exactly
+    at the distance in x (not taken: strictly closer), several samples and classes."""
+    rng = np.random.default_rng(5)
+    gt = _boxes(rng, 300, samples=6, classes=3, grid=0.5)
+    pred = _boxes(rng, 400, samples=6, classes=3, grid=0.5)
+    gt.translation_m[:, 0] -= 1800.0
+    pred.translation_m[:, 0] -= 1800.0
+    p, g, d = matching.candidate_pairs(gt, pred, 2.0, 3)
+    found = set(zip(p.tolist(), g.tolist()))
+    expected = set()
+    for i in range(len(pred)):
+        for j in range(len(gt)):
+            same = pred.sample_index[i] == gt.sample_index[j] and pred.class_index[i] == gt.class_index[j]
+            if same and np.linalg.norm(pred.translation_m[i, :2] - gt.translation_m[j, :2]) < 2.0:
+                expected.add((i, j))
+    assert found == expected and len(expected) > 50
+    at_limit = np.isclose(np.abs(pred.translation_m[p, 0] - gt.translation_m[g, 0]), 2.0)
+    assert not at_limit.any() or (d[at_limit] < 2.0).all()
