@@ -154,9 +154,9 @@ def _read_with_duckdb(path: Path) -> Submission:
     connection = duckdb.connect()
     try:
         relation = connection.sql(query, params={"path": str(path)})
-        # Arrow into polars (pyarrow's own to_numpy would import pandas: a quarter of a second); DuckDB 1.x names
-        # the Arrow result `arrow()`, 2.x `to_arrow_table()`
-        table = pl.from_arrow(relation.to_arrow_table() if hasattr(relation, "to_arrow_table") else relation.arrow())
+        # Arrow's C stream straight into polars: no pyarrow loaded (0.15 s), and none of its to_numpy, which
+        # loads pandas (0.25 s); older DuckDB without the stream interface goes through pyarrow
+        table = pl.DataFrame(relation) if hasattr(relation, "__arrow_c_stream__") else pl.from_arrow(relation.arrow())
     except duckdb.Error as exc:
         raise _Unreadable(str(exc)) from exc
     finally:
