@@ -9,7 +9,8 @@ nuparquet.render(ds, "scene-0061", out="scene-0061.mp4", channel="all")
 ```
 
 The verbs are the CLI's commands under the same names, with the same defaults: `convert`, `validate`,
-`export_json` (export-json), `synthesize` (synth), `render` and `render_scenes` (render), `build_index` (index).
+`export_json` (export-json), `synthesize` (synth), `render` and `render_scenes` (render), `build_index` (index),
+`evaluate` (eval).
 Each takes its options as an options object (`ConvertOptions`, ...) or as keyword fields. Everything loads on
 first use, so `import nuparquet` (and the CLI) stays light. The packages that hold the verbs are named for what
 they hold (`conversion/`, `rendering/`, ...), never like a verb: importing `nuparquet.render` would otherwise
@@ -33,8 +34,10 @@ _PUBLIC = {
     "render": ("nuparquet.rendering.pipeline", "render"),
     "render_scenes": ("nuparquet.rendering.batch", "render_scenes"),
     "build_index": ("nuparquet.index.build", "build_index"),
+    "evaluate": ("nuparquet.evaluation.run", "evaluate"),
     "ConvertOptions": ("nuparquet.conversion.options", "ConvertOptions"),
     "EngineOptions": ("nuparquet.engine.options", "EngineOptions"),
+    "EvalOptions": ("nuparquet.evaluation.options", "EvalOptions"),
     "IndexOptions": ("nuparquet.index.options", "IndexOptions"),
     "RenderOptions": ("nuparquet.rendering.options", "RenderOptions"),
     "SceneSelection": ("nuparquet.rendering.options", "SceneSelection"),
@@ -51,7 +54,8 @@ _PUBLIC = {
 
 __all__ = [
     "open", "Dataset", "convert", "validate", "export_json", "synthesize", "render", "render_scenes", "build_index",
-    "ConvertOptions", "EngineOptions", "IndexOptions", "RenderOptions", "SceneSelection", "SynthOptions",
+    "evaluate", "ConvertOptions", "EngineOptions", "EvalOptions", "IndexOptions", "RenderOptions", "SceneSelection",
+    "SynthOptions",
     "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError", "EnvironmentFault", "ProblemsFound",
     "UnitsFailed",
 ]
@@ -84,6 +88,8 @@ if TYPE_CHECKING:  # for readers and type checkers; at run time the names load o
     from nuparquet.dataset import Dataset
     from nuparquet.engine.options import EngineOptions
     from nuparquet.engine.units import UnitsFailed
+    from nuparquet.evaluation.options import EvalOptions
+    from nuparquet.evaluation.run import evaluate
     from nuparquet.errors import EnvironmentFault, FormatError, InputError, NuparquetError, QueryError, UsageError
     from nuparquet.export.json_files import export_json
     from nuparquet.index.build import build_index

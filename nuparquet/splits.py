@@ -1,4 +1,5 @@
-"""nuScenes' public scene splits (the devkit's `create_splits_scenes`: train, val, test, mini_train, mini_val), as
+"""nuScenes' public scene splits (the devkit's `create_splits_scenes`: train, val, test, mini_train, mini_val,
+train_detect, train_track), as
 data read once from `nuparquet/data/nuscenes_splits.json`, and the one rule every user of them starts from.
 
 - `scene_splits()`: {split: [scene names]}, the devkit's lists.
@@ -19,7 +20,8 @@ import polars as pl
 
 @cache
 def scene_splits() -> dict[str, list[str]]:
-    """{split name: scene names} of the devkit's `create_splits_scenes` (train, val, test, mini_train, mini_val)."""
+    """{split name: scene names} of the devkit's `create_splits_scenes` (train, val, test, mini_train, mini_val,
+    train_detect, train_track)."""
     return json.loads((resources.files("nuparquet") / "data" / "nuscenes_splits.json").read_text())
 
 

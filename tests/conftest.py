@@ -255,3 +255,76 @@ def irregular_out(irregular_root, tmp_path_factory) -> Path:
 def irregular_empty_out(irregular_root, tmp_path_factory) -> Path:
     """The conversion of the version folder whose sample_annotation and instance tables are empty."""
     return converted(tmp_path_factory, "irregular-empty-out", irregular_root, IRREGULAR_EMPTY_VERSION)
+
+
+# --- detection evaluation (tests/evaluation/) ----------------------------------------------------------------------
+# A synthetic dataroot named v1.0-trainval, so the devkit evaluates its scenes that are in the real val list
+# (scene-0003, scene-0012, scene-0013), edited for the hard cases (tests/evaluation/eval_edits.py), converted once;
+# the devkit's NuScenes over it; and submissions made from it (tests/evaluation/eval_submissions.py).
+
+EVAL_VERSION = "v1.0-trainval"
+
+
+def _evaluation_helpers() -> None:
+    """tests/evaluation/ on sys.path: its helper modules (eval_edits, eval_submissions) are imported by name."""
+    import sys
+
+    folder = str(REPO / "tests" / "evaluation")
+    if folder not in sys.path:
+        sys.path.insert(0, folder)
+
+
+@pytest.fixture(scope="session")
+def eval_data(tmp_path_factory) -> tuple[Path, dict]:
+    from nuparquet.synth import synthesize
+
+    _evaluation_helpers()
+    from eval_edits import edit_dataset
+
+    root = synthesize(tmp_path_factory.mktemp("eval-synth") / "data", scenes=13, samples_per_scene=6, seed=3,
+                      version=EVAL_VERSION, with_can_bus=False)
+    return root, edit_dataset(root, EVAL_VERSION)
+
+
+@pytest.fixture(scope="session")
+def eval_root(eval_data) -> Path:
+    return eval_data[0]
+
+
+@pytest.fixture(scope="session")
+def eval_edits(eval_data) -> dict:
+    """What `eval_edits.edit_dataset` placed where (tokens), for the tests' preconditions."""
+    return eval_data[1]
+
+
+@pytest.fixture(scope="session")
+def eval_out(eval_root, tmp_path_factory) -> Path:
+    return converted(tmp_path_factory, "eval-out", eval_root, EVAL_VERSION)
+
+
+@pytest.fixture(scope="session")
+def eval_nusc(devkit, eval_root):
+    return devkit.NuScenes(EVAL_VERSION, str(eval_root), verbose=False)
+
+
+@pytest.fixture(scope="session")
+def submissions(eval_nusc, eval_edits, tmp_path_factory) -> dict[str, Path]:
+    """name -> results.json: perfect, noisy (two seeds), edges."""
+    _evaluation_helpers()
+    import eval_submissions as make
+
+    folder = tmp_path_factory.mktemp("eval-submissions")
+    files = {"perfect": make.write(folder / "perfect.json", make.perfect(eval_nusc)),
+             "noisy": make.write(folder / "noisy.json", make.noisy(eval_nusc, seed=1)),
+             "noisy2": make.write(folder / "noisy2.json", make.noisy(eval_nusc, seed=2))}
+    files["edges"] = make.write(folder / "edges.json", make.edge_cases(eval_nusc, eval_edits)[0])
+    return files
+
+
+@pytest.fixture(scope="session")
+def edge_placement(eval_nusc, eval_edits) -> dict:
+    """What the edge-case submission placed where."""
+    _evaluation_helpers()
+    import eval_submissions as make
+
+    return make.edge_cases(eval_nusc, eval_edits)[1]

@@ -145,8 +145,8 @@ def test_the_front_door_lists_the_face_and_every_name_resolves():
 
     assert nuparquet.__all__ == [
         "open", "Dataset", "convert", "validate", "export_json", "synthesize", "render", "render_scenes",
-        "build_index", "ConvertOptions", "EngineOptions", "IndexOptions", "RenderOptions", "SceneSelection",
-        "SynthOptions", "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError",
+        "build_index", "evaluate", "ConvertOptions", "EngineOptions", "EvalOptions", "IndexOptions", "RenderOptions",
+        "SceneSelection", "SynthOptions", "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError",
         "EnvironmentFault", "ProblemsFound", "UnitsFailed"]
     import nuparquet.conversion.options  # noqa: F401 - packages imported first must not shadow the verbs
     import nuparquet.rendering.options  # noqa: F401
@@ -170,6 +170,7 @@ def test_every_cli_command_has_its_verb_in_the_front_door():
     import nuparquet
     from nuparquet.cli.main import COMMANDS
 
-    verb = {"synth": "synthesize", "index": "build_index", "info": "open", "stats": "open", "sql": "open"}
+    verb = {"synth": "synthesize", "index": "build_index", "eval": "evaluate", "info": "open", "stats": "open",
+            "sql": "open"}
     for command in COMMANDS:
         assert verb.get(command, command) in nuparquet.__all__, command

@@ -177,6 +177,8 @@ class BevTile(RowTile):
     clouds: CloudReader | None
     boxes: FrameBoxes
     label: str = "BEV"
+    predictions: FrameBoxes | None = None  # predicted boxes per lidar row (`render.predictions`), thin outlines
+    prediction_colors_rgb: np.ndarray | None = None  # (M, 3)
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)
@@ -201,6 +203,8 @@ class BevTile(RowTile):
         if cloud is not None and len(cloud[0]):
             self._draw_points(image, *cloud, row, to_pixel)
         self._draw_boxes(image, row, to_pixel)
+        if self.predictions is not None:
+            self._draw_predictions(image, row, to_pixel)
         self._draw_ego(image, ego[:2, 3], ego_yaw, to_pixel)
         draw_legend(image, points="height" if self.clouds is None or self.clouds.color == "depth" else self.clouds.color)
         return image
@@ -236,6 +240,22 @@ class BevTile(RowTile):
             outlines = list(px[mine, :4])
             headings = [np.stack([c, f]) for c, f in zip(centres[mine], px[mine, 4])]
             cv2.polylines(image, outlines + headings, True, (b, g, r), 2, lineType=cv2.LINE_AA, shift=3)
+
+    def _draw_predictions(self, image: np.ndarray, row: int, to_pixel: np.ndarray) -> None:
+        """The predicted boxes of lidar row `row`: 1 px outlines and heading lines in their status colours."""
+        lo, hi = np.searchsorted(self.predictions.frame_index, [row, row + 1])
+        if hi == lo:
+            return
+        boxes = self.predictions.take(slice(lo, hi))
+        corners = footprints(boxes.translation_m, boxes.size_wlh_m, heading_from_quaternions(boxes.rotation_wxyz))
+        px = np.round(_apply(to_pixel, corners.reshape(-1, 2)) * 8).astype(np.int32).reshape(-1, 5, 2)
+        centres = np.round(_apply(to_pixel, boxes.translation_m[:, :2]) * 8).astype(np.int32)
+        colors, group = np.unique(self.prediction_colors_rgb[lo:hi], axis=0, return_inverse=True)
+        for i, (r, g, b) in enumerate(colors.tolist()):
+            mine = group.reshape(-1) == i
+            outlines = list(px[mine, :4])
+            headings = [np.stack([c, f]) for c, f in zip(centres[mine], px[mine, 4])]
+            cv2.polylines(image, outlines + headings, True, (b, g, r), 1, lineType=cv2.LINE_AA, shift=3)
 
     def _draw_ego(self, image: np.ndarray, ego_xy: np.ndarray, ego_yaw: float, to_pixel: np.ndarray) -> None:
         length, width = EGO_SIZE_LW_M

@@ -25,10 +25,11 @@ def _map_layers(dataset, location: str | None):
 
 
 def bev_source(dataset, rows: SceneRows, dataroot: Path, view: View, *, times_us: np.ndarray | None = None,
-               lidar_color: str = "depth") -> tuple[BevTile, np.ndarray]:
+               lidar_color: str = "depth", predictions=None) -> tuple[BevTile, np.ndarray]:
     """The BEV tile of a scene's rows (`load_scene` with `bev_channel`) and its output times: the lidar frames'
     own times, or `times_us` (each output then shows the lidar frame nearest in time). Points are coloured by
-    height, or as `lidar_color` says (lidarseg, panoptic, intensity; labels need `lidar_points/` with them)."""
+    height, or as `lidar_color` says (lidarseg, panoptic, intensity; labels need `lidar_points/` with them).
+    `predictions` (`rendering.predictions.Predictions`) are drawn on the keyframes."""
     lidar = rows.bev_lidar
     stamps = lidar["timestamp"].to_numpy()
     if times_us is None:
@@ -41,6 +42,13 @@ def bev_source(dataset, rows: SceneRows, dataroot: Path, view: View, *, times_us
     boxes = frame_boxes(lidar, rows.annotations, rows.samples)
     raster = MapRaster.build(_map_layers(dataset, rows.location),
                              scene_extent(global_from_ego[frame_rows][:, :2, 3], view), view.px_per_m)
+    predicted, predicted_rgb = None, None
+    if predictions is not None:
+        from nuparquet.rendering.predictions import prediction_boxes
+
+        predicted, predicted_rows = prediction_boxes(lidar, predictions)
+        predicted_rgb = predictions.colors_rgb(predicted_rows)
     tile = BevTile(frame_rows.astype(np.int64), view, raster, global_from_ego, ego_from_sensor,
-                   CloudReader.build(lidar, dataroot, dataset=dataset, color=lidar_color), boxes)
+                   CloudReader.build(lidar, dataroot, dataset=dataset, color=lidar_color), boxes,
+                   predictions=predicted, prediction_colors_rgb=predicted_rgb)
     return tile, np.asarray(times_us, dtype=np.float64)

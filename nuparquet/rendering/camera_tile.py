@@ -35,6 +35,8 @@ class CameraTile(RowTile):
     style: DrawStyle
     lidar: LidarPoints | None = None
     image_size_px: np.ndarray | None = None  # (F, 2) width, height of each row's image as its sample_data says
+    predictions: Overlay | None = None  # predicted boxes (`render.predictions`), drawn over the ground truth
+    prediction_style: DrawStyle | None = None
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)
@@ -54,4 +56,7 @@ class CameraTile(RowTile):
         if points is not None:
             draw.draw_points(image, points[0], points[1], max_depth_m=LIDAR_MAX_DEPTH_M,
                              size_px=self.style.point_size_px, colors_bgr=points[2])
-        return self.overlay.draw(image, int(self.rows[t]), self.style)
+        image = self.overlay.draw(image, int(self.rows[t]), self.style)
+        if self.predictions is not None:
+            self.predictions.draw(image, int(self.rows[t]), self.prediction_style or self.style)
+        return image

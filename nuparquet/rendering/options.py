@@ -84,6 +84,11 @@ class RenderOptions:
     bev_size: int = option(800, metavar="PX", help="--channel bev: the picture's side in pixels (default 800)")
     dataroot: str | Path | None = option(
         None, metavar="PATH", help="where the images are, if not at the dataroot recorded at conversion")
+    predictions: str | Path | None = option(
+        None, metavar="RESULTS", help="also draw predicted boxes (keyframes; thin outlines labelled '<class> "
+        "<score>'): a detection submission (results.json, magenta), or the DIR of `nuparquet eval` (true positives "
+        "at the TP threshold green, false positives red, boxes the evaluation left out grey)")
+    score_threshold: float = option(0.3, help="--predictions: draw boxes scoring at least this (default 0.3)")
     preset: str = option(DEFAULT_PRESET, cli=False, help="x264 preset (encoding speed vs file size)")
     threads: int = option(2, cli=False, help="image decode threads")
 
@@ -115,6 +120,8 @@ class RenderOptions:
         if self.bev and self.channel != ALL_CHANNELS:
             raise UsageError("--bev adds the bird's-eye view beside the cameras of --channel all; for the view alone "
                              f"use --channel {BEV_CHANNEL}")
+        if self.score_threshold != self.score_threshold or abs(self.score_threshold) == float("inf"):
+            raise UsageError(f"--score-threshold must be a number, got {self.score_threshold}")
         if not 0 <= self.crf <= 51:
             raise UsageError(f"--crf must be in 0..51, got {self.crf}")
         for name, value, valid in (

@@ -74,7 +74,8 @@ def segments_touch_image(segments_px: np.ndarray, keep: np.ndarray, size_px: np.
 
 
 def build_overlay(tile_cameras: Cameras, boxes: FrameBoxes, *, clip: bool = False,
-                  labels: str = "category") -> Overlay:
+                  labels: str = "category", colors_rgb: np.ndarray | None = None,
+                  texts: list[str] | None = None) -> Overlay:
     """Project every box of every camera row into its tile, once, and order the boxes for drawing.
 
     Args:
@@ -82,6 +83,7 @@ def build_overlay(tile_cameras: Cameras, boxes: FrameBoxes, *, clip: bool = Fals
         boxes: the boxes of those rows (`frame_boxes` over the same rows: frame_index counts them).
         clip: clip edges at the near plane instead of keeping only the boxes the devkit draws.
         labels: "category", "track" or "none".
+        colors_rgb, texts: (M,) colours and labels of the boxes instead of the category's (predicted boxes).
     """
     frame = boxes.frame_index
     seen = boxes_in_cameras(tile_cameras, boxes)
@@ -97,7 +99,9 @@ def build_overlay(tile_cameras: Cameras, boxes: FrameBoxes, *, clip: bool = Fals
     distance_m = np.linalg.norm(seen.center_camera_m, axis=1)
     order = np.lexsort((-distance_m, frame))  # by camera row, then far to near
     order = order[shown[order]]
-    if labels == "category":
+    if texts is not None:
+        texts = [texts[i] for i in order.tolist()]
+    elif labels == "category":
         texts = [draw.short_category(name) for name in boxes.category_name[order].tolist()]
     elif labels == "track":
         texts = [draw.short_track(token) for token in boxes.instance_token[order].tolist()]
@@ -106,7 +110,7 @@ def build_overlay(tile_cameras: Cameras, boxes: FrameBoxes, *, clip: bool = Fals
     return Overlay(
         segments_px=segments_px[order],
         keep=keep[order],
-        colors_rgb=category_colors(boxes.category_name[order]),
+        colors_rgb=category_colors(boxes.category_name[order]) if colors_rgb is None else colors_rgb[order],
         labels=texts,
         row_start=np.searchsorted(frame[order], np.arange(len(tile_cameras) + 1), side="left"),
     )

@@ -77,10 +77,11 @@ def _image_path(dataroot: Path, filename: str) -> str:
 
 def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic: bool, all_frames: bool,
                 fps: float, clip: bool = False, labels: str = "category", dataset=None,
-                lidar_color: str = "depth") -> TilePlan:
+                lidar_color: str = "depth", predictions=None) -> TilePlan:
     """The tile plan of a camera render: the cameras built and every box projected once, one `CameraTile` per
     camera of `layout` (rows of channel names). `scale`: output size / image size; the other arguments as in
-    `RenderOptions`; `dataset` (a Dataset) lets lidar points come from its lidar_points/."""
+    `RenderOptions`; `dataset` (a Dataset) lets lidar points come from its lidar_points/; `predictions`
+    (`rendering.predictions.Predictions`) are drawn over the keyframes."""
     cameras = rows.cameras
     size = tile_size(cameras, scale)
     tile_cameras = cameras_from_frames(cameras).resized_to(size)
@@ -98,8 +99,16 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
     image_size_px = np.stack([cameras["width"].to_numpy(), cameras["height"].to_numpy()], axis=1)
     decode_scale = np.max(tile_cameras.scale, axis=1)  # the decoded image must cover the tile on both axes
     style = DrawStyle.for_scale(scale)
+    predicted, predicted_style = None, None
+    if predictions is not None:
+        from nuparquet.rendering.predictions import prediction_boxes, prediction_style
+
+        boxes, rows = prediction_boxes(cameras, predictions)
+        predicted = build_overlay(tile_cameras, boxes, clip=clip, colors_rgb=predictions.colors_rgb(rows),
+                                  texts=predictions.labels(rows))
+        predicted_style = prediction_style(style)
     tiles = iter(CameraTile(channel, plan_rows[:, column], paths, decode_scale, size, overlay, style, lidar,
-                            image_size_px) for column, channel in enumerate(channels))
+                            image_size_px, predicted, predicted_style) for column, channel in enumerate(channels))
     return TilePlan(times_us, tuple(tuple(next(tiles) for _ in row) for row in layout), size)
 
 
@@ -109,25 +118,28 @@ def _bev_view(options: RenderOptions, size: tuple[int, int]):
     return View(size, options.bev_range_m, ego_up=options.bev_up == "ego")
 
 
-def bev_plan(dataset, rows: SceneRows, options: RenderOptions, dataroot: Path) -> tuple[TilePlan, float]:
+def bev_plan(dataset, rows: SceneRows, options: RenderOptions, dataroot: Path,
+             predictions=None) -> tuple[TilePlan, float]:
     """`--channel bev`: one square tile per reference-lidar keyframe (or frame), and the video's frame rate (the
     lidar's own with --all-frames unless --fps says otherwise)."""
     from nuparquet.rendering.bev_scene import bev_source
 
     size = (options.bev_size, options.bev_size)
-    tile, times_us = bev_source(dataset, rows, dataroot, _bev_view(options, size), lidar_color=options.lidar_color)
+    tile, times_us = bev_source(dataset, rows, dataroot, _bev_view(options, size), lidar_color=options.lidar_color,
+                                predictions=predictions)
     fps = options.frame_rate
     if options.fps is None and options.all_frames and len(times_us) > 1:
         fps = float(round(1e6 / float(np.median(np.diff(times_us)))))
     return TilePlan(times_us, ((tile,),), size), fps
 
 
-def with_bev_tile(plan: TilePlan, dataset, rows: SceneRows, options: RenderOptions, dataroot: Path) -> TilePlan:
+def with_bev_tile(plan: TilePlan, dataset, rows: SceneRows, options: RenderOptions, dataroot: Path,
+                  predictions=None) -> TilePlan:
     """The camera plan with the bird's-eye view appended to its first row, at the camera tile size."""
     from nuparquet.rendering.bev_scene import bev_source
 
     tile, _ = bev_source(dataset, rows, dataroot, _bev_view(options, plan.tile_size), times_us=plan.times_us,
-                         lidar_color=options.lidar_color)
+                         lidar_color=options.lidar_color, predictions=predictions)
     layout = (plan.layout[0] + (tile,),) + plan.layout[1:]
     return TilePlan(plan.times_us, layout, plan.tile_size)
 
@@ -154,12 +166,17 @@ def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
     dataroot = _dataroot(dataset, options.dataroot)
     dataset.check_scenes([scene])
     fps = options.frame_rate
+    predictions = None
+    if options.predictions is not None:
+        from nuparquet.rendering.predictions import load_predictions
+
+        predictions = load_predictions(options.predictions, dataset, scene, options.score_threshold)
     bev_channel = reference_lidar(dataset) if options.channel == BEV_CHANNEL or options.bev else None
     if options.channel == BEV_CHANNEL:
         channel = BEV_CHANNEL
         rows = load_scene(dataset, scene, (), all_frames=options.all_frames, bev_channel=bev_channel)
         _check_bev_rows(rows, scene, bev_channel)
-        plan, fps = bev_plan(dataset, rows, options, dataroot)
+        plan, fps = bev_plan(dataset, rows, options, dataroot, predictions)
     else:
         channel, layout = cameras_to_render(dataset, options.channel)
         rows = load_scene(dataset, scene, [c for row in layout for c in row], all_frames=options.all_frames,
@@ -167,10 +184,11 @@ def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
                           bev_channel=bev_channel, channel_label=channel)
         plan = camera_plan(rows, layout, dataroot, scale=options.scale, mosaic=options.mosaic,
                            all_frames=options.all_frames, fps=fps, clip=options.clip,
-                           labels=options.labels, dataset=dataset, lidar_color=options.lidar_color)
+                           labels=options.labels, dataset=dataset, lidar_color=options.lidar_color,
+                           predictions=predictions)
         if options.bev:
             _check_bev_rows(rows, scene, bev_channel)
-            plan = with_bev_tile(plan, dataset, rows, options, dataroot)
+            plan = with_bev_tile(plan, dataset, rows, options, dataroot, predictions)
 
     out = Path(options.out) if options.out is not None else None
     frames_dir = Path(options.frames_dir) if options.frames_dir is not None else None

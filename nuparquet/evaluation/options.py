@@ -1,0 +1,37 @@
+"""What `nuparquet eval` (and `nuparquet.evaluation.evaluate`) can be asked to do, declared once: each field is
+a keyword of `EvalOptions` and a flag of the CLI (`nuparquet.cli.arguments.add_options`). Light on purpose:
+the CLI builds its parser from it without loading the evaluation."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from nuparquet.options import option
+
+_BY_HELP = ("distance, visibility, attribute, location, night, rain, scene, or any column of the annotations or "
+            "scenes datasets")
+
+
+@dataclass
+class EvalOptions:
+    """An evaluation: which submission, which split, which settings, where to write, which slices."""
+
+    results: str | Path = option(help="the detection submission, nuScenes format: {\"meta\": {...}, \"results\": "
+                                 "{sample_token: [box, ...]}}", metavar="RESULTS.json")
+    split: str = option("val", help="the split evaluated: train, val, test, mini_train, mini_val, train_detect, "
+                        "train_track, or a custom split of <dataroot>/<version>/splits.json (default val)")
+    out: str | Path | None = option(
+        None, metavar="DIR", help="write metrics_summary.json, metrics_details.json, plots/, predictions/, "
+        "ground_truth/ (and slices/ with --by) here; without it the metrics are only printed")
+    config: str = option("detection_cvpr_2019", metavar="NAME",
+                         help="the devkit configuration by name (default detection_cvpr_2019)")
+    config_file: str | Path | None = option(
+        None, metavar="CONFIG.json", help="a configuration in the devkit's JSON format instead of --config")
+    by: tuple[str, ...] = option((), metavar="DIM,...", help=f"also evaluate per slice of {_BY_HELP} "
+                                 "(comma-separated for several; see docs: how predictions are placed in slices)")
+    bins: tuple[str, ...] = option(
+        (), metavar="EDGES", help="bin edges for --by distance (metres, default 0,10,20,30,40,50) and numeric "
+        "columns, e.g. 0,20,40")
+    plots: bool = option(True, help="write the devkit's PR and TP curves as PNG into DIR/plots (--no-plots: skip)")
+    overwrite: bool = option(False, help="replace DIR if it already holds files")

@@ -1,0 +1,131 @@
+"""Predicted boxes drawn beside the ground truth (`render --predictions RESULTS [--score-threshold 0.3]`).
+
+RESULTS is a detection submission (results.json: every box is drawn in one colour, PREDICTED_RGB), or a directory
+written by `nuparquet eval` (its predictions/ dataset: true positives at the TP threshold in TP_RGB, false
+positives in FP_RGB, boxes the evaluation left out, beyond a class range or in a bicycle rack, in FILTERED_RGB).
+Predictions belong to samples, so they are drawn on keyframes only (the sweeps of --all-frames show none), with
+thinner lines than the ground truth and a "<class> <score>" label; boxes scoring below the threshold are not drawn.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+
+from nuparquet.columns import to_numpy
+from nuparquet.errors import UsageError
+from nuparquet.frames.boxes import FrameBoxes
+
+DEFAULT_SCORE_THRESHOLD = 0.3
+PREDICTED_RGB = (255, 0, 255)
+TP_RGB = (40, 230, 40)
+FP_RGB = (255, 45, 45)
+FILTERED_RGB = (150, 150, 150)
+STATUS_RGB = np.array([PREDICTED_RGB, TP_RGB, FP_RGB, FILTERED_RGB], dtype=np.uint8)
+PREDICTED, TRUE_POSITIVE, FALSE_POSITIVE, FILTERED = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class Predictions:
+    """The predicted boxes of one scene above the score threshold. sample_token, detection_name: (N,) str;
+    translation_m, size_wlh_m: (N, 3); rotation_wxyz: (N, 4); score: (N,); status: (N,) int8 (PREDICTED, or
+    TRUE_POSITIVE / FALSE_POSITIVE / FILTERED once evaluated)."""
+
+    sample_token: np.ndarray
+    detection_name: np.ndarray
+    translation_m: np.ndarray
+    size_wlh_m: np.ndarray
+    rotation_wxyz: np.ndarray
+    score: np.ndarray
+    status: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.sample_token)
+
+    def colors_rgb(self, rows: np.ndarray) -> np.ndarray:
+        return STATUS_RGB[self.status[rows]]
+
+    def labels(self, rows: np.ndarray) -> list[str]:
+        return [f"{name} {score:.2f}" for name, score in zip(self.detection_name[rows].tolist(),
+                                                             self.score[rows].tolist())]
+
+
+def load_predictions(source: str | Path, dataset, scene: str, score_threshold: float = DEFAULT_SCORE_THRESHOLD
+                     ) -> Predictions:
+    """The predictions of `scene` scoring at least `score_threshold`, from a results.json or an eval directory."""
+    source = Path(source)
+    if source.is_dir():
+        return _from_evaluation(source, scene, score_threshold)
+    if not source.is_file():
+        raise UsageError(f"--predictions {source}: no such file or directory")
+    return _from_submission(source, dataset, scene, score_threshold)
+
+
+def _from_submission(path: Path, dataset, scene: str, score_threshold: float) -> Predictions:
+    from nuparquet.evaluation.submission import read_submission
+
+    submission = read_submission(path)
+    samples = set(dataset.scan("tables/sample").join(
+        dataset.scan("scenes").filter(pl.col("name") == scene).select(pl.col("token").alias("scene_token")),
+        on="scene_token", how="semi").select("token").collect()["token"].to_list())
+    box_sample = submission.sample_tokens[submission.box_sample] if len(submission) else np.zeros(0, object)
+    in_scene = np.isin(box_sample, np.array(sorted(samples), dtype=object))
+    keep = in_scene & (submission.detection_score >= score_threshold)
+    return Predictions(sample_token=box_sample[keep], detection_name=submission.detection_name[keep],
+                       translation_m=submission.translation_m[keep], size_wlh_m=submission.size_wlh_m[keep],
+                       rotation_wxyz=submission.rotation_wxyz[keep], score=submission.detection_score[keep],
+                       status=np.full(int(keep.sum()), PREDICTED, dtype=np.int8))
+
+
+def _from_evaluation(folder: Path, scene: str, score_threshold: float) -> Predictions:
+    from nuparquet.evaluation.tables import threshold_suffix
+
+    files = sorted((folder / "predictions").glob("*.parquet"))
+    summary = folder / "metrics_summary.json"
+    if not files or not summary.is_file():
+        raise UsageError(f"--predictions {folder}: a directory, but not one written by `nuparquet eval` "
+                         "(no predictions/*.parquet and metrics_summary.json)")
+    tp_column = f"matched_gt_{threshold_suffix(json.loads(summary.read_text())['cfg']['dist_th_tp'])}"
+    rows = (pl.scan_parquet(files).filter((pl.col("scene_name") == scene)
+                                          & (pl.col("detection_score") >= score_threshold))
+            .select("sample_token", "detection_name", "translation", "size", "rotation", "detection_score",
+                    "evaluated", tp_column).collect())
+    status = np.where(~rows["evaluated"].to_numpy(), FILTERED,
+                      np.where(rows[tp_column].is_not_null().to_numpy(), TRUE_POSITIVE, FALSE_POSITIVE))
+    return Predictions(sample_token=rows["sample_token"].to_numpy().astype(object),
+                       detection_name=rows["detection_name"].to_numpy().astype(object),
+                       translation_m=to_numpy(rows["translation"], (3,), writable=True),
+                       size_wlh_m=to_numpy(rows["size"], (3,), writable=True),
+                       rotation_wxyz=to_numpy(rows["rotation"], (4,), writable=True),
+                       score=rows["detection_score"].to_numpy(), status=status.astype(np.int8))
+
+
+def prediction_boxes(frames: pl.DataFrame, predictions: Predictions) -> tuple[FrameBoxes, np.ndarray]:
+    """The predictions on each keyframe of `frames` (rows with token, sample_token, is_key_frame), as FrameBoxes
+    (frame_index = row of `frames`, category_name = the detection class), and (M,) the prediction row of each."""
+    keyframe = frames["is_key_frame"].to_numpy()
+    frame_sample = frames["sample_token"].to_numpy().astype(object)
+    order = np.argsort(predictions.sample_token, kind="stable")
+    sorted_samples = predictions.sample_token[order]
+    first = np.searchsorted(sorted_samples, frame_sample, "left")
+    count = np.where(keyframe, np.searchsorted(sorted_samples, frame_sample, "right") - first, 0)
+    frame = np.repeat(np.arange(len(frame_sample)), count)
+    rows = order[np.repeat(first, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
+    m = len(rows)
+    boxes = FrameBoxes(frame_index=frame.astype(np.int64), frame_token=frames["token"].to_numpy().astype(object)[frame],
+                       annotation_token=np.full(m, "", dtype=object), instance_token=np.full(m, "", dtype=object),
+                       category_name=predictions.detection_name[rows], translation_m=predictions.translation_m[rows],
+                       size_wlh_m=predictions.size_wlh_m[rows], rotation_wxyz=predictions.rotation_wxyz[rows],
+                       interpolated=np.zeros(m, dtype=bool), annotation_index=rows.astype(np.int64))
+    return boxes, rows
+
+
+def prediction_style(style):
+    """The camera `DrawStyle` of predicted boxes: thinner lines than the ground truth's, smaller labels."""
+    from nuparquet.rendering.overlay import DrawStyle
+
+    return DrawStyle(tuple(max(1, w // 2) for w in style.widths), style.font_scale * 0.85, style.point_size_px)

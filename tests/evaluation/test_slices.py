@@ -1,0 +1,148 @@
+"""Per-slice metrics against the devkit run on the correspondingly filtered inputs: its DetectionEval's filtered
+ground truth and predictions, cut by the slice rule computed here from the devkit's own boxes and tables (the
+ego distance it computed, the annotation's visibility and attribute, the scene's log and description, and for
+predictions of ground-truth-only properties the box the devkit's matching loop gave them at 2 m)."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import polars as pl
+import pytest
+from eval_reference import (
+    assert_same_metrics, devkit_eval, devkit_metrics_of, filtered, gt_box_tokens, sequential_matches,
+)
+
+from nuparquet.errors import UsageError
+from nuparquet.evaluation import evaluate
+from nuparquet.evaluation.classes import DETECTION_NAMES
+from nuparquet.evaluation.run import slug
+
+EVERY = object()
+
+
+def _bins(value: float, edges, unit: str) -> str | None:
+    if value < edges[0]:
+        return None
+    for low, high in zip(edges, edges[1:]):
+        if low <= value < high:
+            return f"{low:g}-{high:g}{unit}"
+    return f"{edges[-1]:g}{unit}+"
+
+
+@pytest.fixture(scope="module")
+def sliced(submissions, eval_out, tmp_path_factory):
+    """{by: (result, out)}: one evaluation with every named slice (distance in its default bins), one by a numeric
+    annotation column in --bins."""
+    folder = tmp_path_factory.mktemp("slices")
+    by = ("distance", "visibility", "attribute", "location", "night", "rain", "scene", "vehicle")
+    result = evaluate(eval_out, results=submissions["noisy"], split="val", out=folder / "named", plots=False, by=by)
+    binned = evaluate(eval_out, results=submissions["noisy"], split="val", out=folder / "binned", plots=False,
+                      by=("num_lidar_pts",), bins=("0", "5", "20"))
+    return {**{name: (result, folder / "named") for name in by}, "num_lidar_pts": (binned, folder / "binned")}
+
+
+@pytest.fixture(scope="module")
+def reference(submissions, eval_nusc, tmp_path_factory):
+    """The devkit's filtered boxes, annotation tokens and its matches at 2 m."""
+    evaluation = devkit_eval(eval_nusc, submissions["noisy"], tmp_path_factory.mktemp("devkit-slices"))
+    tokens = gt_box_tokens(eval_nusc, evaluation.gt_boxes)
+    matched = {}
+    for name in DETECTION_NAMES:
+        matched.update(sequential_matches(evaluation.gt_boxes, evaluation.pred_boxes, name, 2.0))
+    meta = json.loads(open(evaluation.result_path).read())["meta"]
+    return evaluation, tokens, matched, meta
+
+
+def _scene_of(nusc, sample_token: str) -> dict:
+    return nusc.get("scene", nusc.get("sample", sample_token)["scene_token"])
+
+
+def _scene_value(nusc, by: str, sample_token: str) -> str:
+    scene = _scene_of(nusc, sample_token)
+    log = nusc.get("log", scene["log_token"])
+    if by == "location":
+        return log["location"]
+    if by == "night":
+        return "night" if re.search(r"\bnight", scene["description"], re.I) else "day"
+    if by == "rain":
+        return "rain" if re.search(r"\brain", scene["description"], re.I) else "dry"
+    if by == "scene":
+        return scene["name"]
+    return log[by]  # vehicle
+
+
+def _gt_value(nusc, by: str, box, token: str):
+    ann = nusc.get("sample_annotation", token)
+    if by == "distance":
+        return _bins(box.ego_dist, (0, 10, 20, 30, 40, 50), "m")
+    if by == "visibility":
+        return nusc.get("visibility", ann["visibility_token"])["level"]
+    if by == "attribute":
+        return box.attribute_name or "none"
+    if by == "num_lidar_pts":
+        return _bins(ann["num_lidar_pts"], (0, 5, 20), "")
+    return _scene_value(nusc, by, box.sample_token)
+
+
+def _pred_value(nusc, by: str, box, matched_gt, tokens):
+    if by == "distance":
+        return _bins(box.ego_dist, (0, 10, 20, 30, 40, 50), "m")
+    if by in ("location", "night", "rain", "scene", "vehicle"):
+        return _scene_value(nusc, by, box.sample_token)
+    gt = matched_gt[id(box)]
+    if gt is not None:
+        return _gt_value(nusc, by, gt, tokens[id(gt)])
+    return (box.attribute_name or "none") if by == "attribute" else EVERY
+
+
+@pytest.mark.parametrize("by", ["distance", "visibility", "attribute", "location", "night", "rain", "scene",
+                                "num_lidar_pts", "vehicle"])
+def test_slice_metrics_equal_the_devkit_on_the_filtered_boxes(by, sliced, reference, eval_nusc):
+    result, out = sliced[by]
+    evaluation, tokens, matched, meta = reference
+    gt_values = {id(b): _gt_value(eval_nusc, by, b, tokens[id(b)]) for b in evaluation.gt_boxes.all}
+    pred_values = {id(b): _pred_value(eval_nusc, by, b, matched, tokens) for b in evaluation.pred_boxes.all}
+    labels = {v for v in list(gt_values.values()) + list(pred_values.values()) if v is not None and v is not EVERY}
+    ours = result.slices.filter(pl.col("by") == by)
+    assert set(ours["slice"]) == labels and len(labels) >= 1
+    for label in labels:
+        gt = filtered(evaluation.gt_boxes, lambda _, b: gt_values[id(b)] == label)
+        pred = filtered(evaluation.pred_boxes, lambda _, b: pred_values[id(b)] in (label, EVERY))
+        summary, details = devkit_metrics_of(evaluation, gt, pred, meta)
+        assert_same_metrics(out / "slices" / slug(by) / slug(label), summary, details)
+        row = ours.filter(pl.col("slice") == label).row(0, named=True)
+        assert (row["num_gt"], row["num_predictions"]) == (len(gt.all), len(pred.all))
+        assert row["mAP"] == summary["mean_ap"] and row["NDS"] == pytest.approx(summary["nd_score"], abs=1e-12)
+
+
+def test_slices_partition_the_ground_truth_and_charge_unmatched_predictions_everywhere(sliced):
+    result, _ = sliced["distance"]
+    evaluated_gt = result.ground_truth.filter(pl.col("evaluated")).height
+    for by, group in result.slices.group_by("by"):
+        if by[0] in ("distance", "location", "scene", "night", "rain", "vehicle", "visibility", "attribute"):
+            assert group["num_gt"].sum() == evaluated_gt, by
+    evaluated = result.predictions.filter(pl.col("evaluated"))
+    unmatched = evaluated["matched_gt_2m"].null_count()
+    visibility = result.slices.filter(pl.col("by") == "visibility")
+    # every matched prediction in one slice, every unmatched one in all of them
+    assert visibility["num_predictions"].sum() == evaluated.height - unmatched + unmatched * visibility.height
+    scene = result.slices.filter(pl.col("by") == "scene")
+    assert scene["num_predictions"].sum() == evaluated.height
+
+
+def test_unknown_slices_and_bad_bins_are_refused(submissions, eval_out):
+    with pytest.raises(UsageError, match="not a slice"):
+        evaluate(eval_out, results=submissions["noisy"], by=("weather",))
+    with pytest.raises(UsageError, match="--bins"):
+        evaluate(eval_out, results=submissions["noisy"], by=("distance",), bins=("10", "5"))
+    with pytest.raises(UsageError, match="distinct values"):
+        evaluate(eval_out, results=submissions["noisy"], by=("num_lidar_pts",))
+
+
+def test_slice_labels_follow_the_bins_in_order(sliced):
+    distance = sliced["distance"][0].slices.filter(pl.col("by") == "distance")["slice"].to_list()
+    assert distance == ["0-10m", "10-20m", "20-30m", "30-40m", "40-50m"]
+    points = sliced["num_lidar_pts"][0].slices["slice"].to_list()
+    assert points == ["0-5", "5-20", "20+"]

@@ -1,0 +1,136 @@
+"""`render --predictions`: predicted boxes drawn beside the ground truth, in the cameras and the bird's-eye
+view, projected as the ground truth is, coloured by what the evaluation made of them, on keyframes only."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import cv2
+import numpy as np
+import polars as pl
+import pytest
+
+import nuparquet
+from nuparquet.cli.main import main
+from nuparquet.evaluation import evaluate
+from nuparquet.evaluation.classes import CATEGORY_TO_DETECTION
+from nuparquet.rendering import predictions as predicted
+from nuparquet.rendering.pipeline import camera_plan
+from nuparquet.rendering.scene import load_scene
+
+SCENE = "scene-0001"  # the synthetic scenes are in the devkit's train list
+
+
+def _bgr(rgb) -> tuple:
+    return tuple(reversed(rgb))
+
+
+@pytest.fixture(scope="module")
+def results(synth_out, tmp_path_factory) -> tuple:
+    """A submission for every sample: each detection-class annotation of scene-0001 as predicted exactly (scores
+    0.2 .. 1.0), plus a false positive 20 m from the first box of each sample and one box far out of range."""
+    annotations = pl.read_parquet(synth_out / "annotations")
+    samples = pl.read_parquet(synth_out / "tables" / "sample")
+    boxes = {token: [] for token in samples["token"]}
+    rng = np.random.default_rng(0)
+    for row in annotations.iter_rows(named=True):
+        name = CATEGORY_TO_DETECTION.get(row["category_name"])
+        if name is None:
+            continue
+        boxes[row["sample_token"]].append({
+            "sample_token": row["sample_token"], "translation": list(row["translation"]), "size": list(row["size"]),
+            "rotation": list(row["rotation"]), "velocity": [0.0, 0.0], "detection_name": name,
+            "detection_score": float(rng.uniform(0.2, 1.0)), "attribute_name": ""})
+    for token, listed in boxes.items():
+        if listed:
+            first = listed[0]
+            for dx, score in ((20.0, 0.9), (500.0, 0.8)):
+                boxes[token].append(dict(first, translation=[first["translation"][0] + dx, *first["translation"][1:]],
+                                         detection_score=score))
+    folder = tmp_path_factory.mktemp("render-predictions")
+    path = folder / "results.json"
+    path.write_text(json.dumps({"meta": {}, "results": boxes}))
+    evaluate(synth_out, results=path, split="train", out=folder / "eval", plots=False)
+    return path, folder / "eval"
+
+
+def test_predictions_on_the_ground_truth_project_onto_its_outlines(synth_root, synth_out, results):
+    """Predictions equal to the annotations draw exactly the annotations' wireframes (same projection)."""
+    dataset = nuparquet.open(synth_out)
+    rows = load_scene(dataset, SCENE, ["CAM_FRONT", "CAM_BACK"])
+    detection = rows.annotations["category_name"].cast(pl.String).is_in(list(CATEGORY_TO_DETECTION))
+    only_detection = dataclasses.replace(rows, annotations=rows.annotations.filter(detection))
+    everything = predicted.load_predictions(results[0], dataset, SCENE, score_threshold=0.0)
+    on_gt = np.isin(everything.translation_m[:, 0], only_detection.annotations["translation"].arr.get(0).to_numpy())
+    exact = predicted.Predictions(everything.sample_token[on_gt], everything.detection_name[on_gt],
+                                  everything.translation_m[on_gt], everything.size_wlh_m[on_gt],
+                                  everything.rotation_wxyz[on_gt], everything.score[on_gt], everything.status[on_gt])
+    layout = (("CAM_FRONT", "CAM_BACK"),)
+    plan = camera_plan(only_detection, layout, synth_root, scale=0.5, mosaic=True, all_frames=False, fps=2,
+                       predictions=exact)
+    drawn = 0
+    for tile in plan.layout[0]:
+        gt, ours = tile.overlay, tile.predictions
+        for row in range(len(gt.row_start) - 1):
+            a = gt.segments_px[gt.row_start[row]:gt.row_start[row + 1]]
+            b = ours.segments_px[ours.row_start[row]:ours.row_start[row + 1]]
+            assert sorted(map(bytes, a)) == sorted(map(bytes, b))
+            drawn += len(b)
+        assert (ours.colors_rgb == predicted.PREDICTED_RGB).all()
+        assert all(label.rsplit(" ", 1)[1].replace(".", "").isdigit() for label in ours.labels)
+    assert drawn > 10
+
+
+def test_statuses_come_from_the_evaluation(synth_out, results):
+    dataset = nuparquet.open(synth_out)
+    loaded = predicted.load_predictions(results[1], dataset, SCENE, score_threshold=0.3)
+    table = pl.read_parquet(results[1] / "predictions").filter(
+        (pl.col("scene_name") == SCENE) & (pl.col("detection_score") >= 0.3))
+    assert len(loaded) == table.height
+    expected = np.where(~table["evaluated"].to_numpy(), predicted.FILTERED,
+                        np.where(table["matched_gt_2m"].is_not_null().to_numpy(), predicted.TRUE_POSITIVE,
+                                 predicted.FALSE_POSITIVE))
+    np.testing.assert_array_equal(loaded.status, expected)
+    assert set(loaded.status.tolist()) == {predicted.TRUE_POSITIVE, predicted.FALSE_POSITIVE, predicted.FILTERED}
+    np.testing.assert_array_equal(loaded.colors_rgb(np.arange(len(loaded))), predicted.STATUS_RGB[expected])
+    # from the submission itself: every box of the scene above the threshold, one colour
+    plain = predicted.load_predictions(results[0], dataset, SCENE, score_threshold=0.5)
+    assert len(plain) == table.filter(pl.col("detection_score") >= 0.5).height
+    assert (plain.status == predicted.PREDICTED).all() and (plain.score >= 0.5).all()
+
+
+def test_sweeps_show_no_predictions(synth_out, results):
+    dataset = nuparquet.open(synth_out)
+    rows = load_scene(dataset, SCENE, ["CAM_FRONT"], all_frames=True)
+    loaded = predicted.load_predictions(results[0], dataset, SCENE, score_threshold=0.0)
+    boxes, picked = predicted.prediction_boxes(rows.cameras, loaded)
+    keyframe = rows.cameras["is_key_frame"].to_numpy()
+    assert len(boxes) and keyframe[boxes.frame_index].all()
+    assert (rows.cameras["sample_token"].to_numpy()[boxes.frame_index] == loaded.sample_token[picked]).all()
+    assert len(boxes) == sum(int((loaded.sample_token == s).sum()) for s in rows.cameras.filter(
+        pl.col("is_key_frame"))["sample_token"])
+
+
+def _has(image: np.ndarray, rgb) -> bool:
+    return bool((image == np.array(_bgr(rgb), dtype=np.uint8)).all(axis=2).any())
+
+
+@pytest.mark.parametrize("channel", ["CAM_FRONT", "bev"])
+def test_rendered_frames_tell_true_from_false_positives(channel, synth_out, results, tmp_path):
+    frames = tmp_path / "frames"
+    args = ["render", str(synth_out), "--scene", SCENE, "--channel", channel, "--frames-dir", str(frames),
+            "--frame-format", "png", "--quiet"]
+    assert main([*args, "--predictions", str(results[1]), "--score-threshold", "0"]) == 0
+    images = [cv2.imread(str(p)) for p in sorted(frames.glob("*.png"))]
+    assert images and any(_has(i, predicted.TP_RGB) for i in images) and any(_has(i, predicted.FP_RGB) for i in images)
+    plain = tmp_path / "plain"
+    assert main([*args[:-5], "--frames-dir", str(plain), "--frame-format", "png", "--quiet"]) == 0
+    images = [cv2.imread(str(p)) for p in sorted(plain.glob("*.png"))]
+    assert not any(_has(i, predicted.TP_RGB) or _has(i, predicted.FP_RGB) for i in images)
+
+
+def test_a_directory_that_is_not_an_evaluation_is_refused(synth_out, tmp_path, capsys):
+    assert main(["render", str(synth_out), "--scene", SCENE, "--predictions", str(tmp_path), "--frames-dir",
+                 str(tmp_path / "f"), "--quiet"]) == 2
+    assert "not one written by `nuparquet eval`" in capsys.readouterr().err
