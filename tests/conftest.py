@@ -131,6 +131,13 @@ def synth_out(synth_root, tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
+def synth_points_out(synth_root, tmp_path_factory) -> Path:
+    """`synth_root` converted with every lidar and radar point, sweeps included (lidar_points/, radar_points/)."""
+    return converted(tmp_path_factory, "synth-points-out", synth_root, SYNTH_VERSION, sensors=("lidar", "radar"),
+                     sweeps=True, jobs=1)
+
+
+@pytest.fixture(scope="session")
 def devkit():
     """The nuscenes-devkit module (test-only reference implementation). Not installed is a failure, never a
     skip: `make test` installs it, and a parity test that silently stops running hides regressions."""

@@ -13,7 +13,7 @@ from nuparquet import __version__
 from nuparquet.errors import NuparquetError
 
 # Subcommand modules, in the order `--help` lists them.
-COMMANDS = ["convert", "validate", "export_json", "synth", "info", "stats", "sql", "render", "index"]
+COMMANDS = ["convert", "validate", "export_json", "synth", "info", "stats", "sql", "render", "index", "export_mcap"]
 
 
 def build_parser() -> argparse.ArgumentParser:
