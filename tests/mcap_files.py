@@ -42,7 +42,8 @@ def read_messages(path: Path) -> dict[str, list[Decoded]]:
     """topic -> its messages in file order, each decoded (the seeking reader: through the chunk indexes)."""
     out: dict[str, list[Decoded]] = defaultdict(list)
     with open(path, "rb") as f:
-        reader = SeekingReader(f, validate_crcs=True, decoder_factories=[ProtobufDecoderFactory(), JsonDecoderFactory()])
+        decoders = [ProtobufDecoderFactory(), JsonDecoderFactory()]
+        reader = SeekingReader(f, validate_crcs=True, decoder_factories=decoders)
         for schema, channel, message, decoded in reader.iter_decoded_messages(log_time_order=False):
             out[channel.topic].append(Decoded(message.log_time, message.publish_time, message.sequence,
                                               schema.name if schema else "", message.data, decoded))

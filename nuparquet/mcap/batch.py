@@ -81,7 +81,8 @@ def export_settings(root: str, options: McapOptions) -> str:
     same."""
     fields = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(options).items()
               if k not in ("scene", "out", "dataroot", "on_missing")}
-    return hashlib.sha256(json.dumps({"dataset": root, **fields}, sort_keys=True, default=str).encode()).hexdigest()[:12]
+    text = json.dumps({"dataset": root, **fields}, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
 
 
 def _previous_summary(out_dir: Path) -> dict:

@@ -63,7 +63,8 @@ class McapOptions:
             raise UsageError(f"--map-margin-m must be 0 or more, got {self.map_margin_m}")
         if self.chunk_bytes < 1024:
             raise UsageError(f"chunk_bytes must be at least 1024, got {self.chunk_bytes}")
-        for name, value, valid in (("--boxes", self.boxes, BOX_RATES), ("--compression", self.compression, COMPRESSIONS),
+        for name, value, valid in (("--boxes", self.boxes, BOX_RATES),
+                                   ("--compression", self.compression, COMPRESSIONS),
                                    ("--on-missing", self.on_missing, ON_MISSING)):
             if value not in valid:
                 raise UsageError(f"{name} must be one of {', '.join(valid)}, got {value!r}")

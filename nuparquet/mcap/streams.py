@@ -111,7 +111,8 @@ def camera_streams(frames: pl.DataFrame, channel: str, dataroot: Path, *, images
             except OSError as exc:
                 raise MissingFile(str(path), exc.strerror or type(exc).__name__) from None
             suffix = path.suffix.lower().lstrip(".")
-            return messages.compressed_image(int(times[i]), channel, data, "jpeg" if suffix in ("jpg", "jpeg") else suffix)
+            image_format = "jpeg" if suffix in ("jpg", "jpeg") else suffix
+            return messages.compressed_image(int(times[i]), channel, data, image_format)
 
         def size(i: int) -> int:
             try:

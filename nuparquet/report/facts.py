@@ -39,7 +39,8 @@ def local_start(timestamp_us: int, logfile: str | None, location: str | None) ->
     offset = log_utc_offset_min(logfile)
     if offset is not None:
         sign = "+" if offset >= 0 else "-"
-        return start.astimezone(timezone(timedelta(minutes=offset))), f"UTC{sign}{abs(offset) // 60:02d}:{abs(offset) % 60:02d}"
+        zone = f"UTC{sign}{abs(offset) // 60:02d}:{abs(offset) % 60:02d}"
+        return start.astimezone(timezone(timedelta(minutes=offset))), zone
     zone = LOCATION_TIME_ZONES.get(location or "")
     if zone is None:
         return None, ""

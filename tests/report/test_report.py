@@ -19,7 +19,7 @@ import pytest
 from nuparquet.cli.main import main
 from nuparquet.errors import UsageError
 from nuparquet.report import ReportOptions, build_report
-from nuparquet.report.facts import log_utc_offset_min, time_of_day, weather_words
+from nuparquet.report.facts import local_start, log_utc_offset_min, time_of_day, weather_words
 
 VERSION = "v1.0-synth"
 SCENES = ["scene-0001", "scene-0002"]
@@ -223,6 +223,17 @@ def test_weather_words_and_log_offsets():
     assert log_utc_offset_min("n015-2018-10-08-15-36-50+0800") == 480
     assert log_utc_offset_min("n015-2018-10-08-15-36-50+0530") == 330
     assert log_utc_offset_min("host-a004-lidar0-1232815252301696606") is None
+
+
+def test_local_start_from_the_log_offset_else_the_locations_zone():
+    # 2018-08-30 14:35:16 UTC: 10:35 in Boston (EDT, UTC-4); 2018-12-30 14:35:16 UTC: 09:35 (EST, UTC-5)
+    summer, winter = 1535639716699138, 1535639716699138 + 122 * 86_400_000_000
+    assert local_start(summer, "n008-2018-08-30-10-33-52-0400", None)[0].strftime("%H:%M") == "10:35"
+    assert local_start(summer, "n008-2018-08-30-10-33-52-0400", None)[1] == "UTC-04:00"
+    assert local_start(summer, None, "boston-seaport")[0].strftime("%H:%M") == "10:35"
+    assert local_start(winter, None, "boston-seaport")[0].strftime("%H:%M") == "09:35"
+    assert local_start(summer, None, "singapore-onenorth")[0].strftime("%H:%M") == "22:35"
+    assert local_start(summer, "host-a004", "palo alto") == (None, "")
 
 
 def test_scenes_subset_and_no_videos(synth_points_out, tables, tmp_path, capsys):
