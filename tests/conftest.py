@@ -166,6 +166,40 @@ def synth_points_out(synth_root, tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="session")
+def synth_report(synth_points_out, tmp_path_factory):
+    """`nuparquet report` of every scene of `synth_points_out` (videos and keyframe renderings, one process), and
+    its progress events."""
+    from nuparquet.engine import EngineOptions
+    from nuparquet.report import ReportOptions, build_report
+
+    out = tmp_path_factory.mktemp("report") / "report"
+    events = []
+    result = build_report(synth_points_out, ReportOptions(out=out), EngineOptions(engine="serial"),
+                          on_progress=events.append)
+    return result, events
+
+
+@pytest.fixture(scope="session")
+def real_report(extract_out, tmp_path_factory):
+    """`nuparquet report` of the real extract's two scenes (keyframe images only: the sweeps are absent)."""
+    from nuparquet.engine import EngineOptions
+    from nuparquet.report import ReportOptions, build_report
+
+    out = tmp_path_factory.mktemp("report-real") / "report"
+    return build_report(extract_out, ReportOptions(out=out, video_scale=0.2, stills=2), EngineOptions(engine="serial"))
+
+
+@pytest.fixture(scope="session")
+def six_scene_report(map_out, tmp_path_factory):
+    """`nuparquet report --no-videos` of the 6-scene synthetic dataset (tables only): a scene table to sort."""
+    from nuparquet.engine import EngineOptions
+    from nuparquet.report import ReportOptions, build_report
+
+    out = tmp_path_factory.mktemp("report-six") / "report"
+    return build_report(map_out, ReportOptions(out=out, videos=False), EngineOptions(engine="serial"))
+
+
+@pytest.fixture(scope="session")
 def devkit():
     """The nuscenes-devkit module (test-only reference implementation). Not installed is a failure, never a
     skip: `make test` installs it, and a parity test that silently stops running hides regressions."""

@@ -61,11 +61,11 @@ def compressed_image(time_us: int, frame_id: str, data: bytes, image_format: str
 
 
 def camera_calibration(time_us: int, frame_id: str, width: int, height: int, intrinsic) -> bytes:
-    """foxglove.CameraCalibration of a pinhole camera without distortion (nuScenes' images are rectified):
-    K the 3x3 intrinsic (row-major), R identity, P = [K | 0]."""
+    """foxglove.CameraCalibration of a pinhole camera without distortion (nuScenes' images are rectified): the
+    plumb_bob model with zero coefficients, K the 3x3 intrinsic (row-major), R identity, P = [K | 0]."""
     K = np.asarray(intrinsic, dtype=np.float64).reshape(3, 3)
-    message = CameraCalibration(frame_id=frame_id, width=int(width), height=int(height), distortion_model="",
-                                K=K.ravel().tolist(), R=np.eye(3).ravel().tolist(),
+    message = CameraCalibration(frame_id=frame_id, width=int(width), height=int(height), distortion_model="plumb_bob",
+                                D=[0.0] * 5, K=K.ravel().tolist(), R=np.eye(3).ravel().tolist(),
                                 P=np.c_[K, np.zeros(3)].ravel().tolist())
     _stamp(message.timestamp, time_us)
     return message.SerializeToString()

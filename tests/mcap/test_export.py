@@ -132,6 +132,7 @@ def test_image_bytes_are_the_files_and_calibrations_their_intrinsics(exported, t
             assert np.array_equal(np.reshape(info.K, (3, 3)), K)
             assert np.array_equal(np.reshape(info.P, (3, 4)), np.c_[K, np.zeros(3)])
             assert np.array_equal(np.reshape(info.R, (3, 3)), np.eye(3))
+            assert info.distortion_model == "plumb_bob" and list(info.D) == [0.0] * 5  # rectified images
             assert (info.width, info.height, info.frame_id) == (record["width"], record["height"], camera)
 
 
