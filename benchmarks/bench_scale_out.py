@@ -29,7 +29,8 @@ def child(out: str, engine: str, workers: int, out_dir: str) -> None:
     start = time.perf_counter()
     from nuparquet.engine import EngineOptions
     from nuparquet.rendering.batch import render_scenes
-    from nuparquet.rendering.options import RenderOptions, SceneSelection
+    from nuparquet.dataset.selection import SceneSelection
+    from nuparquet.rendering.options import RenderOptions
 
     import_s = time.perf_counter() - start
     start_s = 0.0

@@ -10,7 +10,7 @@ nuparquet.render(ds, "scene-0061", out="scene-0061.mp4", channel="all")
 
 The verbs are the CLI's commands under the same names, with the same defaults: `convert`, `validate`,
 `export_json` (export-json), `synthesize` (synth), `render` and `render_scenes` (render), `build_index` (index),
-`evaluate` (eval).
+`evaluate` (eval), `export_mcap` and `export_mcap_scenes` (export-mcap), `report` (report).
 Each takes its options as an options object (`ConvertOptions`, ...) or as keyword fields. Everything loads on
 first use, so `import nuparquet` (and the CLI) stays light. The packages that hold the verbs are named for what
 they hold (`conversion/`, `rendering/`, ...), never like a verb: importing `nuparquet.render` would otherwise
@@ -35,12 +35,17 @@ _PUBLIC = {
     "render_scenes": ("nuparquet.rendering.batch", "render_scenes"),
     "build_index": ("nuparquet.index.build", "build_index"),
     "evaluate": ("nuparquet.evaluation.run", "evaluate"),
+    "export_mcap": ("nuparquet.mcap.export", "export_mcap"),
+    "export_mcap_scenes": ("nuparquet.mcap.batch", "export_scenes"),
+    "report": ("nuparquet.site.build", "build_report"),
     "ConvertOptions": ("nuparquet.conversion.options", "ConvertOptions"),
     "EngineOptions": ("nuparquet.engine.options", "EngineOptions"),
     "EvalOptions": ("nuparquet.evaluation.options", "EvalOptions"),
     "IndexOptions": ("nuparquet.index.options", "IndexOptions"),
+    "McapOptions": ("nuparquet.mcap.options", "McapOptions"),
     "RenderOptions": ("nuparquet.rendering.options", "RenderOptions"),
-    "SceneSelection": ("nuparquet.rendering.options", "SceneSelection"),
+    "ReportOptions": ("nuparquet.site.options", "ReportOptions"),
+    "SceneSelection": ("nuparquet.dataset.selection", "SceneSelection"),
     "SynthOptions": ("nuparquet.synth.options", "SynthOptions"),
     "NuparquetError": ("nuparquet.errors", "NuparquetError"),
     "UsageError": ("nuparquet.errors", "UsageError"),
@@ -54,8 +59,9 @@ _PUBLIC = {
 
 __all__ = [
     "open", "Dataset", "convert", "validate", "export_json", "synthesize", "render", "render_scenes", "build_index",
-    "evaluate", "ConvertOptions", "EngineOptions", "EvalOptions", "IndexOptions", "RenderOptions", "SceneSelection",
-    "SynthOptions",
+    "evaluate", "export_mcap", "export_mcap_scenes", "report",
+    "ConvertOptions", "EngineOptions", "EvalOptions", "IndexOptions", "McapOptions", "RenderOptions", "ReportOptions",
+    "SceneSelection", "SynthOptions",
     "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError", "EnvironmentFault", "ProblemsFound",
     "UnitsFailed",
 ]
@@ -94,9 +100,15 @@ if TYPE_CHECKING:  # for readers and type checkers; at run time the names load o
     from nuparquet.export.json_files import export_json
     from nuparquet.index.build import build_index
     from nuparquet.index.options import IndexOptions
+    from nuparquet.mcap.batch import export_scenes as export_mcap_scenes
+    from nuparquet.mcap.export import export_mcap
+    from nuparquet.mcap.options import McapOptions
     from nuparquet.problems import ProblemsFound
     from nuparquet.rendering.batch import render_scenes
-    from nuparquet.rendering.options import RenderOptions, SceneSelection
+    from nuparquet.dataset.selection import SceneSelection
+    from nuparquet.rendering.options import RenderOptions
     from nuparquet.rendering.pipeline import render
+    from nuparquet.site.build import build_report as report
+    from nuparquet.site.options import ReportOptions
     from nuparquet.synth import synthesize
     from nuparquet.synth.options import SynthOptions

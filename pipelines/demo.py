@@ -1,8 +1,10 @@
 """The demo pipeline (`make demo`): the whole job on a small synthetic nuScenes-format dataset.
 
 synthesise (with camera images, lidar and map expansion) -> validate -> convert -> info -> stats (+ plots) ->
-render a CAM_FRONT video, a 6-camera mosaic, a bird's-eye view and the six cameras with the bird's-eye view. Every step is a public `nuparquet` command, exactly as a user
-would type it; the outputs land in --out (default demo-out/).
+render a CAM_FRONT video, a 6-camera mosaic, a bird's-eye view and the six cameras with the bird's-eye view ->
+export the first scene as an MCAP file for Foxglove -> write the dataset's web report (open report/index.html).
+Every step is a public `nuparquet` command, exactly as a user would type it; the outputs land in --out (default
+demo-out/).
 """
 
 from __future__ import annotations
@@ -47,8 +49,10 @@ def run(out: Path, scenes: int, samples: int) -> None:
     step("render", str(converted), "--scene", scene, "--channel", "bev", "--out", str(out / f"{scene}-bev.mp4"))
     step("render", str(converted), "--scene", scene, "--channel", "all", "--bev",
          "--out", str(out / f"{scene}-mosaic-bev.mp4"))
+    step("export-mcap", str(converted), "--scene", scene, "--out", str(out / f"{scene}.mcap"))
+    step("report", str(converted), "--out", str(out / "report"))
     print(f"\ndemo outputs in {out}/: plots/, {scene}-CAM_FRONT.mp4, {scene}-mosaic.mp4, {scene}-bev.mp4, "
-          f"{scene}-mosaic-bev.mp4")
+          f"{scene}-mosaic-bev.mp4, {scene}.mcap (open in Foxglove), report/index.html (open in a browser)")
 
 
 if __name__ == "__main__":

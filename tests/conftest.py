@@ -26,6 +26,12 @@ NUSCENES_CHANNELS = {"CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_BACK_RIGHT", "CAM_BACK
 PARITY_DIR = REPO / "tests" / "parity"
 _parity_skips: list[str] = []
 
+# Browser tests (marked browser) drive Debian's Chromium; they may skip only where it is not installed. Where it
+# is (CI installs it in .ci/run), a skipped browser test fails the run like a skipped parity test.
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_INSTALL = "apt-get update && apt-get install -y --no-install-recommends chromium"
+_browser_skips: list[str] = []
+
 
 def _shared_present() -> bool:
     return (EXTRACT_ROOT / EXTRACT_VERSION).is_dir()
@@ -38,12 +44,18 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.devkit)
         if "extract_root" in names:
             item.add_marker(pytest.mark.real)
+        if "chromium" in names:
+            item.add_marker(pytest.mark.browser)
 
 
 def pytest_runtest_logreport(report):
-    if report.skipped and not hasattr(report, "wasxfail") and ("devkit" in report.keywords or "real" in report.keywords):
-        reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+    if not report.skipped or hasattr(report, "wasxfail"):
+        return
+    reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+    if "devkit" in report.keywords or "real" in report.keywords:
         _parity_skips.append(f"{report.nodeid}: {reason}")
+    if "browser" in report.keywords:
+        _browser_skips.append(f"{report.nodeid}: {reason}")
 
 
 @pytest.hookimpl(trylast=True)
@@ -51,6 +63,8 @@ def pytest_sessionfinish(session, exitstatus):
     if hasattr(session.config, "workerinput"):  # an xdist worker: its reports reach the controller
         return
     if _parity_skips and _shared_present() and session.exitstatus == pytest.ExitCode.OK:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+    if _browser_skips and CHROMIUM.exists() and session.exitstatus == pytest.ExitCode.OK:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
 
 
@@ -61,6 +75,20 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
             terminalreporter.write_line(line, red=True)
         terminalreporter.write_line(f"error: {len(_parity_skips)} parity/devkit test(s) skipped: the run fails "
                                     "(they may skip only where ../shared is absent)", red=True)
+    if _browser_skips and CHROMIUM.exists():
+        terminalreporter.section(f"browser tests skipped although {CHROMIUM} is installed", red=True)
+        for line in _browser_skips:
+            terminalreporter.write_line(line, red=True)
+
+
+@pytest.fixture(scope="session")
+def chromium() -> Path:
+    """Debian's Chromium for the browser tests (Playwright drives it; no browser is ever downloaded). Absent: the
+    test skips, saying how to install it."""
+    if not CHROMIUM.exists():
+        pytest.skip(f"headless Chromium not found at {CHROMIUM}: install Debian's chromium ({CHROMIUM_INSTALL}) to "
+                    "run the browser tests")
+    return CHROMIUM
 
 
 @pytest.fixture(scope="session")
@@ -159,6 +187,47 @@ def synth_root(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def synth_out(synth_root, tmp_path_factory) -> Path:
     return converted(tmp_path_factory, "synth-out", synth_root, SYNTH_VERSION)
+
+
+@pytest.fixture(scope="session")
+def synth_points_out(synth_root, tmp_path_factory) -> Path:
+    """`synth_root` converted with every lidar and radar point, sweeps included (lidar_points/, radar_points/)."""
+    return converted(tmp_path_factory, "synth-points-out", synth_root, SYNTH_VERSION, sensors=("lidar", "radar"),
+                     sweeps=True, workers=1)
+
+
+@pytest.fixture(scope="session")
+def synth_report(synth_points_out, tmp_path_factory):
+    """`nuparquet report` of every scene of `synth_points_out` (videos and keyframe renderings, one process), and
+    its progress events."""
+    from nuparquet.engine import EngineOptions
+    from nuparquet.site import ReportOptions, build_report
+
+    out = tmp_path_factory.mktemp("report") / "report"
+    events = []
+    result = build_report(synth_points_out, ReportOptions(out=out), EngineOptions(engine="serial"),
+                          on_progress=events.append)
+    return result, events
+
+
+@pytest.fixture(scope="session")
+def real_report(extract_out, tmp_path_factory):
+    """`nuparquet report` of the real extract's two scenes (keyframe images only: the sweeps are absent)."""
+    from nuparquet.engine import EngineOptions
+    from nuparquet.site import ReportOptions, build_report
+
+    out = tmp_path_factory.mktemp("report-real") / "report"
+    return build_report(extract_out, ReportOptions(out=out, video_scale=0.2, stills=2), EngineOptions(engine="serial"))
+
+
+@pytest.fixture(scope="session")
+def six_scene_report(map_out, tmp_path_factory):
+    """`nuparquet report --no-videos` of the 6-scene synthetic dataset (tables only): a scene table to sort."""
+    from nuparquet.engine import EngineOptions
+    from nuparquet.site import ReportOptions, build_report
+
+    out = tmp_path_factory.mktemp("report-six") / "report"
+    return build_report(map_out, ReportOptions(out=out, videos=False), EngineOptions(engine="serial"))
 
 
 @pytest.fixture(scope="session")

@@ -145,8 +145,9 @@ def test_the_front_door_lists_the_face_and_every_name_resolves():
 
     assert nuparquet.__all__ == [
         "open", "Dataset", "convert", "validate", "export_json", "synthesize", "render", "render_scenes",
-        "build_index", "evaluate", "ConvertOptions", "EngineOptions", "EvalOptions", "IndexOptions", "RenderOptions",
-        "SceneSelection", "SynthOptions", "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError",
+        "build_index", "evaluate", "export_mcap", "export_mcap_scenes", "report", "ConvertOptions", "EngineOptions",
+        "EvalOptions", "IndexOptions", "McapOptions", "RenderOptions", "ReportOptions", "SceneSelection", "SynthOptions",
+        "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError",
         "EnvironmentFault", "ProblemsFound", "UnitsFailed"]
     import nuparquet.conversion.options  # noqa: F401 - packages imported first must not shadow the verbs
     import nuparquet.rendering.options  # noqa: F401

@@ -13,7 +13,8 @@ from nuparquet import __version__
 from nuparquet.errors import NuparquetError
 
 # Subcommand modules, in the order `--help` lists them.
-COMMANDS = ["convert", "validate", "export_json", "synth", "info", "stats", "sql", "render", "index", "eval"]
+COMMANDS = ["convert", "validate", "export_json", "synth", "info", "stats", "sql", "render", "index", "eval",
+            "export_mcap", "report"]
 
 
 def build_parser() -> argparse.ArgumentParser:

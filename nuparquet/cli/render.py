@@ -14,7 +14,8 @@ from nuparquet.cli.arguments import add_options, options_from
 from nuparquet.cli.progress import bars
 from nuparquet.engine.options import EngineOptions
 from nuparquet.errors import UsageError
-from nuparquet.rendering.options import RenderOptions, SceneSelection
+from nuparquet.dataset.selection import SceneSelection
+from nuparquet.rendering.options import RenderOptions
 
 _EPILOG = """\
 examples:
@@ -102,5 +103,5 @@ def _run_many(args, selection: SceneSelection) -> int:
             print(f"rendered {len(done)} scene(s) -> {selection.out_dir}")
         raise
     resumed = f" ({len(result.resumed)} already done, skipped)" if result.resumed else ""
-    print(f"rendered {len(result.rendered)} scene(s){resumed} -> {result.out_dir} (summary: {result.summary.name})")
+    print(f"rendered {len(result.written)} scene(s){resumed} -> {result.out_dir} (summary: {result.summary.name})")
     return 0

@@ -15,6 +15,7 @@ radar = ds.radar_points(token)                # (N, F) float64, the PCD fields a
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -43,6 +44,9 @@ class RowGroupIndex:
     scene_max: np.ndarray
     schema: pa.Schema  # the dataset's columns
     _files: dict = field(default_factory=dict, compare=False, repr=False)  # open pq.ParquetFile by path
+    # One reader at a time: a pq.ParquetFile is not safe to read from two threads (the renderer's decode threads
+    # read lidar points concurrently: pyarrow's ReadRangeCache raised, or the process crashed).
+    _lock: threading.Lock = field(default_factory=threading.Lock, compare=False, repr=False)
 
     @classmethod
     def read(cls, paths: list[str]) -> RowGroupIndex:
@@ -86,7 +90,8 @@ class RowGroupIndex:
 
     def read_group(self, g: int, columns: Sequence[str]) -> pa.Table:
         """Row group `g` (an index into this table of groups)."""
-        return self._parquet(g).read_row_group(int(self.group[g]), columns=list(columns))
+        with self._lock:
+            return self._parquet(g).read_row_group(int(self.group[g]), columns=list(columns))
 
     def read_groups(self, wanted: np.ndarray, columns: Sequence[str]) -> pa.Table | None:
         """The rows of the wanted row groups (files in order, groups in order)."""
@@ -130,8 +135,9 @@ class RowGroupIndex:
             stop = start
             while stop < len(groups) and self.file[groups[stop]] == self.file[groups[start]]:
                 stop += 1
-            tables.append(self._parquet(groups[start]).read_row_groups(self.group[groups[start:stop]].tolist(),
-                                                                        columns=list(columns)))
+            with self._lock:
+                tables.append(self._parquet(groups[start]).read_row_groups(self.group[groups[start:stop]].tolist(),
+                                                                            columns=list(columns)))
             start = stop
         return pa.concat_tables(tables)
 

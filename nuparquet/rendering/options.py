@@ -146,32 +146,3 @@ class RenderOptions:
 
 
 SUMMARY_NAME = "render-summary.json"  # written into --out-dir by a many-scene render
-
-
-@dataclass
-class SceneSelection:
-    """Which scenes a many-scene render draws (one video each, `DIR/<scene>.mp4`)."""
-
-    all_scenes: bool = option(False, help="render every scene of the dataset, one video each into --out-dir")
-    scenes: tuple[str, ...] = option(
-        (), metavar="A,B,...", help="render these scenes (comma-separated names), one video each into --out-dir")
-    where: str | None = option(
-        None, metavar="SQL", help="render the scenes matching this SQL condition on the scenes dataset, e.g. "
-        "\"log_location = 'boston-seaport' AND nbr_samples > 30\" (combined with --scenes if both are given)")
-    out_dir: str | Path | None = option(
-        None, metavar="DIR", help=f"where a many-scene render writes DIR/<scene>.mp4 and DIR/{SUMMARY_NAME}")
-
-    @property
-    def many(self) -> bool:
-        """A many-scene render was asked for (rather than one --scene)."""
-        return self.all_scenes or bool(self.scenes) or self.where is not None or self.out_dir is not None
-
-    def check(self) -> None:
-        if self.out_dir is None:
-            raise UsageError("--all-scenes, --scenes and --where write one video per scene: give --out-dir DIR")
-        if not (self.all_scenes or self.scenes or self.where is not None):
-            raise UsageError("--out-dir: say which scenes to render (--all-scenes, --scenes A,B or --where SQL)")
-        if self.all_scenes and (self.scenes or self.where is not None):
-            raise UsageError("--all-scenes renders every scene; leave out --scenes and --where, or --all-scenes")
-        if Path(self.out_dir).exists() and not Path(self.out_dir).is_dir():
-            raise UsageError(f"--out-dir {self.out_dir} is a file; give a directory")

@@ -134,3 +134,21 @@ def test_the_jobs_flag_is_kept_as_the_spelling_of_workers(labelled_root, tmp_pat
     assert main(["convert", str(labelled_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "o"),
                  "--sensors", "lidar", "--jobs", "1", "--quiet"]) == 0
     assert nuparquet.open(tmp_path / "o").manifest["options"]["jobs"] == 1
+
+
+def test_points_are_read_safely_from_several_threads_at_once(points_out):
+    """The renderer reads lidar points from its decode threads: one Dataset's points read concurrently equal the
+    points read one at a time (a shared pyarrow ParquetFile read from two threads raised or crashed)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import numpy as np
+
+    ds = nuparquet.open(points_out)
+    tokens = (ds.scan("lidar_points").select("sample_data_token").unique(maintain_order=True).collect()
+              ["sample_data_token"].to_list())
+    expected = {token: np.array(ds.points(token)) for token in tokens}
+    fresh = nuparquet.open(points_out)  # its row-group index and open files are shared by the threads below
+    with ThreadPoolExecutor(max_workers=4) as pool:
+        for _ in range(5):
+            for token, points in zip(tokens, pool.map(fresh.points, tokens)):
+                np.testing.assert_array_equal(points, expected[token])

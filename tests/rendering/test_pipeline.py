@@ -9,7 +9,8 @@ import nuparquet
 from nuparquet.cli import render as render_cli
 from nuparquet.cli.arguments import options_from
 from nuparquet.engine import EngineOptions
-from nuparquet.rendering.options import RenderOptions, SceneSelection
+from nuparquet.dataset.selection import SceneSelection
+from nuparquet.rendering.options import RenderOptions
 from nuparquet.rendering.pipeline import render
 
 

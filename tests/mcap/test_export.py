@@ -1,0 +1,406 @@
+"""`nuparquet export-mcap`: one scene of the synthetic dataset (images, lidar and radar keyframes and sweeps with
+lidarseg/panoptic labels, CAN bus, map) read back with the mcap reader, every message decoded and compared with
+what the source files and JSON tables say (never with our own Parquet, except for the stored transform matrices
+the issue names)."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter, defaultdict
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import pytest
+import shapely
+from pyquaternion import Quaternion
+
+from mcap_files import point_fields, read_messages, stamp_us, validate
+import nuparquet
+from nuparquet.cli.main import main
+from nuparquet.errors import InputError, UsageError
+from nuparquet.mcap import McapOptions, export_mcap
+
+VERSION = "v1.0-synth"
+SCENE = "scene-0001"  # has CAN bus data (the generator leaves the last scene without)
+CAMERAS = ("CAM_FRONT", "CAM_FRONT_LEFT", "CAM_FRONT_RIGHT", "CAM_BACK", "CAM_BACK_LEFT", "CAM_BACK_RIGHT")
+RADARS = ("RADAR_FRONT", "RADAR_FRONT_LEFT", "RADAR_FRONT_RIGHT", "RADAR_BACK_LEFT", "RADAR_BACK_RIGHT")
+
+
+class Tables:
+    """The JSON tables of the synthetic dataroot, joined by hand: the independent expectations."""
+
+    def __init__(self, root: Path, scene: str):
+        def table(name):
+            return json.loads((root / VERSION / f"{name}.json").read_text())
+
+        self.root = root
+        scene_record = next(s for s in table("scene") if s["name"] == scene)
+        self.scene = scene_record
+        self.samples = [s for s in table("sample") if s["scene_token"] == scene_record["token"]]
+        sample_tokens = {s["token"] for s in self.samples}
+        channel_of_sensor = {s["token"]: s["channel"] for s in table("sensor")}
+        self.calibration = {c["token"]: c for c in table("calibrated_sensor")}
+        self.channel_of_calibration = {t: channel_of_sensor[c["sensor_token"]] for t, c in self.calibration.items()}
+        self.ego_pose = {e["token"]: e for e in table("ego_pose")}
+        self.sample_data = [r for r in table("sample_data") if r["sample_token"] in sample_tokens]
+        for record in self.sample_data:
+            record["channel"] = self.channel_of_calibration[record["calibrated_sensor_token"]]
+        self.annotations = [a for a in table("sample_annotation") if a["sample_token"] in sample_tokens]
+        instances = {i["token"]: i for i in table("instance")}
+        categories = {c["token"]: c["name"] for c in table("category")}
+        self.category_of_instance = {t: categories[i["category_token"]] for t, i in instances.items()}
+        self.log = next(lg for lg in table("log") if lg["token"] == scene_record["log_token"])
+
+    def frames(self, channel: str) -> list[dict]:
+        return sorted((r for r in self.sample_data if r["channel"] == channel), key=lambda r: r["timestamp"])
+
+    def can_bus(self, message: str) -> list[dict]:
+        return json.loads((self.root / "can_bus" / f"{self.scene['name']}_{message}.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def tables(synth_root) -> Tables:
+    return Tables(synth_root, SCENE)
+
+
+@pytest.fixture(scope="module")
+def exported(synth_points_out, tmp_path_factory):
+    """scene-0001 exported with the defaults, its progress events, and every message decoded."""
+    out = tmp_path_factory.mktemp("mcap") / f"{SCENE}.mcap"
+    events = []
+    result = export_mcap(synth_points_out, SCENE, McapOptions(out=out), on_progress=events.append)
+    return result, events, read_messages(out)
+
+
+def test_the_file_passes_the_readers_validation(exported):
+    result, _, messages = exported
+    facts = validate(result.out)
+    assert facts["compression"] == {"zstd"}
+    assert len(facts["chunks"]) > 1  # chunked, not one blob
+    assert {topic: len(items) for topic, items in messages.items()} == result.messages
+    assert result.out.stat().st_size == result.bytes
+    assert not list(result.out.parent.glob(".*partial*"))
+
+
+def test_every_topic_holds_one_message_per_row_of_the_scene(exported, tables):
+    _, _, messages = exported
+    counts = {topic: len(items) for topic, items in messages.items()}
+    expected = {"/tf": len(tables.sample_data), "/map": 1}
+    for camera in CAMERAS:
+        n = len(tables.frames(camera))
+        expected |= {f"/{camera}/image_rect_compressed": n, f"/{camera}/camera_info": n}
+    for channel in ("LIDAR_TOP", *RADARS):
+        expected[f"/{channel}"] = len(tables.frames(channel))
+    sweeps = [r for r in tables.frames("CAM_FRONT") if not r["is_key_frame"]]
+    expected["/markers/annotations"] = len(tables.samples) + len(sweeps)
+    for message in ("ms_imu", "pose", "steeranglefeedback", "vehicle_monitor", "zoe_veh_info"):
+        expected[f"/can_bus/{message}"] = len(tables.can_bus(message))
+    assert counts == expected
+    assert all(n > 0 for n in counts.values())
+    # sequence numbers count each topic's messages from 1
+    for items in messages.values():
+        assert [m.sequence for m in items] == list(range(1, len(items) + 1))
+
+
+def test_messages_are_in_log_time_order_with_the_datas_exact_microseconds(exported, tables):
+    result, _, messages = exported
+    from mcap_files import log_times
+
+    times = log_times(result.out)
+    assert times == sorted(times) and len(times) == sum(result.messages.values())
+    for camera in CAMERAS:
+        expected = [r["timestamp"] for r in tables.frames(camera)]
+        items = messages[f"/{camera}/image_rect_compressed"]
+        assert [m.log_time_ns for m in items] == [t * 1000 for t in expected]
+        assert [m.publish_time_ns for m in items] == [t * 1000 for t in expected]
+        assert [stamp_us(m.message.timestamp) for m in items] == expected
+    for item in messages["/tf"]:
+        assert all(stamp_us(t.timestamp) * 1000 == item.log_time_ns for t in item.message.transforms)
+
+
+def test_image_bytes_are_the_files_and_calibrations_their_intrinsics(exported, tables):
+    _, _, messages = exported
+    for camera in CAMERAS:
+        frames = tables.frames(camera)
+        images = messages[f"/{camera}/image_rect_compressed"]
+        assert [m.message.data for m in images] == [(tables.root / r["filename"]).read_bytes() for r in frames]
+        assert {m.message.format for m in images} == {"jpeg"} and {m.message.frame_id for m in images} == {camera}
+        assert {m.schema_name for m in images} == {"foxglove.CompressedImage"}
+        for item, record in zip(messages[f"/{camera}/camera_info"], frames):
+            K = np.array(tables.calibration[record["calibrated_sensor_token"]]["camera_intrinsic"])
+            info = item.message
+            assert np.array_equal(np.reshape(info.K, (3, 3)), K)
+            assert np.array_equal(np.reshape(info.P, (3, 4)), np.c_[K, np.zeros(3)])
+            assert np.array_equal(np.reshape(info.R, (3, 3)), np.eye(3))
+            assert info.distortion_model == "plumb_bob" and list(info.D) == [0.0] * 5  # rectified images
+            assert (info.width, info.height, info.frame_id) == (record["width"], record["height"], camera)
+
+
+def _matrix(translation, rotation) -> np.ndarray:
+    """4x4 from a Foxglove Vector3 and Quaternion, with pyquaternion (the devkit's maths)."""
+    matrix = np.eye(4)
+    matrix[:3, :3] = Quaternion(rotation.w, rotation.x, rotation.y, rotation.z).rotation_matrix
+    matrix[:3, 3] = (translation.x, translation.y, translation.z)
+    return matrix
+
+
+def test_transforms_equal_the_stored_matrices_and_the_poses(exported, synth_points_out, tables):
+    _, _, messages = exported
+    frames = (pl.scan_parquet(f"{synth_points_out}/frames/**/*.parquet").filter(pl.col("scene_name") == SCENE)
+              .select("token", pl.col("channel").cast(pl.String), "timestamp", "global_from_ego", "ego_from_sensor")
+              .collect())
+    stored = {(c, t): (np.reshape(g, (4, 4)), np.reshape(e, (4, 4)))
+              for c, t, g, e in zip(frames["channel"], frames["timestamp"], frames["global_from_ego"].to_list(),
+                                    frames["ego_from_sensor"].to_list())}
+    records = {(r["channel"], r["timestamp"]): r for r in tables.sample_data}
+    seen = set()
+    for item in messages["/tf"]:
+        ego, sensor = item.message.transforms
+        assert (ego.parent_frame_id, ego.child_frame_id, sensor.parent_frame_id) == ("map", "base_link", "base_link")
+        key = (sensor.child_frame_id, item.log_time_ns // 1000)
+        seen.add(key)
+        global_from_ego, ego_from_sensor = stored[key]
+        np.testing.assert_allclose(_matrix(ego.translation, ego.rotation), global_from_ego, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(_matrix(sensor.translation, sensor.rotation), ego_from_sensor, rtol=0, atol=1e-12)
+        record = records[key]
+        pose = tables.ego_pose[record["ego_pose_token"]]
+        assert [ego.translation.x, ego.translation.y, ego.translation.z] == pose["translation"]
+        calibration = tables.calibration[record["calibrated_sensor_token"]]
+        assert [sensor.translation.x, sensor.translation.y, sensor.translation.z] == calibration["translation"]
+    assert seen == set(records)  # every frame's transforms, once
+
+
+def test_keyframe_boxes_are_the_annotations(exported, tables):
+    _, _, messages = exported
+    updates = {m.log_time_ns // 1000: m.message for m in messages["/markers/annotations"]}
+    by_sample = defaultdict(list)
+    for annotation in tables.annotations:
+        by_sample[annotation["sample_token"]].append(annotation)
+    for sample in tables.samples:
+        update = updates[sample["timestamp"]]
+        assert [d.type for d in update.deletions] == [1]  # ALL: the previous boxes go
+        entities = {e.id: e for e in update.entities}
+        annotations = by_sample[sample["token"]]
+        assert len(entities) == len(annotations) > 0
+        for annotation in annotations:
+            entity = entities[annotation["instance_token"]]
+            cube = entity.cubes[0]
+            assert entity.frame_id == "map"
+            assert [cube.pose.position.x, cube.pose.position.y, cube.pose.position.z] == annotation["translation"]
+            q = cube.pose.orientation
+            assert [q.w, q.x, q.y, q.z] == annotation["rotation"]
+            w, l, h = annotation["size"]
+            assert (cube.size.x, cube.size.y, cube.size.z) == (l, w, h)  # x along the heading: length
+            category = tables.category_of_instance[annotation["instance_token"]]
+            meta = {kv.key: kv.value for kv in entity.metadata}
+            assert meta == {"category": category, "instance_token": annotation["instance_token"],
+                            "annotation_token": annotation["token"], "interpolated": "false"}
+            assert entity.texts[0].text == category
+            assert stamp_us(entity.timestamp) == sample["timestamp"]
+
+
+def test_interpolated_boxes_lie_between_their_keyframes(exported, tables):
+    """Between two keyframes each box moves along the segment joining its two annotations (the exact devkit
+    numbers are checked in tests/parity/test_mcap_devkit.py)."""
+    _, _, messages = exported
+    samples = sorted(tables.samples, key=lambda s: s["timestamp"])
+    annotation_at = {(a["sample_token"], a["instance_token"]): a for a in tables.annotations}
+    interpolated = 0
+    for item in messages["/markers/annotations"]:
+        t = item.log_time_ns // 1000
+        after = next((s for s in samples if s["timestamp"] >= t), None)
+        before = next((s for s in reversed(samples) if s["timestamp"] < t), None)
+        if after is None or before is None or after["timestamp"] == t:
+            continue
+        amount = (t - before["timestamp"]) / (after["timestamp"] - before["timestamp"])
+        for entity in item.message.entities:
+            meta = {kv.key: kv.value for kv in entity.metadata}
+            a0, a1 = annotation_at.get((before["token"], entity.id)), annotation_at[(after["token"], entity.id)]
+            position = entity.cubes[0].pose.position
+            expected = a1["translation"] if a0 is None else (
+                np.array(a0["translation"]) + amount * (np.array(a1["translation"]) - np.array(a0["translation"])))
+            np.testing.assert_allclose([position.x, position.y, position.z], expected, rtol=0, atol=1e-9)
+            assert meta["interpolated"] == ("false" if a0 is None else "true")
+            interpolated += a0 is not None
+    assert interpolated > 20
+
+
+def test_points_are_the_files_with_their_labels(exported, tables):
+    _, _, messages = exported
+    lidar = tables.frames("LIDAR_TOP")
+    for item, record in zip(messages["/LIDAR_TOP"], lidar):
+        points = point_fields(item.message)
+        expected = np.fromfile(tables.root / record["filename"], dtype="<f4").reshape(-1, 5)
+        assert points.dtype.names[:5] == ("x", "y", "z", "intensity", "ring")
+        assert np.array_equal(np.stack([points[n] for n in points.dtype.names[:5]], axis=1), expected)
+        assert item.message.frame_id == "LIDAR_TOP"
+        if record["is_key_frame"]:  # labels exist for keyframes only
+            seg = np.fromfile(tables.root / "lidarseg" / VERSION / f"{record['token']}_lidarseg.bin", dtype=np.uint8)
+            panoptic = np.load(tables.root / "panoptic" / VERSION / f"{record['token']}_panoptic.npz")["data"]
+            assert np.array_equal(points["lidarseg_label"], seg)
+            assert np.array_equal(points["panoptic_label"], panoptic)
+        else:
+            assert len(points.dtype.names) == 5
+    for radar in RADARS:
+        for item, record in zip(messages[f"/{radar}"], tables.frames(radar)):
+            raw = (tables.root / record["filename"]).read_bytes()
+            data_start = raw.index(b"DATA binary\n") + len(b"DATA binary\n")
+            header = raw[:data_start].decode()
+            fields = next(line.split()[1:] for line in header.splitlines() if line.startswith("FIELDS"))
+            count = int(next(line.split()[1] for line in header.splitlines() if line.startswith("POINTS")))
+            stride = item.message.point_stride
+            assert item.message.data == raw[data_start:data_start + count * stride]  # the PCD records as stored
+            assert [f.name for f in item.message.fields] == fields
+
+
+def test_points_read_from_the_files_are_the_same_messages(exported, synth_out, tmp_path):
+    """Without lidar_points/ and radar_points/ the points come from the files: the same bytes (lidar without the
+    labels, which only the conversion adds)."""
+    _, _, messages = exported
+    out = tmp_path / "files.mcap"
+    export_mcap(synth_out, SCENE, McapOptions(out=out, without=("images",)))
+    from_files = read_messages(out)
+    for radar in RADARS:
+        assert [m.data for m in from_files[f"/{radar}"]] == [m.data for m in messages[f"/{radar}"]]
+    for a, b in zip(from_files["/LIDAR_TOP"], messages["/LIDAR_TOP"]):
+        five = ["x", "y", "z", "intensity", "ring"]
+        pa, pb = point_fields(a.message), point_fields(b.message)
+        assert all(np.array_equal(pa[n], pb[n]) for n in five) and pa.dtype.names == tuple(five)
+
+
+def test_can_bus_messages_are_the_files_records(exported, tables):
+    _, _, messages = exported
+    for message in ("ms_imu", "pose", "steeranglefeedback", "vehicle_monitor", "zoe_veh_info"):
+        items = messages[f"/can_bus/{message}"]
+        records = sorted(tables.can_bus(message), key=lambda r: r["utime"])
+        assert [m.message for m in items] == records
+        assert [m.log_time_ns for m in items] == [r["utime"] * 1000 for r in records]
+        assert {m.schema_name for m in items} == {f"nuscenes.can_bus.{message}"}
+
+
+def _map_geometry(root: Path, location: str):
+    """{layer: shapely geometries} of the map expansion JSON, built by hand."""
+    data = json.loads((root / "maps" / "expansion" / f"{location}.json").read_text())
+    nodes = {n["token"]: (n["x"], n["y"]) for n in data["node"]}
+    polygons = {p["token"]: shapely.Polygon([nodes[t] for t in p["exterior_node_tokens"]],
+                                            [[nodes[t] for t in hole["node_tokens"]] for hole in p["holes"]])
+                for p in data["polygon"]}
+    lines = {ln["token"]: shapely.LineString([nodes[t] for t in ln["node_tokens"]]) for ln in data["line"]}
+    out = {"drivable_area": [polygons[t] for r in data["drivable_area"] for t in r["polygon_tokens"]]}
+    for layer in ("lane", "walkway", "ped_crossing", "stop_line", "carpark_area"):
+        out[layer] = [polygons[r["polygon_token"]] for r in data[layer]]
+    for layer in ("road_divider", "lane_divider"):
+        out[layer] = [lines[r["line_token"]] for r in data[layer]]
+    return out
+
+
+def test_the_map_around_the_route_is_drawn_once(exported, tables):
+    _, _, messages = exported
+    (item,) = messages["/map"]
+    assert item.log_time_ns == min(r["timestamp"] for r in tables.sample_data) * 1000
+    ego = np.array([tables.ego_pose[r["ego_pose_token"]]["translation"][:2] for r in tables.sample_data])
+    box = (*(ego.min(axis=0) - 50), *(ego.max(axis=0) + 50))
+    geometry = _map_geometry(tables.root, tables.log["location"])
+    entities = {e.id: e for e in item.message.entities}
+    assert {"map/drivable_area", "map/lane", "map/road_divider", "map/lane_divider"} <= set(entities)
+    for layer, geoms in geometry.items():
+        clipped = [shapely.clip_by_rect(g, *box) for g in geoms]
+        if f"map/{layer}" not in entities:
+            assert sum(g.area + g.length for g in clipped) == 0
+            continue
+        entity = entities[f"map/{layer}"]
+        if entity.triangles:
+            tri = entity.triangles[0]
+            points = np.array([[p.x, p.y] for p in tri.points])[list(tri.indices)].reshape(-1, 3, 2)
+            u, v = points[:, 1] - points[:, 0], points[:, 2] - points[:, 0]
+            area = 0.5 * np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]).sum()
+            assert area == pytest.approx(sum(g.area for g in clipped), rel=1e-6)
+            assert points[..., 0].min() >= box[0] - 1e-6 and points[..., 0].max() <= box[2] + 1e-6
+        else:
+            line = entity.lines[0]
+            points = np.array([[p.x, p.y] for p in line.points])[list(line.indices)].reshape(-1, 2, 2)
+            length = np.linalg.norm(points[:, 1] - points[:, 0], axis=1).sum()
+            assert length == pytest.approx(sum(g.length for g in clipped), rel=1e-6)
+
+
+def test_progress_counts_every_message(exported):
+    result, events, _ = exported
+    assert events[-1].finished and events[-1].done == events[-1].total == result.total_messages
+    assert [e.done for e in events] == sorted(e.done for e in events)
+
+
+def test_the_size_is_in_the_order_of_the_sensor_files(exported, tables):
+    result, _, _ = exported
+    files = sum((tables.root / r["filename"]).stat().st_size for r in tables.sample_data)
+    assert result.sensor_bytes == files
+    # the synthetic JPEGs (flat colours) and clouds compress well; the real extract's do not (tests/parity)
+    assert 0.2 * files < result.bytes < 1.3 * files
+
+
+def test_the_same_options_give_the_same_bytes(exported, synth_points_out, tmp_path):
+    result, _, _ = exported
+    again = tmp_path / "again.mcap"
+    export_mcap(synth_points_out, SCENE, McapOptions(out=again))
+    assert again.read_bytes() == result.out.read_bytes()
+
+
+def test_lz4_and_keyframe_boxes_and_contents_left_out(synth_points_out, tables, tmp_path):
+    out = tmp_path / "small.mcap"
+    result = export_mcap(synth_points_out, SCENE, McapOptions(out=out, boxes="keyframes", compression="lz4",
+                                                       without=("images", "points", "can_bus", "map")))
+    assert validate(out)["compression"] == {"lz4"}
+    topics = set(result.messages)
+    assert topics == {"/tf", "/markers/annotations", *(f"/{c}/camera_info" for c in CAMERAS)}
+    messages = read_messages(out)
+    assert [m.log_time_ns // 1000 for m in messages["/markers/annotations"]] == sorted(
+        s["timestamp"] for s in tables.samples)
+
+
+def test_a_missing_file_is_skipped_and_named_or_stops_the_export(synth_points_out, synth_root, tmp_path):
+    import shutil
+
+    dataroot = tmp_path / "data"
+    shutil.copytree(synth_root, dataroot)
+    frames = (pl.scan_parquet(f"{synth_points_out}/frames/**/*.parquet")
+              .filter((pl.col("scene_name") == SCENE) & (pl.col("channel").cast(pl.String) == "CAM_BACK"))
+              .sort("timestamp").select("filename").collect()["filename"].to_list())
+    (dataroot / frames[1]).unlink()
+    out = tmp_path / "scene.mcap"
+    result = export_mcap(synth_points_out, SCENE, McapOptions(out=out, dataroot=dataroot, without=("points",)))
+    assert result.missing == [str(dataroot / frames[1])]
+    assert result.messages["/CAM_BACK/image_rect_compressed"] == len(frames) - 1
+    assert result.messages["/CAM_BACK/camera_info"] == len(frames)
+    before = out.read_bytes()
+    with pytest.raises(InputError, match=frames[1].split("/")[-1]):
+        export_mcap(synth_points_out, SCENE, McapOptions(out=out, dataroot=dataroot, on_missing="error"))
+    assert out.read_bytes() == before  # the earlier file is intact, no partial is left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["data", "scene.mcap"]
+
+
+def test_cli_writes_the_file_and_names_bad_input(synth_points_out, tmp_path, capsys):
+    out = tmp_path / "cli.mcap"
+    assert main(["export-mcap", str(synth_points_out), "--scene", SCENE, "--out", str(out), "--quiet",
+                 "--without", "images,points"]) == 0
+    assert "message(s)" in capsys.readouterr().out and out.is_file()
+    assert main(["export-mcap", str(synth_points_out), "--scene", "scene-9999", "--out", str(out)]) == 2
+    assert "valid scenes: scene-0001, scene-0002" in capsys.readouterr().err
+    assert main(["export-mcap", str(synth_points_out), "--scene", SCENE, "--out", str(out), "--without", "cats"]) == 2
+    assert "unknown content cats" in capsys.readouterr().err
+    assert main(["export-mcap", str(synth_points_out), "--scene", SCENE]) == 2
+    assert main(["export-mcap", str(synth_points_out), "--scene", SCENE, "--out",
+                 str(synth_points_out / "x.mcap")]) == 2
+    assert "inside the converted dataset" in capsys.readouterr().err
+    with pytest.raises(UsageError, match="--out-dir"):
+        from nuparquet.mcap import export_scenes
+        export_scenes(synth_points_out, nuparquet.SceneSelection(all_scenes=True), McapOptions())
+
+
+def test_foxglove_schemas_are_embedded_for_every_protobuf_topic(exported):
+    _, _, messages = exported
+    names = {topic: items[0].schema_name for topic, items in messages.items()}
+    assert names["/tf"] == "foxglove.FrameTransforms"
+    assert names["/LIDAR_TOP"] == names["/RADAR_FRONT"] == "foxglove.PointCloud"
+    assert names["/markers/annotations"] == names["/map"] == "foxglove.SceneUpdate"
+    assert names["/CAM_FRONT/camera_info"] == "foxglove.CameraCalibration"
+    assert Counter(names.values())["foxglove.CompressedImage"] == len(CAMERAS)

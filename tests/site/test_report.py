@@ -1,0 +1,305 @@
+"""`nuparquet report`: the site's files, every link inside it, the scene table and statistics against the JSON
+tables, the videos and keyframe renderings decoded, the options and the failures (the pages in a real browser are
+tested in test_report_browser.py)."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from datetime import datetime, timedelta, timezone
+from html.parser import HTMLParser
+from pathlib import Path
+
+import av
+import cv2
+import polars as pl
+import pytest
+
+from nuparquet.cli.main import main
+from nuparquet.errors import UsageError
+from nuparquet.site import ReportOptions, build_report
+from nuparquet.site.facts import local_start, log_utc_offset_min, time_of_day, weather_words
+
+VERSION = "v1.0-synth"
+SCENES = ["scene-0001", "scene-0002"]
+
+
+class Page(HTMLParser):
+    """Every URL a page refers to (href, src) and its tables as lists of rows of cell texts, by table id or the
+    id of the <details> around it."""
+
+    def __init__(self, text: str):
+        super().__init__()
+        self.urls: list[str] = []
+        self.tables: dict[str, list[list[str]]] = {}
+        self._context: list[str] = []
+        self._table: list[list[str]] | None = None
+        self._cell: list[str] | None = None
+        self.feed(text)
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        for name in ("href", "src"):
+            if name in attrs:
+                self.urls.append(attrs[name])
+        if tag == "details" and "id" in attrs:
+            self._context.append(attrs["id"])
+        if tag == "table":
+            self._table = []
+            self.tables[attrs.get("id") or (self._context[-1] if self._context else f"table{len(self.tables)}")] = \
+                self._table
+        if tag == "tr" and self._table is not None:
+            self._table.append([])
+        if tag in ("td", "th") and self._table is not None:
+            self._cell = []
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            self._table[-1].append("".join(self._cell).strip())
+            self._cell = None
+        if tag == "table":
+            self._table = None
+        if tag == "details" and self._context:
+            self._context.pop()
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell.append(data)
+
+
+def rows_of(table: list[list[str]]) -> list[dict[str, str]]:
+    header, *rows = table
+    return [dict(zip(header, row)) for row in rows]
+
+
+class Tables:
+    def __init__(self, root: Path):
+        def table(name):
+            return json.loads((root / VERSION / f"{name}.json").read_text())
+
+        self.scene = {s["name"]: s for s in table("scene")}
+        self.log = {lg["token"]: lg for lg in table("log")}
+        self.samples = table("sample")
+        self.annotations = table("sample_annotation")
+
+    def samples_of(self, scene: str) -> list[dict]:
+        token = self.scene[scene]["token"]
+        return sorted((s for s in self.samples if s["scene_token"] == token), key=lambda s: s["timestamp"])
+
+    def annotations_of(self, scene: str) -> list[dict]:
+        samples = {s["token"] for s in self.samples_of(scene)}
+        return [a for a in self.annotations if a["sample_token"] in samples]
+
+
+@pytest.fixture(scope="module")
+def tables(synth_root) -> Tables:
+    return Tables(synth_root)
+
+
+def test_the_site_has_an_index_a_page_per_scene_videos_and_only_local_links(synth_report):
+    result, events = synth_report
+    out = result.out
+    assert result.scenes == SCENES and result.problems == {}
+    assert (out / "index.html").is_file() and (out / "assets" / "report.css").is_file()
+    pages = [out / "index.html", *(out / "scenes" / f"{s}.html" for s in SCENES)]
+    assert sorted((out / "scenes").glob("*.html")) == sorted(pages[1:])
+    checked = 0
+    for page in pages:
+        text = page.read_text()
+        assert "http://" not in text and "https://" not in text and "//cdn" not in text
+        for url in Page(text).urls:
+            if url.startswith(("#", "data:")):
+                continue
+            assert not url.startswith("/") and "://" not in url, url
+            target = (page.parent / url.split("#")[0]).resolve()
+            assert target.is_file() and out.resolve() in target.parents, f"{page.name}: {url}"
+            checked += 1
+    assert checked > 20
+    assert events[-1].finished and events[-1].done == events[-1].total
+    assert not list(out.parent.glob(".*partial*"))
+
+
+def test_scene_table_rows_are_the_scenes_of_the_json_tables(synth_report, tables):
+    result, _ = synth_report
+    rows = rows_of(Page((result.out / "index.html").read_text()).tables["scene-table"])
+    assert [r["scene"] for r in rows] == SCENES
+    for row in rows:
+        scene = tables.scene[row["scene"]]
+        log = tables.log[scene["log_token"]]
+        samples = tables.samples_of(row["scene"])
+        assert row["location"] == log["location"] and row["date"] == log["date_captured"]
+        assert row["samples"] == str(len(samples)) == str(scene["nbr_samples"])
+        assert row["annotations"] == str(len(tables.annotations_of(row["scene"])))
+        duration = (samples[-1]["timestamp"] - samples[0]["timestamp"]) / 1e6
+        assert row["duration s"] == f"{duration:.2f}"
+        # the local time: the log name's offset (n008-2018-10-12-08-10-14-0400) applied to the first sample
+        sign, hours, minutes = re.search(r"([+-])(\d\d)(\d\d)$", log["logfile"]).groups()
+        offset = timedelta(hours=int(hours), minutes=int(minutes)) * (1 if sign == "+" else -1)
+        local = datetime(1970, 1, 1, tzinfo=timezone.utc) + timedelta(microseconds=samples[0]["timestamp"]) + offset
+        assert row["local start"] == local.strftime("%H:%M")
+        assert row["time of day"] == ("morning" if 6 <= local.hour < 12 else "afternoon" if local.hour < 17
+                                      else "evening" if local.hour < 20 else "night") if local.hour >= 6 else "night"
+        assert row["description"] == scene["description"]
+    assert [r["CAN bus"] for r in rows] == ["yes", "no"]  # the generator leaves the last scene without CAN bus
+
+
+def test_statistics_tables_are_the_canned_queries(synth_report, tables):
+    result, _ = synth_report
+    page = Page((result.out / "index.html").read_text())
+    rows = rows_of(page.tables["class_distribution"])
+    assert sum(int(r["num_annotations"].replace(",", "")) for r in rows) == len(tables.annotations)
+    for section in ("attributes", "visibility", "tracks", "channel_rates", "can_speed", "lidarseg"):
+        assert section in page.tables and len(page.tables[section]) > 1, section
+    charts = [u for u in page.urls if u.startswith("assets/plots/")]
+    assert {Path(c).name for c in charts} >= {"class_distribution.png", "distance_histogram.png", "ego_speed.png",
+                                               "can_speed.png", "steering.png"}
+    assert all((result.out / c).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for c in charts)
+
+
+def test_videos_hold_one_frame_per_keyframe_and_pages_say_their_duration(synth_report, tables):
+    result, _ = synth_report
+    for scene in SCENES:
+        keyframes = len(tables.samples_of(scene))
+        with av.open(str(result.out / "videos" / f"{scene}.mp4")) as video:
+            stream = video.streams.video[0]
+            assert stream.codec_context.name == "h264"
+            frames = sum(1 for _ in video.decode(video=0))
+        assert frames == keyframes == result.videos[scene]["frames_written"]
+        text = (result.out / "scenes" / f"{scene}.html").read_text()
+        assert f'src="../videos/{scene}.mp4"' in text
+        assert f"{keyframes} keyframes at 2 fps ({keyframes / 2:.1f} s)" in text
+
+
+def test_keyframe_renderings_and_can_bus_plots(synth_report, synth_root, tables):
+    result, _ = synth_report
+    for scene in SCENES:
+        folder = result.out / "scenes" / scene
+        stills = sorted(folder.glob("still-*.jpg"))
+        assert len(stills) == min(4, len(tables.samples_of(scene)))
+        image = cv2.imread(str(stills[0]))
+        sample_image = cv2.imread(str(next((synth_root / "samples" / "CAM_FRONT").glob("*.jpg"))))
+        assert image.shape[:2] == (sample_image.shape[0] // 2, sample_image.shape[1] // 2)
+        n = len(tables.samples_of(scene))
+        assert [s[1:] for s in result.assets[scene]["stills"]] == [[round(k * (n - 1) / 3), n] for k in range(4)]
+        page = (result.out / "scenes" / f"{scene}.html").read_text()
+        assert all(f"keyframe {round(k * (n - 1) / 3) + 1} of {n}" in page for k in range(4))
+    assert sorted(p.name for p in (result.out / "scenes" / "scene-0001").glob("*.png")) == ["can_speed.png",
+                                                                                         "steering.png"]
+    assert not list((result.out / "scenes" / "scene-0002").glob("*.png"))
+    assert "no CAN bus messages for this scene" in (result.out / "scenes" / "scene-0002.html").read_text()
+
+
+def test_scene_page_lists_its_categories(synth_report, tables, synth_root):
+    result, _ = synth_report
+    categories = {c["token"]: c["name"] for c in json.loads((synth_root / VERSION / "category.json").read_text())}
+    instances = {i["token"]: categories[i["category_token"]]
+                 for i in json.loads((synth_root / VERSION / "instance.json").read_text())}
+    for scene in SCENES:
+        page = Page((result.out / "scenes" / f"{scene}.html").read_text())
+        rows = rows_of(page.tables["table1"])
+        expected: dict[str, int] = {}
+        for annotation in tables.annotations_of(scene):
+            name = instances[annotation["instance_token"]]
+            expected[name] = expected.get(name, 0) + 1
+        assert {r["category_name"]: int(r["num_annotations"].replace(",", "")) for r in rows} == expected
+
+
+@pytest.mark.parametrize(("description", "hour", "expected"), [
+    ("Night, rain, parked cars", 14, "night"), ("Cruising", 5, "night"), ("Cruising", 6, "morning"),
+    ("Cruising", 11, "morning"), ("Cruising", 12, "afternoon"), ("Cruising", 16, "afternoon"),
+    ("Cruising", 17, "evening"), ("Cruising", 19, "evening"), ("Cruising", 20, "night"), ("Cruising", None, ""),
+])
+def test_time_of_day(description, hour, expected):
+    assert time_of_day(hour, description) == expected
+
+
+def test_weather_words_and_log_offsets():
+    assert weather_words("Rainy night, wet road, overtaking, sunlight glare") == ["rain", "wet", "sun", "night",
+                                                                                 "glare"]
+    assert weather_words("Parking lot, bicycle rack, peds") == []
+    assert weather_words("Nightclub") == ["night"]  # word prefixes, as descriptions spell "Night," / "nighttime"
+    assert log_utc_offset_min("n008-2018-08-30-10-33-52-0400") == -240
+    assert log_utc_offset_min("n015-2018-10-08-15-36-50+0800") == 480
+    assert log_utc_offset_min("n015-2018-10-08-15-36-50+0530") == 330
+    assert log_utc_offset_min("host-a004-lidar0-1232815252301696606") is None
+
+
+def test_local_start_from_the_log_offset_else_the_locations_zone():
+    # 2018-08-30 14:35:16 UTC: 10:35 in Boston (EDT, UTC-4); 2018-12-30 14:35:16 UTC: 09:35 (EST, UTC-5)
+    summer, winter = 1535639716699138, 1535639716699138 + 122 * 86_400_000_000
+    assert local_start(summer, "n008-2018-08-30-10-33-52-0400", None)[0].strftime("%H:%M") == "10:35"
+    assert local_start(summer, "n008-2018-08-30-10-33-52-0400", None)[1] == "UTC-04:00"
+    assert local_start(summer, None, "boston-seaport")[0].strftime("%H:%M") == "10:35"
+    assert local_start(winter, None, "boston-seaport")[0].strftime("%H:%M") == "09:35"
+    assert local_start(summer, None, "singapore-onenorth")[0].strftime("%H:%M") == "22:35"
+    assert local_start(summer, "host-a004", "palo alto") == (None, "")
+
+
+def test_scenes_subset_and_no_videos(synth_points_out, tables, tmp_path, capsys):
+    out = tmp_path / "report"
+    assert main(["report", str(synth_points_out), "--out", str(out), "--scenes", "scene-0002", "--no-videos",
+                 "--quiet"]) == 0
+    assert "wrote the report of 1 scene(s)" in capsys.readouterr().out
+    index = Page((out / "index.html").read_text())
+    assert [r["scene"] for r in rows_of(index.tables["scene-table"])] == ["scene-0002"]
+    rows = rows_of(index.tables["class_distribution"])
+    assert sum(int(r["num_annotations"].replace(",", "")) for r in rows) == len(tables.annotations_of("scene-0002"))
+    assert "1 selected scene(s)" in (out / "index.html").read_text()
+    assert not (out / "videos").exists() and not list((out / "scenes").rglob("*.jpg"))
+    assert "no video" in (out / "scenes" / "scene-0002.html").read_text()
+
+
+def test_existing_output_unknown_scene_and_missing_dataroot_are_refused(synth_points_out, tmp_path, capsys):
+    out = tmp_path / "report"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    assert main(["report", str(synth_points_out), "--out", str(out), "--no-videos", "--quiet"]) == 2
+    assert "already exists; pass --overwrite" in capsys.readouterr().err
+    assert (out / "keep.txt").read_text() == "mine"
+    assert main(["report", str(synth_points_out), "--out", str(tmp_path / "r"), "--scenes", "scene-9999"]) == 2
+    assert "unknown scene 'scene-9999'; valid scenes: scene-0001, scene-0002" in capsys.readouterr().err
+    assert main(["report", str(synth_points_out), "--out", str(synth_points_out / "r")]) == 2
+    with pytest.raises(UsageError, match="--no-videos"):
+        build_report(synth_points_out, ReportOptions(out=tmp_path / "r", dataroot=tmp_path / "nowhere"))
+    assert main(["report", str(synth_points_out), "--out", str(out), "--no-videos", "--quiet", "--overwrite"]) == 0
+    assert not (out / "keep.txt").exists() and (out / "index.html").is_file()
+
+
+def test_a_scene_without_images_gets_a_page_that_says_so(synth_root, synth_points_out, tmp_path, capsys):
+    """The process pool renders the videos and stills; scene-0002's images are gone: its page explains, the rest
+    of the report is whole."""
+    dataroot = tmp_path / "data"
+    shutil.copytree(synth_root, dataroot)
+    frames = (pl.scan_parquet(f"{synth_points_out}/frames/**/*.parquet")
+              .filter((pl.col("scene_name") == "scene-0002") & (pl.col("modality").cast(pl.String) == "camera"))
+              .select("filename").collect()["filename"].to_list())
+    for name in frames:
+        (dataroot / name).unlink(missing_ok=True)
+    out = tmp_path / "report"
+    assert main(["report", str(synth_points_out), "--out", str(out), "--dataroot", str(dataroot), "--engine",
+                 "process", "--workers", "2", "--quiet", "--stills", "2"]) == 0
+    err = capsys.readouterr().err
+    assert "warning: scene-0002: keyframe renderings: no frame of scene-0002 CAM_FRONT" in err
+    assert "scene-0001" not in err
+    page = (out / "scenes" / "scene-0002.html").read_text()
+    # the video still shows the bird's-eye view, the camera tiles blank; the page says which images are missing
+    assert "<video" in page and "camera images missing" in page and any(Path(f).name in page for f in frames)
+    assert "no keyframe renderings: no frame of scene-0002" in page
+    assert "camera images missing" not in (out / "scenes" / "scene-0001.html").read_text()
+    assert len(list((out / "scenes" / "scene-0001").glob("still-*.jpg"))) == 2
+
+
+def test_real_scenes_local_times_can_bus_and_videos(real_report):
+    """The extract's logs are n008-2018-08-30-10-33-52-0400 (Boston) and n015-2018-10-08-15-36-50+0800 (Singapore);
+    their scenes start at 14:35:16 and 07:37:13 UTC (first sample timestamps 1535639716699138, 1538984233547259)."""
+    rows = {r["scene"]: r for r in rows_of(Page(real_report.index.read_text()).tables["scene-table"])}
+    assert (rows["scene-0523"]["local start"], rows["scene-0523"]["time of day"]) == ("10:35", "morning")
+    assert (rows["scene-0916"]["local start"], rows["scene-0916"]["time of day"]) == ("15:37", "afternoon")
+    assert rows["scene-0916"]["location"] == "singapore-queenstown" and rows["scene-0523"]["samples"] == "40"
+    assert {r["CAN bus"] for r in rows.values()} == {"yes"}
+    assert {s: v["frames_written"] for s, v in real_report.videos.items()} == {"scene-0523": 40, "scene-0916": 41}
+    for scene in rows:
+        assert sorted(p.name for p in (real_report.out / "scenes" / scene).iterdir()) == [
+            "can_speed.png", "steering.png", "still-0.jpg", "still-1.jpg"]
+    assert real_report.problems == {}
