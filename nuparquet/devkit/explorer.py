@@ -19,7 +19,7 @@ from pyquaternion import Quaternion
 
 from nuparquet.devkit import labels
 from nuparquet.devkit.errors import NotServed
-from nuparquet.devkit.tables import fixed_block, token_bytes
+from nuparquet.devkit.tables import fixed_block, single_chunk, token_bytes
 from nuparquet.devkit.utils.data_classes import LidarPointCloud, RadarPointCloud
 from nuparquet.devkit.utils.data_io import load_bin_file
 from nuparquet.devkit.utils.geometry_utils import view_points
@@ -70,7 +70,7 @@ class NuScenesExplorer:
         if not len(nusc.sample_annotation):
             return
         column = nusc._source.read("sample_annotation", ["attribute_tokens"]).column("attribute_tokens")
-        tokens = column.combine_chunks().flatten()
+        tokens = single_chunk(column).flatten()
         counts: dict[str, int] = {}
         if len(tokens):
             values, number = np.unique(token_bytes(tokens), return_counts=True)
@@ -340,4 +340,4 @@ def _sorted_counts(counts: dict, sort_by: str):
 
 
 def _numpy_column(column) -> np.ndarray:
-    return fixed_block(column.combine_chunks())
+    return fixed_block(column)

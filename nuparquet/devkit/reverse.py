@@ -18,7 +18,7 @@ import functools
 import numpy as np
 import pyarrow.compute as pc
 
-from nuparquet.devkit.tables import ConvertedTables, Table, TokenIndex, getter, token_bytes
+from nuparquet.devkit.tables import ConvertedTables, Table, TokenIndex, getter, single_chunk, token_bytes
 from nuparquet.errors import InputError
 
 
@@ -108,7 +108,7 @@ class SampleLinks:
         sample_of = self._samples_of(samples, frames, "sample_data")
         self._data_order, self._data_start = _group(sample_of, n)
         self._data_token = getter(frames.column("token"), share_strings=False)
-        calibration = frames.column("calibrated_sensor_token").combine_chunks().dictionary_encode()
+        calibration = single_chunk(frames.column("calibrated_sensor_token")).dictionary_encode()
         sensors = index.sensor_of_calibration
         channels = [sensors[token][1] for token in calibration.dictionary.to_pylist()]
         codes = calibration.indices.to_numpy(zero_copy_only=False)

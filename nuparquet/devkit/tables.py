@@ -16,6 +16,7 @@ binary search and the record's construction; a record already built is one dict 
 
 from __future__ import annotations
 
+import bisect
 import json
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -24,6 +25,7 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 import pyarrow.compute as pc
+import pyarrow.dataset as pads
 import pyarrow.parquet as pq
 
 from nuparquet.devkit.errors import ReadOnly
@@ -38,24 +40,37 @@ SHARED_STRINGS_RATIO = 4
 
 
 def read_table(files: list[str], columns: list[str] | None = None) -> pa.Table:
-    """The rows of a dataset's Parquet files in order (all columns, or `columns` that exist), one chunk per column."""
+    """The rows of a dataset's Parquet files in order (all columns, or `columns` that exist), a chunk per row group.
+
+    Read with the system allocator, and left in its chunks (the getters index them): both keep the resident memory
+    near the data's size, where mimalloc's caches and a concatenated copy would double it for the large tables."""
     if not files:
         raise ValueError("no Parquet files")
     present = pq.read_schema(files[0]).names
     wanted = None if columns is None else [c for c in columns if c in present]
-    tables = [pq.read_table(f, columns=wanted) for f in files]
-    table = tables[0] if len(tables) == 1 else pa.concat_tables(tables)
-    return table.combine_chunks()
+    pool = pa.system_memory_pool()
+    tables = [pads.dataset(f, format="parquet").to_table(columns=wanted, memory_pool=pool) for f in files]
+    return tables[0] if len(tables) == 1 else pa.concat_tables(tables)
+
+
+def single_chunk(array: pa.Array | pa.ChunkedArray) -> pa.Array:
+    """One contiguous array (pyarrow's combine_chunks copies even a single chunk)."""
+    if isinstance(array, pa.ChunkedArray):
+        return array.chunk(0) if array.num_chunks == 1 else array.combine_chunks()
+    return array
 
 
 # --- one column as a function of the row number ----------------------------------------------------------------
 
-def getter(array: pa.Array, *, empty_list: bool = False, json_text: bool = False,
+def getter(array: pa.Array | pa.ChunkedArray, *, empty_list: bool = False, json_text: bool = False,
            share_strings: bool = True) -> Getter:
     """`f(i)`: row i of `array` as the Python value `json.load` gave (None for null, or [] with `empty_list`;
-    `json_text`: the column holds raw JSON text, parsed). Reads Arrow buffers through numpy views."""
+    `json_text`: the column holds raw JSON text, parsed). Reads Arrow buffers through numpy views; a chunked
+    column is read chunk by chunk (row groups of one size: the chunk is i // size)."""
     if isinstance(array, pa.ChunkedArray):
-        array = array.combine_chunks()
+        if array.num_chunks != 1:
+            return _chunked_getter(array, empty_list=empty_list, json_text=json_text, share_strings=share_strings)
+        array = array.chunk(0)
     if json_text:
         text = getter(array, share_strings=False)
         return lambda i: None if (v := text(i)) is None else json.loads(v)
@@ -68,6 +83,30 @@ def getter(array: pa.Array, *, empty_list: bool = False, json_text: bool = False
     return lambda i: value(i) if valid[i] else None
 
 
+def _chunked_getter(array: pa.ChunkedArray, **options) -> Getter:
+    chunks = [chunk for chunk in array.chunks if len(chunk)]
+    if not chunks:
+        return lambda i: [][i]  # IndexError, as an empty list
+    parts = [getter(chunk, **options) for chunk in chunks]
+    size = len(chunks[0])
+    if all(len(chunk) == size for chunk in chunks[:-1]):
+        return lambda i: parts[i // size](i % size)
+    starts = np.cumsum([0] + [len(chunk) for chunk in chunks]).tolist()
+    return lambda i: parts[(c := bisect.bisect_right(starts, i) - 1)](i - starts[c])
+
+
+def shared_strings(column: pa.ChunkedArray) -> pa.ChunkedArray:
+    """`column` dictionary-encoded when it repeats its values (at most one distinct value per
+    `SHARED_STRINGS_RATIO` rows): its records then share one Python string per value, and Arrow holds small codes
+    instead of the strings."""
+    kind = column.type
+    if not (pa.types.is_string(kind) or pa.types.is_large_string(kind)) or len(column) < 64:
+        return column
+    if pc.count_distinct(column).as_py() * SHARED_STRINGS_RATIO > len(column):
+        return column
+    return pc.dictionary_encode(column, memory_pool=pa.system_memory_pool())
+
+
 def _value_getter(array: pa.Array, share_strings: bool) -> Getter:
     kind = array.type
     if pa.types.is_dictionary(kind):
@@ -75,8 +114,6 @@ def _value_getter(array: pa.Array, share_strings: bool) -> Getter:
         codes = array.indices.to_numpy(zero_copy_only=False)
         return lambda i: values[codes[i]]
     if pa.types.is_string(kind) or pa.types.is_large_string(kind):
-        if share_strings and len(array) >= 64 and pc.count_distinct(array).as_py() * SHARED_STRINGS_RATIO <= len(array):
-            return _value_getter(pc.dictionary_encode(array), share_strings)
         return _string_getter(array)
     if pa.types.is_boolean(kind):
         flags = array.to_numpy(zero_copy_only=False)
@@ -92,17 +129,23 @@ def _value_getter(array: pa.Array, share_strings: bool) -> Getter:
         return lambda i: block[i].tolist()
     if pa.types.is_list(kind) or pa.types.is_large_list(kind):
         offsets = array.offsets.to_numpy()
-        element = getter(array.values, share_strings=share_strings)
+        values = array.values
+        element = getter(shared_strings(pa.chunked_array([values])) if share_strings else values)
         return lambda i: [element(j) for j in range(offsets[i], offsets[i + 1])]
     return lambda i: array[i].as_py()  # anything else (structs): pyarrow's own conversion
 
 
 def _string_getter(array: pa.Array) -> Getter:
-    """Row i of a (large_)string array, decoded from its data buffer."""
+    """Row i of a (large_)string array, decoded from its data buffer (by arithmetic when every value has the same
+    length, as tokens do: no offset lookups)."""
     width = np.int64 if pa.types.is_large_string(array.type) else np.int32
     offsets = np.frombuffer(array.buffers()[1], dtype=width)[array.offset:array.offset + len(array) + 1]
     data = array.buffers()[2]
     raw = memoryview(data) if data is not None else memoryview(b"")
+    lengths = np.diff(offsets)
+    if len(lengths) and (lengths == lengths[0]).all():
+        base, size = int(offsets[0]), int(lengths[0])
+        return lambda i: str(raw[base + size * i:base + size * i + size], "utf-8")
     return lambda i: str(raw[offsets[i]:offsets[i + 1]], "utf-8")
 
 
@@ -112,8 +155,14 @@ def _is_numeric_block(kind: pa.DataType) -> bool:
     return pa.types.is_integer(kind) or pa.types.is_floating(kind)
 
 
-def fixed_block(array: pa.Array) -> np.ndarray:
-    """(N, k) or (N, k, m) numpy view of a fixed-size list array of numbers (nulls hold zeros)."""
+def fixed_block(array: pa.Array | pa.ChunkedArray) -> np.ndarray:
+    """(N, k) or (N, k, m) numpy view of a fixed-size list array of numbers (nulls hold zeros; a chunked array is
+    concatenated)."""
+    if isinstance(array, pa.ChunkedArray):
+        if array.num_chunks != 1:
+            return np.concatenate([fixed_block(chunk) for chunk in array.chunks]) if array.num_chunks else \
+                fixed_block(pa.array([], array.type))
+        array = array.chunk(0)
     shape = [len(array)]
     values = array
     while pa.types.is_fixed_size_list(values.type):
@@ -124,11 +173,15 @@ def fixed_block(array: pa.Array) -> np.ndarray:
     return values.to_numpy(zero_copy_only=False).reshape(shape)
 
 
-def token_bytes(array: pa.Array) -> np.ndarray:
-    """(N,) numpy bytes array of a string column (a zero-copy view when every value has the same length, as
-    nuScenes' 32-character tokens do; nulls as b"")."""
+def token_bytes(array: pa.Array | pa.ChunkedArray) -> np.ndarray:
+    """(N,) numpy bytes array of a string column (a zero-copy view of one chunk when every value has the same
+    length, as nuScenes' 32-character tokens do; nulls as b"")."""
     if isinstance(array, pa.ChunkedArray):
-        array = array.combine_chunks()
+        if array.num_chunks != 1:
+            parts = [token_bytes(chunk) for chunk in array.chunks if len(chunk)]
+            width = max((p.dtype.itemsize for p in parts), default=1)
+            return np.concatenate([p.astype(f"S{width}") for p in parts]) if parts else np.array([], "S1")
+        array = array.chunk(0)
     if pa.types.is_dictionary(array.type):
         return token_bytes(array.dictionary)[array.indices.fill_null(0).to_numpy()] if len(array) else np.array([], "S1")
     if array.null_count == 0 and len(array) and pa.types.is_string(array.type):
@@ -144,8 +197,9 @@ class TokenIndex:
     """Row numbers of tokens: a sorted copy of the token column, searched in O(log N)."""
 
     def __init__(self, tokens: np.ndarray):
-        self.order = np.argsort(tokens, kind="stable")
-        self.sorted = tokens[self.order]
+        order = np.argsort(tokens, kind="stable")
+        self.order = order.astype(np.int32) if len(order) < 2**31 else order
+        self.sorted = tokens[order]
 
     def find(self, token: str) -> int:
         """The row of `token`; KeyError(token) when absent (as the devkit's dict lookup)."""
@@ -180,16 +234,19 @@ class Columns:
 
     def __init__(self, table: pa.Table, key_order: list[str], layouts: list[list[str]] | None = None,
                  json_fields=(), empty_list_fields=()):
+        names = table.column_names
+        for k in key_order:  # repeated strings (foreign keys, channels) kept once, as dictionaries
+            if k not in ("token", "prev", "next") and k not in json_fields:
+                table = table.set_column(names.index(k), k, shared_strings(table.column(k)))
         self.table = table
         self.keys = list(key_order)
         self.length = table.num_rows
-        names = table.column_names
         self._getters = [getter(table.column(k), empty_list=k in empty_list_fields, json_text=k in json_fields,
                                 share_strings=k != "token")
                          for k in self.keys]
         self._layouts = layouts or [self.keys]
         layout = table.column(table_layouts.LAYOUT) if table_layouts.LAYOUT in names else None
-        self._layout_ids = layout.combine_chunks().to_numpy(zero_copy_only=False) if layout is not None else None
+        self._layout_ids = layout.to_numpy() if layout is not None else None
         marks = table.column(table_layouts.JSON_TYPES) if table_layouts.JSON_TYPES in names else None
         self._marks = getter(marks, share_strings=False) if marks is not None else None
         self._int_columns = {f.name for f in table.schema if pa.types.is_integer(f.type)}
@@ -224,10 +281,10 @@ class Columns:
 
     def numpy(self, name: str) -> np.ndarray:
         """Column `name` as numpy: (N,) for scalars, (N, k) for fixed-size lists of numbers."""
-        column = self.table.column(name).combine_chunks()
+        column = self.table.column(name)
         if pa.types.is_fixed_size_list(column.type):
             return fixed_block(column)
-        return column.to_numpy(zero_copy_only=False)
+        return column.to_numpy()
 
     def getter(self, name: str) -> Getter:
         return getter(self.table.column(name))
@@ -238,6 +295,8 @@ class Columns:
         if field not in self.keys or self._layout_ids is not None or field not in self.table.column_names:
             return None
         column = self.table.column(field)
+        if pa.types.is_dictionary(column.type):
+            column = column.cast(column.type.value_type)
         kind = column.type
         if column.null_count or not (pa.types.is_string(kind) or pa.types.is_large_string(kind)
                                      or pa.types.is_integer(kind) or pa.types.is_floating(kind)
@@ -333,7 +392,8 @@ class Table(Sequence):
             if self._decorate is not None:
                 self._decorate(record, i)
             rows[i] = record
-            self.by_token[columns.token(i)] = record
+            token = record.get("token")  # the record's own string as the key: one string per record, not two
+            self.by_token[token if type(token) is str else columns.token(i)] = record
         return record
 
     def record_of(self, token: str) -> dict:

@@ -27,10 +27,12 @@ NAME_MAPPING = {
 
 
 def fill_trainval_infos(nusc, train_scenes: set, val_scenes: set, test: bool = False, max_sweeps: int = 10,
-                        check_files: bool = True) -> tuple[list[dict], list[dict]]:
-    """(train infos, val infos): one info per sample of `nusc.sample`, as mmdetection3d v1.4.0 builds it."""
+                        check_files: bool = True, samples=None) -> tuple[list[dict], list[dict]]:
+    """(train infos, val infos): one info per sample of `nusc.sample` (or of `samples`, a prefix of it: the
+    benchmark's shorter runs), as mmdetection3d v1.4.0 builds it. `check_files=False` skips mmengine's
+    check_file_exist (metadata-only synthetic sets have no sensor files)."""
     train_nusc_infos, val_nusc_infos = [], []
-    for sample in nusc.sample:
+    for sample in nusc.sample if samples is None else samples:
         lidar_token = sample["data"]["LIDAR_TOP"]
         sd_rec = nusc.get("sample_data", sample["data"]["LIDAR_TOP"])
         cs_record = nusc.get("calibrated_sensor", sd_rec["calibrated_sensor_token"])
