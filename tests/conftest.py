@@ -302,8 +302,8 @@ def synth_mapped_root(synth_root, tmp_path_factory) -> Path:
     3000x3000 px prior map with driveable blobs, for map masks and the devkit's ego-centric map underlay."""
     import json
 
+    import cv2
     import numpy as np
-    from PIL import Image
 
     root = tmp_path_factory.mktemp("synth-mapped") / "data"
     root.mkdir()
@@ -312,10 +312,9 @@ def synth_mapped_root(synth_root, tmp_path_factory) -> Path:
             (root / entry.name).symlink_to(entry, target_is_directory=entry.is_dir())
     (root / "maps").mkdir()
     rng = np.random.default_rng(17)
-    yy, xx = np.mgrid[0:3000, 0:3000]
     for record in json.loads((synth_root / SYNTH_VERSION / "map.json").read_text()):
         pattern = np.zeros((3000, 3000), dtype=np.uint8)
-        for cx, cy, r in zip(rng.uniform(0, 3000, 60), rng.uniform(0, 3000, 60), rng.uniform(50, 400, 60)):
-            pattern[(xx - cx) ** 2 + (yy - cy) ** 2 < r * r] = 255
-        Image.fromarray(pattern).save(root / record["filename"])
+        for x, y, radius in zip(rng.integers(0, 3000, 60), rng.integers(0, 3000, 60), rng.integers(50, 400, 60)):
+            cv2.circle(pattern, (int(x), int(y)), int(radius), 255, thickness=-1)
+        cv2.imwrite(str(root / record["filename"]), pattern)
     return root
