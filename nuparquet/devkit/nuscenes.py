@@ -82,6 +82,8 @@ class NuScenes:
                              f"{dataset.version!r}: pass version={dataset.version!r}, or convert {version!r}")
         assert map_resolution >= 0.1, "Only supports down to 0.1 meter resolution."
 
+        self._arguments = {"version": version, "dataroot": dataroot, "map_resolution": map_resolution,
+                           "colormap": colormap, "parquet": dataset.root}
         self.version = version
         self.dataroot = dataroot if dataroot is not None else (dataset.dataroot or str(dataset.root))
         self.verbose = verbose
@@ -147,6 +149,11 @@ class NuScenes:
 
     def __repr__(self) -> str:
         return f"<nuparquet.devkit.NuScenes {self.version} dataroot={self.dataroot!r} parquet={self.parquet!r}>"
+
+    def __reduce__(self):
+        """Pickled as its arguments (e.g. for the worker processes of a data loader): the copy opens the same
+        output and builds its records again on demand. Changes made to records are not carried over."""
+        return _reopen, (self._arguments,)
 
     @property
     def table_root(self) -> str:
@@ -329,6 +336,10 @@ class NuScenes:
 
     def render_scene_lidarseg(self, *args, **kwargs) -> None:
         self.explorer.render_scene_lidarseg(*args, **kwargs)
+
+
+def _reopen(arguments: dict) -> NuScenes:
+    return NuScenes(**arguments, verbose=False)
 
 
 def _quaternion(rotation):

@@ -283,3 +283,18 @@ def test_log_without_a_map_is_refused_when_its_record_is_built_as_the_devkit_ref
     with pytest.raises(Exception, match=orphan):
         nusc.get("log", orphan)
     assert differences(nusc.scene[0]["name"], "scene-0001") == []
+
+
+def test_a_pickled_copy_opens_the_same_output_and_answers_alike(extract_out, extract_root):
+    import pickle
+
+    nusc = NuScenes("v1.0-mini-extract", dataroot=str(extract_root), parquet=extract_out, verbose=False,
+                    map_resolution=0.2)
+    token = nusc.sample[3]["token"]
+    copy = pickle.loads(pickle.dumps(nusc))
+    assert (copy.version, copy.dataroot, copy.parquet, copy.map_resolution) == (
+        nusc.version, nusc.dataroot, nusc.parquet, 0.2)
+    assert_same(copy.get("sample", token), nusc.get("sample", token))
+    assert copy.get("sample", token) is not nusc.get("sample", token)
+    boxes = pickle.loads(pickle.dumps(nusc.get_boxes(nusc.sample[3]["data"]["CAM_FRONT"])))
+    assert boxes and boxes[0].orientation == nusc.get_box(boxes[0].token).orientation
