@@ -135,3 +135,12 @@ def test_samples_sharing_a_timestamp_fail_in_a_sweep_as_in_the_devkit(layouts_ro
         ours.get_boxes(sweep)
     keyframe = theirs.get("sample", tied["token"])["data"]["CAM_FRONT"]
     assert_same([box_values(b) for b in ours.get_boxes(keyframe)], [box_values(b) for b in theirs.get_boxes(keyframe)])
+
+
+def test_a_version_without_annotations_gives_the_devkits_empty_boxes(request, devkit):
+    pair = open_pair(request, devkit, "irregular_empty")
+    assert not len(pair.theirs.sample_annotation)
+    for record in pair.theirs.sample_data[::5]:
+        for kwargs in VARIANTS:
+            assert assert_sample_data_equal(pair, record["token"], **kwargs) == 0
+        assert pair.ours.get_boxes(record["token"]) == pair.theirs.get_boxes(record["token"]) == []
