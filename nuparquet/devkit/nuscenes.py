@@ -52,6 +52,9 @@ class NuScenes:
         map_resolution: metres per pixel of the map masks (`map['mask']`), >= 0.1.
         colormap: {class name: (r, g, b)}; default `nuscenes.utils.color_map.get_colormap()`'s.
         parquet: the output directory of `nuparquet convert`; may be omitted when `dataroot` is one.
+        keep_records: keep every record once built, as the devkit keeps them all (the same dict on every `get`,
+            changes stay). False: a new dict on every access and none held, for read-only loops over large tables
+            where memory matters more than repeated-lookup speed.
 
     Everything read-only the devkit's object offers is here (see the README's "Switching from the devkit"); the
     renderers raise `NotServed` naming the nuparquet command that renders, and writes raise `ReadOnly`.
@@ -59,7 +62,7 @@ class NuScenes:
 
     def __init__(self, version: str = "v1.0-mini", dataroot: str | os.PathLike | None = None, verbose: bool = True,
                  map_resolution: float = 0.1, colormap: dict | None = None, *,
-                 parquet: str | os.PathLike | None = None):
+                 parquet: str | os.PathLike | None = None, keep_records: bool = True):
         from nuparquet.dataset import open_dataset
 
         start_time = time.time()
@@ -83,7 +86,8 @@ class NuScenes:
         assert map_resolution >= 0.1, "Only supports down to 0.1 meter resolution."
 
         self._arguments = {"version": version, "dataroot": dataroot, "map_resolution": map_resolution,
-                           "colormap": colormap, "parquet": dataset.root}
+                           "colormap": colormap, "parquet": dataset.root, "keep_records": keep_records}
+        self._keep_records = keep_records
         self.version = version
         self.dataroot = dataroot if dataroot is not None else (dataset.dataroot or str(dataset.root))
         self.verbose = verbose
@@ -145,7 +149,8 @@ class NuScenes:
         self.explorer = NuScenesExplorer(self)
 
     def _table(self, name: str, decorate=None) -> Table:
-        return Table(name, self._source.rows(name), lambda: self._source.columns(name), decorate)
+        return Table(name, self._source.rows(name), lambda: self._source.columns(name), decorate,
+                     keep=self._keep_records)
 
     def __repr__(self) -> str:
         return f"<nuparquet.devkit.NuScenes {self.version} dataroot={self.dataroot!r} parquet={self.parquet!r}>"

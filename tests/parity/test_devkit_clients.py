@@ -28,6 +28,9 @@ def test_mmdetection3d_infos_are_the_devkits_and_the_reference(extract, extract_
     theirs = fill_trainval_infos(extract.theirs, set(), set())
     ours = fill_trainval_infos(extract.ours, set(), set())
     assert_same(ours, theirs, "infos")
+    lean = NuScenes(extract.version, dataroot=str(extract.root), parquet=extract.out, verbose=False,
+                    keep_records=False)
+    assert_same(fill_trainval_infos(lean, set(), set()), theirs, "infos without kept records")
     assert len(ours[1]) == 81 and sum(len(i["sweeps"]) for i in ours[1]) > 700
     # and they are what mmdetection3d v1.4.0 itself wrote for this extract (its machine's BLAS: to 1e-12)
     reference = json.loads((extract_root.parent / "nuscenes-extract-mmdet3d" / REFERENCE_INFOS).read_text())["infos"]

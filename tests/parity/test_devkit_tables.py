@@ -298,3 +298,20 @@ def test_a_pickled_copy_opens_the_same_output_and_answers_alike(extract_out, ext
     assert copy.get("sample", token) is not nusc.get("sample", token)
     boxes = pickle.loads(pickle.dumps(nusc.get_boxes(nusc.sample[3]["data"]["CAM_FRONT"])))
     assert boxes and boxes[0].orientation == nusc.get_box(boxes[0].token).orientation
+
+
+def test_without_kept_records_every_access_builds_an_equal_new_dict(extract_out, extract_root, devkit):
+    theirs = devkit.NuScenes("v1.0-mini-extract", dataroot=str(extract_root), verbose=False)
+    lean = NuScenes("v1.0-mini-extract", dataroot=str(extract_root), parquet=extract_out, verbose=False,
+                    keep_records=False)
+    for name in ("sample", "sample_annotation", "log", "calibrated_sensor"):
+        assert_same(list(getattr(lean, name)), getattr(theirs, name), name)
+    token = theirs.sample[5]["token"]
+    first = lean.get("sample", token)
+    first["mine"] = 1
+    assert lean.get("sample", token) is not first and "mine" not in lean.get("sample", token)
+    assert not lean._tables["sample"].by_token  # nothing held
+    assert lean.field2token("scene", "name", "scene-0916") == theirs.field2token("scene", "name", "scene-0916")
+    import pickle
+
+    assert pickle.loads(pickle.dumps(lean))._keep_records is False
