@@ -4,7 +4,8 @@ nuparquet command that renders.
 
 The printers print what the devkit prints, character for character. The two that walk every annotation
 (`list_categories`, `list_attributes`) read the few columns they need instead of building a million records:
-they answer from the converted data, not from records a user may have changed.
+they answer from the converted data, not from records a user may have changed. One module, as the devkit's
+explorer is one class: most of its length is the printers' exact formats and the renderers' refusals.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from pyquaternion import Quaternion
 
 from nuparquet.devkit import labels
 from nuparquet.devkit.errors import NotServed
-from nuparquet.devkit.tables import fixed_block, single_chunk, token_bytes
+from nuparquet.devkit.columns import fixed_block, single_chunk, token_bytes
 from nuparquet.devkit.utils.data_classes import LidarPointCloud, RadarPointCloud
 from nuparquet.devkit.utils.data_io import load_bin_file
 from nuparquet.devkit.utils.geometry_utils import view_points

@@ -6,7 +6,8 @@ nusc = NuScenes("v1.0-trainval", dataroot="/data/nuscenes", parquet="/data/nusc.
 ```
 
 Start-up reads `manifest.json` only; each table is read when first used, each record built when first asked for
-(`nuparquet.devkit.tables`), the devkit's reverse indexes on first use (`nuparquet.devkit.reverse`).
+(`nuparquet.devkit.tables`), the devkit's reverse indexes on first use (`nuparquet.devkit.reverse`). The module is
+as long as the devkit's class has methods: each is a thin call into `boxes`, `explorer`, `labels` or the tables.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from nuparquet.devkit.explorer import NuScenesExplorer
 from nuparquet.devkit.reverse import ReverseIndex
 from nuparquet.devkit.tables import ConvertedTables, Table
 from nuparquet.devkit.utils.color_map import get_colormap
-from nuparquet.devkit.utils.data_classes import Box, LidarPointCloud, PointCloud, RadarPointCloud
+from nuparquet.devkit.utils.data_classes import Box, LidarPointCloud, PointCloud
 from nuparquet.devkit.utils.geometry_utils import BoxVisibility
 from nuparquet.devkit.utils.map_mask import MapMask, MissingMapMask
 from nuparquet.errors import InputError, UsageError

@@ -18,7 +18,8 @@ import functools
 import numpy as np
 import pyarrow.compute as pc
 
-from nuparquet.devkit.tables import ConvertedTables, Table, TokenIndex, getter, single_chunk, token_bytes
+from nuparquet.devkit.columns import TokenIndex, getter, single_chunk, token_bytes
+from nuparquet.devkit.tables import ConvertedTables, Table
 from nuparquet.errors import InputError
 
 

@@ -11,7 +11,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from nuparquet.devkit import ReadOnly
-from nuparquet.devkit.tables import Columns, Table, TokenIndex, getter, read_table, shared_strings, token_bytes
+from nuparquet.devkit.columns import Columns, TokenIndex, getter, read_table, shared_strings, token_bytes
+from nuparquet.devkit.tables import Table
 
 VALUES = {
     "text": ["a", "", "héllo", None, "zz" * 40, "a", "b"],

@@ -5,7 +5,8 @@ A `Box` is the devkit's object: centre, size [w, l, h], a `pyquaternion.Quaterni
 velocity, name, token; its methods are the devkit's formulas, operation for operation (see `nuparquet.devkit`).
 Point clouds are (d, N) arrays as in the devkit. Files are read by `nuparquet.sources.points`; with a
 `nuparquet.devkit.NuScenes`, `from_file_multisweep` also reads frames whose files are absent from the converted
-`lidar_points/` and `radar_points/` datasets (`convert --sensors lidar,radar [--sweeps]`).
+`lidar_points/` and `radar_points/` datasets (`convert --sensors lidar,radar [--sweeps]`). One module, as user code
+imports these classes from the devkit's one module.
 """
 
 from __future__ import annotations
