@@ -109,6 +109,10 @@ def test_field2token_finds_what_the_devkits_linear_scan_finds(pair):
             continue
         got = pair.ours.field2token(table, field, query)
         assert got == expected, (table, field, query)
+    if hasattr(pair.theirs, "image_annotations"):  # not in table_names, but field2token reaches it
+        token = pair.theirs.image_annotations[2]["sample_annotation_token"]
+        assert pair.ours.field2token("image_annotations", "sample_annotation_token", token) == \
+            pair.theirs.field2token("image_annotations", "sample_annotation_token", token) != []
     matched = sum(bool(pair.theirs.field2token(t, f, q)) for t, f, q in FIELD_QUERIES if _has_field(pair, t, f))
     assert matched >= 8  # the queries reach matches, not only empty answers
 
