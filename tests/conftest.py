@@ -397,3 +397,114 @@ def edge_placement(eval_nusc, eval_edits) -> dict:
     import eval_submissions as make
 
     return make.edge_cases(eval_nusc, eval_edits)[1]
+
+
+# --- nuparquet.devkit: the devkit's NuScenes served from the Parquet (tests/parity/test_devkit_*.py) ---------------
+
+@pytest.fixture(scope="session")
+def labelled_out(labelled_root, tmp_path_factory) -> Path:
+    """The labelled set converted with its lidar and radar keyframe points and its lidarseg/panoptic tables."""
+    return converted(tmp_path_factory, "labelled-out", labelled_root, SYNTH_VERSION, sensors=("lidar", "radar"), workers=1)
+
+
+@pytest.fixture(scope="session")
+def layouts_root(tmp_path_factory) -> Path:
+    """A small dataroot (tables and maps) whose JSON is as irregular as derived datasets': Lyft's absent or NaN
+    width/height, other key orders, integers in float lists and one written as a float, an extra field holding an
+    object, empty visibility tokens, a log with a map_token of its own, and an image_annotations table."""
+    import json
+    import math
+
+    from nuparquet.synth import synthesize
+
+    root = synthesize(tmp_path_factory.mktemp("layouts") / "data", scenes=2, samples_per_scene=4, seed=3,
+                      version=SYNTH_VERSION, with_can_bus=False)
+    folder = root / SYNTH_VERSION
+
+    def edit(table, change):
+        records = json.loads((folder / f"{table}.json").read_text())
+        change(records)
+        (folder / f"{table}.json").write_text(json.dumps(records))  # NaN as the literal NaN, as Lyft writes it
+
+    sensors = {s["token"]: s["modality"] for s in json.loads((folder / "sensor.json").read_text())}
+    modality = {c["token"]: sensors[c["sensor_token"]] for c in json.loads((folder / "calibrated_sensor.json").read_text())}
+
+    def sample_data(records):
+        for r in records:
+            if modality[r["calibrated_sensor_token"]] == "radar":
+                del r["width"], r["height"]
+            elif modality[r["calibrated_sensor_token"]] == "lidar":
+                r["width"], r["height"] = math.nan, math.nan
+        records[5]["timestamp"] = float(records[5]["timestamp"])
+        records[7]["extra"] = {"a": [1, 2.5, None], "b": "x"}
+
+    def annotations(records):
+        for r in records[::3]:
+            r["visibility_token"] = ""
+        records[2] = dict(reversed(list(records[2].items())))
+        records[4]["rotation"] = [1, 0, 0, 0]
+
+    def calibrations(records):
+        next(c for c in records if modality[c["token"]] == "lidar")["rotation"] = [1, 0, 0, 0]
+        next(c for c in records if modality[c["token"]] == "camera")["camera_intrinsic"] = [
+            [1266, 0.0, 816.5], [0, 1266.4, 491], [0, 0, 1]]
+
+    edit("sample_data", sample_data)
+    edit("sample_annotation", annotations)
+    edit("sample", lambda records: records.__setitem__(slice(0, 3), [dict(reversed(list(r.items()))) for r in records[:3]]))
+    edit("calibrated_sensor", calibrations)
+    edit("log", lambda records: records[0].__setitem__("map_token", "only here"))
+    edit("ego_pose", lambda records: records[3].__setitem__("translation", [int(records[3]["translation"][0]), 1.5, 0]))
+    annotations_2d = json.loads((folder / "sample_annotation.json").read_text())[:6]
+    boxes_2d = [{"token": f"{i:032x}", "sample_annotation_token": a["token"], "bbox_corners": [1, 2.5, 300, 400.25 + i],
+                 "visibility_token": a["visibility_token"], "filename": f"samples/CAM_FRONT/{i}.jpg"}
+                for i, a in enumerate(annotations_2d)]
+    boxes_2d[3] = dict(reversed(list(boxes_2d[3].items())))
+    (folder / "image_annotations.json").write_text(json.dumps(boxes_2d))  # the devkit loads it when present
+    return root
+
+
+@pytest.fixture(scope="session")
+def layouts_out(layouts_root, tmp_path_factory) -> Path:
+    return converted(tmp_path_factory, "layouts-out", layouts_root, SYNTH_VERSION)
+
+
+@pytest.fixture(scope="session")
+def extract_trainval_root(extract_root, tmp_path_factory) -> Path:
+    """The real extract presented as `v1.0-trainval` (links, nothing copied): the devkit's evaluation and split
+    functions accept only the official versions, and both scenes are in the official val split."""
+    root = tmp_path_factory.mktemp("extract-trainval") / "data"
+    root.mkdir()
+    (root / "v1.0-trainval").symlink_to(extract_root / EXTRACT_VERSION, target_is_directory=True)
+    for name in ("samples", "maps"):
+        (root / name).symlink_to(extract_root / name, target_is_directory=True)
+    return root
+
+
+@pytest.fixture(scope="session")
+def extract_trainval_out(extract_trainval_root, tmp_path_factory) -> Path:
+    return converted(tmp_path_factory, "extract-trainval-out", extract_trainval_root, "v1.0-trainval")
+
+
+@pytest.fixture(scope="session")
+def synth_mapped_root(synth_root, tmp_path_factory) -> Path:
+    """`synth_root` (linked) with map PNGs that hold a pattern (the generator writes blank 64x64 placeholders): a
+    3000x3000 px prior map with driveable blobs, for map masks and the devkit's ego-centric map underlay."""
+    import json
+
+    import cv2
+    import numpy as np
+
+    root = tmp_path_factory.mktemp("synth-mapped") / "data"
+    root.mkdir()
+    for entry in synth_root.iterdir():
+        if entry.name != "maps":
+            (root / entry.name).symlink_to(entry, target_is_directory=entry.is_dir())
+    (root / "maps").mkdir()
+    rng = np.random.default_rng(17)
+    for record in json.loads((synth_root / SYNTH_VERSION / "map.json").read_text()):
+        pattern = np.zeros((3000, 3000), dtype=np.uint8)
+        for x, y, radius in zip(rng.integers(0, 3000, 60), rng.integers(0, 3000, 60), rng.integers(50, 400, 60)):
+            cv2.circle(pattern, (int(x), int(y)), int(radius), 255, thickness=-1)
+        cv2.imwrite(str(root / record["filename"]), pattern)
+    return root
