@@ -18,6 +18,7 @@ The stages, one module each (STYLE.md: vectorise over the batch; the only Python
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,6 +30,7 @@ from nuparquet.frames.boxes import frame_boxes
 from nuparquet.frames.poses import cameras_from_frames
 from nuparquet.options import resolve
 from nuparquet.progress import OnProgress, Reporter
+from nuparquet.rendering import draw
 from nuparquet.rendering.camera_tile import CameraTile
 from nuparquet.rendering.loop import render_frames
 from nuparquet.rendering.options import BEV_CHANNEL, RenderOptions
@@ -152,25 +154,13 @@ def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
             if target is not None:
                 check_apart(target, dataset.root, what="the converted dataset")
     dataroot = _dataroot(dataset, options.dataroot)
-    dataset.check_scenes([scene])
-    fps = options.frame_rate
-    bev_channel = reference_lidar(dataset) if options.channel == BEV_CHANNEL or options.bev else None
-    if options.channel == BEV_CHANNEL:
-        channel = BEV_CHANNEL
-        rows = load_scene(dataset, scene, (), all_frames=options.all_frames, bev_channel=bev_channel)
-        _check_bev_rows(rows, scene, bev_channel)
-        plan, fps = bev_plan(dataset, rows, options, dataroot)
-    else:
-        channel, layout = cameras_to_render(dataset, options.channel)
-        rows = load_scene(dataset, scene, [c for row in layout for c in row], all_frames=options.all_frames,
-                          lidar_channel=reference_lidar(dataset) if options.draws_lidar else None,
-                          bev_channel=bev_channel, channel_label=channel)
-        plan = camera_plan(rows, layout, dataroot, scale=options.scale, mosaic=options.mosaic,
-                           all_frames=options.all_frames, fps=fps, clip=options.clip,
-                           labels=options.labels, dataset=dataset, lidar_color=options.lidar_color)
-        if options.bev:
-            _check_bev_rows(rows, scene, bev_channel)
-            plan = with_bev_tile(plan, dataset, rows, options, dataroot)
+    if options.labels == "none":
+        plan, channel, fps = _plan(dataset, scene, options, dataroot)
+    else:  # the query and projections run beside the start of OpenCV's text engine on this (the drawing) thread
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="nuparquet-plan") as side:
+            planned = side.submit(_plan, dataset, scene, options, dataroot)
+            draw.start_text()
+            plan, channel, fps = planned.result()
 
     out = Path(options.out) if options.out is not None else None
     frames_dir = Path(options.frames_dir) if options.frames_dir is not None else None
@@ -192,6 +182,30 @@ def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
     return RenderResult(scene=scene, channel=channel, frames_written=result.written,
                         frames_skipped=result.skipped, width=width, height=height, fps=fps,
                         out=out, frames_dir=frames_dir, missing=result.missing)
+
+
+def _plan(dataset, scene: str, options: RenderOptions, dataroot: Path) -> tuple[TilePlan, str, float]:
+    """The scene's query and every tile's plan: (plan, the channel as reported, the video's frame rate)."""
+    dataset.check_scenes([scene])
+    fps = options.frame_rate
+    bev_channel = reference_lidar(dataset) if options.channel == BEV_CHANNEL or options.bev else None
+    if options.channel == BEV_CHANNEL:
+        channel = BEV_CHANNEL
+        rows = load_scene(dataset, scene, (), all_frames=options.all_frames, bev_channel=bev_channel)
+        _check_bev_rows(rows, scene, bev_channel)
+        plan, fps = bev_plan(dataset, rows, options, dataroot)
+    else:
+        channel, layout = cameras_to_render(dataset, options.channel)
+        rows = load_scene(dataset, scene, [c for row in layout for c in row], all_frames=options.all_frames,
+                          lidar_channel=reference_lidar(dataset) if options.draws_lidar else None,
+                          bev_channel=bev_channel, channel_label=channel)
+        plan = camera_plan(rows, layout, dataroot, scale=options.scale, mosaic=options.mosaic,
+                           all_frames=options.all_frames, fps=fps, clip=options.clip,
+                           labels=options.labels, dataset=dataset, lidar_color=options.lidar_color)
+        if options.bev:
+            _check_bev_rows(rows, scene, bev_channel)
+            plan = with_bev_tile(plan, dataset, rows, options, dataroot)
+    return plan, channel, fps
 
 
 def _check_bev_rows(rows: SceneRows, scene: str, lidar_channel: str) -> None:

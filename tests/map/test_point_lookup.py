@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from nuparquet.map.queries import THIN_BOX_RATIO, MapLayers, _Layer, _Parts
+from nuparquet.map.lookup import THIN_BOX_RATIO, _Layer, _Parts
+from nuparquet.map.queries import MapLayers
 
 
 def _strip(x0: float, y0: float, length: float, width: float, angle_rad: float, *, bends: int = 6) -> shapely.Polygon:
