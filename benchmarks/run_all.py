@@ -30,11 +30,13 @@ import bench_points  # noqa: E402
 import bench_project_all  # noqa: E402
 import bench_project_scene  # noqa: E402
 import bench_render  # noqa: E402
+import map_floor  # noqa: E402
 import bench_scale_out  # noqa: E402
 from harness import REPO, load_average, log, machine, markdown_table, write_results  # noqa: E402
 
 BENCHMARKS = {
     "convert": lambda a: bench_convert.run(a.repeats, a.devkit_repeats),
+    "map_convert": lambda a: map_floor.run(a.repeats),
     "first_query": lambda a: bench_first_query.run(max(a.repeats, 5), a.devkit_repeats),
     "project_scene": lambda a: bench_project_scene.run(a.repeats, a.devkit_repeats),
     "project_all": lambda a: bench_project_all.run(a.repeats),
