@@ -32,6 +32,7 @@ from nuparquet.geometry.projection import CORNER_MIN_DEPTH_M, NEAR_PLANE_M
 # spends on ~150k pairs.
 COMPILED_MIN_PAIRS = 100_000
 KERNELS = ("auto", "numpy", "compiled")
+NUMPY_CHUNK = 4096  # pairs per pass of the numpy columns
 
 
 @dataclass(frozen=True)
@@ -115,7 +116,10 @@ def project_pairs(cameras: Cameras, frame_index, translation_m, half_axes, axes_
                     terms.camera_rotation, terms.camera_translation, terms.global_to_camera, terms.intrinsic,
                     terms.low_px, terms.high_px, *_fields(out))
             return out
-    _numpy_pairs(frame_index, axes_index, translation_m, half_axes, terms, out)
+    for start in range(0, len(frame_index), NUMPY_CHUNK):  # temporaries of a chunk stay in the CPU's cache
+        rows = slice(start, start + NUMPY_CHUNK)
+        _numpy_pairs(frame_index[rows], axes_index[rows], translation_m[rows], half_axes, terms,
+                     PairsInImages(*(field[rows] for field in _fields(out))))
     return out
 
 
