@@ -63,8 +63,9 @@ class _Parts(_Indexed):
 
 
 # A polygon whose bounding box is this many times its area, and larger than this, is cut into triangles for point
-# lookups (a 4 m x 50 m lane at 45 degrees is left whole: its box holds few points).
-THIN_BOX_RATIO = 4.0
+# lookups (a 4 m x 50 m lane at 45 degrees is left whole: its box holds few points; a drivable area ~10x its box's
+# fill costs more to triangulate than its extra candidates cost to test; a walkway along a road, ~50x, does not).
+THIN_BOX_RATIO = 16.0
 THIN_MIN_BOX_M2 = 2500.0
 
 

@@ -67,7 +67,7 @@ def test_points_on_inner_triangle_edges_boundaries_and_holes_get_the_devkit_answ
 
 def test_only_polygons_much_larger_than_their_box_fill_are_cut():
     square = shapely.box(0.0, 0.0, 100.0, 100.0)  # box = polygon: kept whole
-    small_diagonal = _strip(0.0, 0.0, 40.0, 2.0, np.pi / 4, bends=1)  # thin, but its box is small
+    small_diagonal = _strip(0.0, 0.0, 40.0, 0.5, np.pi / 4, bends=1)  # thin, but its box is small
     long_diagonal = _strip(0.0, 0.0, 400.0, 2.0, np.pi / 4, bends=1)
     box_area = lambda g: np.prod(np.diff(np.reshape(g.bounds, (2, 2)), axis=0))  # noqa: E731
     assert box_area(small_diagonal) > THIN_BOX_RATIO * small_diagonal.area
