@@ -43,7 +43,7 @@ class _Parts(_Indexed):
     @property
     def pieces(self) -> tuple[np.ndarray, np.ndarray]:
         """(P,) small pieces covering the polygons and (P,) the polygon of each: where a polygon's bounding box is
-        much larger than the polygon (a walkway along a road, a drivable area), its constrained Delaunay
+        much larger than the polygon (a walkway along a road), its constrained Delaunay
         triangles, else the polygon itself. Only their bounding boxes are used, to find the few polygons a point
         may lie in: a point in a long thin polygon then meets a few triangles' boxes rather than the polygon's
         box, which holds thousands of points outside it. Built on first use."""
