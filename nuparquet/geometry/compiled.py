@@ -47,7 +47,11 @@ def _build_pair_kernel():
     import numba
 
     # error_model="numpy": x / 0 gives inf/nan as numpy does (a corner at depth 0), not ZeroDivisionError.
-    return numba.njit(cache=True, error_model="numpy", nogil=True, boundscheck=False)(project_pairs)
+    options = {"error_model": "numpy", "nogil": True, "boundscheck": False}
+    try:
+        return numba.njit(cache=True, **options)(project_pairs)
+    except RuntimeError:  # no writable cache folder anywhere ("no locator available"): compile in each process
+        return numba.njit(**options)(project_pairs)
 
 
 # Module globals are frozen into the compiled kernel as constants.
