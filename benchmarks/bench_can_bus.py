@@ -3,7 +3,7 @@ devkit's `NuScenesCanBus.get_messages` loop over the same scenes, in one run.
 
     .venv/bin/python benchmarks/bench_can_bus.py [--scenes 850] [--repeats 3]
 
-Data: `.bench-cache/can-bus/can_bus/` — per scene the files `nuparquet.synth.can_bus` writes (pose 50 Hz, ms_imu,
+Data: `.bench-cache/can-bus/can_bus/` (under NUPARQUET_BENCH_CACHE when set) — per scene the files `nuparquet.synth.can_bus` writes (pose 50 Hz, ms_imu,
 steeranglefeedback and zoe_veh_info 100 Hz, vehicle_monitor 2 Hz, meta, route; 20 s scenes), ~7,100 messages a
 scene, generated once from a simple smooth trajectory per scene (the CAN files do not need the tables).
 
@@ -13,6 +13,7 @@ Measured, each in a fresh process (wall time, peak RSS):
 - query: `nuparquet`'s answer from the Parquet: `scan_parquet(can_bus/vehicle_monitor).group_by(scene).mean()`;
 - devkit: `NuScenesCanBus(dataroot)` and, per scene, `get_messages(scene, "vehicle_monitor")` and the mean of
   `vehicle_speed` in Python. The two answers are checked equal.
+Prints rows 8a-8b and writes benchmarks/results/<UTC time>-can_bus.json; `run_all.py` runs it as `can_bus`.
 """
 
 from __future__ import annotations
@@ -27,9 +28,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import REPO, log, python_child, repeat, summarize  # noqa: E402
+from bench_data import CACHE as BENCH_CACHE  # noqa: E402
+from harness import Row, log, megabytes, python_child, repeat, seconds, summarize  # noqa: E402
 
-CACHE = REPO / ".bench-cache" / "can-bus"
+CACHE = BENCH_CACHE / "can-bus"
 
 
 def make_data(scenes: int) -> Path:
@@ -100,6 +102,44 @@ def child_devkit(root: str) -> None:
     print(json.dumps({"in_process_s": time.perf_counter() - start, "means": means}))
 
 
+def run(repeats: int = 3, scenes: int = 850) -> dict:
+    """Row 8: the CAN bus converted, then mean speed per scene from the Parquet vs the devkit's loop."""
+    root = make_data(scenes)
+    out = BENCH_CACHE / "can-bus-out"
+    log(f"row 8: CAN bus of {scenes} scenes: convert, query vs the devkit's get_messages loop")
+    shutil.rmtree(out, ignore_errors=True)
+    convert_cmd = python_child(__file__, "--child", "convert", str(root), str(out))
+    convert = summarize(repeat(convert_cmd, repeats, label="nuparquet convert CAN bus"), in_process_s="in_process_s")
+    query_cmd = python_child(__file__, "--child", "query", str(out))
+    devkit_cmd = python_child(__file__, "--child", "devkit", str(root))
+    query_runs = repeat(query_cmd, repeats, label="nuparquet query")
+    devkit_runs = repeat(devkit_cmd, repeats, label="devkit loop")
+    query, devkit = summarize(query_runs, in_process_s="in_process_s"), summarize(devkit_runs, in_process_s="in_process_s")
+    ours_means, their_means = query_runs[0].report["means"], devkit_runs[0].report["means"]
+    same = ours_means.keys() == their_means.keys() and all(
+        abs(ours_means[k] - their_means[k]) <= 1e-9 * abs(their_means[k]) for k in their_means)
+    files = sum(1 for _ in (root / "can_bus").glob("*.json"))
+    size_mb = sum(p.stat().st_size for p in (root / "can_bus").glob("*.json")) / 2**20
+    speedup = devkit["wall_s"] / query["wall_s"]
+    rows = [
+        Row(id="8a", benchmark=f"convert the CAN bus of {scenes} synthetic scenes ({files:,} files, {size_mb:,.0f} MiB "
+            "of JSON -> can_bus/<message> Parquet)",
+            ours=f"{seconds(convert['wall_s'])}, {megabytes(convert['max_rss_mb'])} peak", reference="—", ratio="—",
+            target="report", met=None),
+        Row(id="8b", benchmark="mean CAN vehicle_speed per scene, fresh process",
+            ours=f"{seconds(query['wall_s'])}, {megabytes(query['max_rss_mb'])} peak",
+            reference=f"devkit NuScenesCanBus + get_messages per scene: {seconds(devkit['wall_s'])}, "
+            f"{megabytes(devkit['max_rss_mb'])} peak",
+            ratio=f"{speedup:.1f}x", target="same answers", met=same,
+            note=f"row 8 check: mean speeds equal to the devkit's (1e-9): {same}"),
+    ]
+    return {"name": "can_bus", "scenes": scenes, "files": files, "json_mb": size_mb, "convert": convert,
+            "query": query, "devkit": devkit, "same_answer": same, "query_speedup": speedup,
+            "convert_vs_devkit": devkit["wall_s"] / convert["wall_s"],
+            "commands": {"convert": " ".join(map(str, convert_cmd)), "query": " ".join(map(str, query_cmd)),
+                         "devkit": " ".join(map(str, devkit_cmd))}, "rows": rows}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenes", type=int, default=850)
@@ -109,24 +149,9 @@ def main() -> None:
     if args.child:
         {"convert": child_convert, "query": child_query, "devkit": child_devkit}[args.child[0]](*args.child[1:])
         return
-    root = make_data(args.scenes)
-    out = REPO / ".bench-cache" / "can-bus-out"
-    shutil.rmtree(out, ignore_errors=True)
-    convert = summarize(repeat(python_child(__file__, "--child", "convert", str(root), str(out)), args.repeats,
-                               label="nuparquet convert CAN bus"), in_process_s="in_process_s")
-    query_runs = repeat(python_child(__file__, "--child", "query", str(out)), args.repeats, label="nuparquet query")
-    devkit_runs = repeat(python_child(__file__, "--child", "devkit", str(root)), args.repeats, label="devkit loop")
-    query, devkit = summarize(query_runs, in_process_s="in_process_s"), summarize(devkit_runs, in_process_s="in_process_s")
-    ours_means, their_means = query_runs[0].report["means"], devkit_runs[0].report["means"]
-    same = ours_means.keys() == their_means.keys() and all(
-        abs(ours_means[k] - their_means[k]) <= 1e-9 * abs(their_means[k]) for k in their_means)
-    files = sum(1 for _ in (root / "can_bus").glob("*.json"))
-    size_mb = sum(p.stat().st_size for p in (root / "can_bus").glob("*.json")) / 2**20
-    result = {"scenes": args.scenes, "files": files, "json_mb": size_mb, "convert": convert, "query": query,
-              "devkit": devkit, "same_answer": same,
-              "query_speedup": devkit["wall_s"] / query["wall_s"],
-              "convert_vs_devkit": devkit["wall_s"] / convert["wall_s"]}
-    print(json.dumps(result, indent=1, default=str))
+    from harness import report_alone
+
+    report_alone(run(args.repeats, args.scenes))
 
 
 if __name__ == "__main__":

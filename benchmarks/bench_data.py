@@ -1,6 +1,9 @@
-"""The benchmark datasets, built once and cached under .bench-cache/ (gitignored).
+"""The benchmark datasets, built once and cached under .bench-cache/ (gitignored), or under the folder named by
+the environment variable NUPARQUET_BENCH_CACHE (one set shared by several worktrees: every benchmark script
+reads its data through `CACHE`).
 
     .venv/bin/python benchmarks/bench_data.py            # build whatever is missing, print the paths
+    NUPARQUET_BENCH_CACHE=/data/bench .venv/bin/python benchmarks/run_all.py
 
 - `trainval/`: `nuparquet synth .bench-cache/trainval --scenes 850 --samples-per-scene 40 --version
   v1.0-trainval --no-can-bus` — nuScenes trainval scale, metadata only (~1.17M annotations, ~2.6M sample_data and
@@ -20,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -29,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from harness import NUPARQUET, REPO, log  # noqa: E402
 
-CACHE = REPO / ".bench-cache"
+CACHE = Path(os.environ.get("NUPARQUET_BENCH_CACHE") or REPO / ".bench-cache").resolve()
 TRAINVAL_VERSION = "v1.0-trainval"
 TRAINVAL_SCENES = 850
 SAMPLES_PER_SCENE = 40

@@ -1,8 +1,8 @@
 """Map row: the largest synthetic map, `nuparquet.map.queries.MapLayers` vs the devkit's `NuScenesMap`, in one run.
 
-    .venv/bin/python benchmarks/bench_map.py [--scenes 200] [--points 10000] [--devkit-points 200] [--repeats 3]
+    .venv/bin/python benchmarks/bench_map.py [--scenes 200] [--points 10000] [--devkit-points 100] [--repeats 3]
 
-Data: `.bench-cache/map/` — `nuparquet synth --scenes N` (tables only; every scene's road goes into the map of its
+Data: `.bench-cache/map/` (under NUPARQUET_BENCH_CACHE when set) — `nuparquet synth --scenes N` (tables only; every scene's road goes into the map of its
 location) converted once; the largest `maps/expansion/<location>.json` is measured.
 
 Measured, each side in a fresh process (wall time of each step in-process, peak RSS of the process):
@@ -13,6 +13,7 @@ Measured, each side in a fresh process (wall time of each step in-process, peak 
   flat, a full scan of the layers) and its time is extrapolated to all the points; the answers on that sample are
   checked equal;
 - map_mask: one 100 m x 100 m patch at 10 px/m (1000 x 1000), every polygon and line layer, checked pixel-equal.
+Prints rows 9a-9d and writes benchmarks/results/<UTC time>-map.json; `run_all.py` runs it as `map`.
 """
 
 from __future__ import annotations
@@ -27,9 +28,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from harness import REPO, log, python_child, repeat, summarize  # noqa: E402
+from bench_data import CACHE as BENCH_CACHE  # noqa: E402
+from harness import Row, log, megabytes, python_child, repeat, seconds, summarize  # noqa: E402
 
-CACHE = REPO / ".bench-cache" / "map"
+CACHE = BENCH_CACHE / "map"
 LAYERS = ["drivable_area", "road_segment", "road_block", "lane", "ped_crossing", "walkway", "stop_line",
           "carpark_area", "road_divider", "lane_divider"]
 
@@ -117,40 +119,33 @@ def child_devkit(root: str, out: str, location: str, n: str, k: str) -> None:
                       "on": {layer: [r[layer] for r in on] for layer in on[0]}, "closest": closest}))
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenes", type=int, default=200)
-    parser.add_argument("--points", type=int, default=10_000)
-    parser.add_argument("--devkit-points", type=int, default=200)
-    parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
-    args = parser.parse_args()
-    if args.child:
-        {"ours": child_ours, "devkit": child_devkit}[args.child[0]](*args.child[1:])
-        return
-    root, out = make_data(args.scenes)
+def run(repeats: int = 3, scenes: int = 200, points_n: int = 10_000, devkit_points: int = 100,
+        devkit_repeats: int | None = None) -> dict:
+    """Row 9: `MapLayers` vs `NuScenesMap` on the largest synthetic map (load, the two point queries, the mask)."""
+    root, out = make_data(scenes)
     location = largest_map(root)
     path = root / "maps" / "expansion" / f"{location}.json"
-    log(f"map {location}: {path.stat().st_size / 2**20:.1f} MiB")
-    points, patch = queries(root, location, args.points)
+    log(f"row 9: map {location} ({path.stat().st_size / 2**20:.1f} MiB): MapLayers vs NuScenesMap")
+    points, patch = queries(root, location, points_n)
     np.save(CACHE / "points.npy", points)
     (CACHE / "patch.json").write_text(json.dumps(patch))
     keys = {k: k for k in ("load_s", "layers_on_point_s", "closest_lane_s", "map_mask_s")}
-    ours_runs = repeat(python_child(__file__, "--child", "ours", str(root), str(out), location, str(args.points)),
-                       args.repeats, label="nuparquet MapLayers")
-    devkit_runs = repeat(python_child(__file__, "--child", "devkit", str(root), str(out), location, str(args.points),
-                                      str(args.devkit_points)), args.repeats, label="devkit NuScenesMap")
+    ours_cmd = python_child(__file__, "--child", "ours", str(root), str(out), location, str(points_n))
+    devkit_cmd = python_child(__file__, "--child", "devkit", str(root), str(out), location, str(points_n),
+                              str(devkit_points))
+    ours_runs = repeat(ours_cmd, repeats, label="nuparquet MapLayers")
+    devkit_runs = repeat(devkit_cmd, devkit_repeats or repeats, label="devkit NuScenesMap")
     ours, devkit = summarize(ours_runs, **keys), summarize(devkit_runs, **keys)
-    k, n = args.devkit_points, args.points
+    k, n = devkit_points, points_n
     a, b = ours_runs[0].report, devkit_runs[0].report
     same_on = all(a["on"][layer][:k] == b["on"][layer] for layer in b["on"])
     same_closest = a["closest"][:k] == b["closest"]
-    same_mask = bool(np.array_equal(np.load(CACHE / "ours-mask.npy")[:len(np.load(CACHE / "devkit-mask.npy"))],
-                                    np.load(CACHE / "devkit-mask.npy")))
+    devkit_mask = np.load(CACHE / "devkit-mask.npy")
+    same_mask = bool(np.array_equal(np.load(CACHE / "ours-mask.npy")[:len(devkit_mask)], devkit_mask))
     scale = n / k
     data = json.loads(path.read_text())
     result = {
-        "location": location, "map_mib": path.stat().st_size / 2**20,
+        "name": "map", "location": location, "map_mib": path.stat().st_size / 2**20,
         "records": {layer: len(data[layer]) for layer in ("node", "polygon", "line", "lane", "lane_connector")},
         "points": n, "devkit_points": k, "ours": ours, "devkit": devkit,
         "devkit_layers_on_point_extrapolated_s": devkit["layers_on_point_s"] * scale,
@@ -162,8 +157,45 @@ def main() -> None:
         "rss_ratio": devkit["max_rss_mb"] / ours["max_rss_mb"],
         "same_layers_on_point": same_on, "same_closest_lane": same_closest, "same_mask": same_mask,
         "devkit_mask_all_layers": b["mask_all_layers"],
+        "commands": {"ours": " ".join(map(str, ours_cmd)), "devkit": " ".join(map(str, devkit_cmd))},
     }
-    print(json.dumps(result, indent=1, default=str))
+    what = f"map {location} ({result['map_mib']:.1f} MiB)"
+    result["rows"] = [
+        Row(id="9a", benchmark=f"{what}: open / load", ours=seconds(ours["load_s"]),
+            reference=f"NuScenesMap {seconds(devkit['load_s'])}", ratio=f"{result['speedup_load']:.1f}x",
+            target="report", met=None),
+        Row(id="9b", benchmark=f"{what}: layers_on_point, {n:,} points, 8 layers", ours=seconds(ours["layers_on_point_s"]),
+            reference=f"{seconds(devkit['layers_on_point_s'])} for {k} -> {seconds(devkit['layers_on_point_s'] * scale)} "
+            f"for {n:,} (extrapolated)", ratio=f"{result['speedup_layers_on_point']:,.0f}x", target="≥ 100x, same answers",
+            met=result["speedup_layers_on_point"] >= 100 and same_on),
+        Row(id="9c", benchmark=f"{what}: closest_lane, {n:,} points, radius 5 m", ours=seconds(ours["closest_lane_s"]),
+            reference=f"{seconds(devkit['closest_lane_s'])} for {k} -> {seconds(devkit['closest_lane_s'] * scale)} "
+            f"for {n:,} (extrapolated)", ratio=f"{result['speedup_closest_lane']:,.0f}x", target="≥ 100x, same answers",
+            met=result["speedup_closest_lane"] >= 100 and same_closest),
+        Row(id="9d", benchmark=f"{what}: map_mask, 100 m patch, 1000 x 1000, 10 layers", ours=seconds(ours["map_mask_s"]),
+            reference=f"get_map_mask {seconds(devkit['map_mask_s'])}", ratio=f"{result['speedup_map_mask']:.1f}x",
+            target="pixel-equal", met=same_mask,
+            note=f"row 9: whole processes {seconds(ours['wall_s'])} / {megabytes(ours['max_rss_mb'])} (ours) and "
+            f"{seconds(devkit['wall_s'])} / {megabytes(devkit['max_rss_mb'])} (devkit, {k} points); same answers: "
+            f"layers_on_point {same_on}, closest_lane {same_closest}, mask {same_mask}"),
+    ]
+    return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scenes", type=int, default=200)
+    parser.add_argument("--points", type=int, default=10_000)
+    parser.add_argument("--devkit-points", type=int, default=100)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.child:
+        {"ours": child_ours, "devkit": child_devkit}[args.child[0]](*args.child[1:])
+        return
+    from harness import report_alone
+
+    report_alone(run(args.repeats, args.scenes, args.points, args.devkit_points))
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Rows 9a-9c: every scene of a 10-scene synthetic set rendered (`render_scenes`, one CAM_FRONT --all-frames
+"""Rows 11a-11c: every scene of a 10-scene synthetic set rendered (`render_scenes`, one CAM_FRONT --all-frames
 video per scene, ~120 frames each) on one process, a pool of 2 processes and Ray on 2 CPUs: scenes per second, speed-up over one
 process, peak RSS per worker, and whether the videos are the same bytes.
 
@@ -62,7 +62,7 @@ def run(repeats: int = 1) -> dict:
     from harness import Row, log, megabytes, python_child, repeat, seconds, summarize
 
     out = datasets.scale_out_out()
-    log(f"rows 9: render all {datasets.SCALE_OUT_SCENES} scenes on 1 process, 2 processes, Ray on 2 CPUs")
+    log(f"rows 11: render all {datasets.SCALE_OUT_SCENES} scenes on 1 process, 2 processes, Ray on 2 CPUs")
     figures, commands, videos = {}, {}, {}
     for label, engine, workers in ENGINES:
         out_dir = Path(tempfile.mkdtemp(prefix="nuparquet-scale-out-"))
@@ -83,7 +83,7 @@ def run(repeats: int = 1) -> dict:
     for index, (label, engine, _) in enumerate(ENGINES):
         f = figures[label]
         rows.append(Row(
-            id=f"9{'abc'[index]}",
+            id=f"11{'abc'[index]}",
             benchmark=f"render all {f['scenes']:.0f} scenes ({f['frames']:.0f} CAM_FRONT frames, --all-frames, "
             f"800x450) of the 10-scene set: {label}",
             ours=f"{f['scenes_per_s']:.2f} scenes/s ({seconds(f['total_s'])}"

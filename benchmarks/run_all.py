@@ -2,9 +2,10 @@
 
     .venv/bin/python benchmarks/run_all.py [--repeats 3] [--devkit-repeats 3] [--only convert,render ...]
 
-Builds the cached datasets first if needed (`bench_data.py`), then runs rows 1-6; the devkit reference
-(`devkit_reference.py`, ~40 s and ~8 GB per fresh process at trainval scale) is measured once per repeat and
-shared by rows 1-3. Prints the machine and one Markdown table, and writes benchmarks/results/<UTC time>.json
+Builds the cached datasets first if needed (`bench_data.py`; NUPARQUET_BENCH_CACHE=DIR keeps them in DIR), then
+runs every row: 1-6, 7 (index), 8 (CAN bus), 9 (map), 10 (points), 11 (scale-out), and the map conversion's floor
+(1m); the devkit reference (`devkit_reference.py`, ~40 s and ~8 GB per fresh process at trainval scale) is
+measured once per repeat and shared by rows 1-3. Prints the machine and one Markdown table, and writes benchmarks/results/<UTC time>.json
 (every figure and command) and .md (what BENCHMARKS.md records).
 """
 
@@ -19,22 +20,32 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_analytics  # noqa: E402
+import bench_can_bus  # noqa: E402
 import bench_convert  # noqa: E402
 import bench_data  # noqa: E402
 import bench_first_query  # noqa: E402
+import bench_index  # noqa: E402
+import bench_map  # noqa: E402
+import bench_points  # noqa: E402
 import bench_project_all  # noqa: E402
 import bench_project_scene  # noqa: E402
 import bench_render  # noqa: E402
+import map_floor  # noqa: E402
 import bench_scale_out  # noqa: E402
 from harness import REPO, load_average, log, machine, markdown_table, write_results  # noqa: E402
 
 BENCHMARKS = {
     "convert": lambda a: bench_convert.run(a.repeats, a.devkit_repeats),
+    "map_convert": lambda a: map_floor.run(a.repeats),
     "first_query": lambda a: bench_first_query.run(max(a.repeats, 5), a.devkit_repeats),
     "project_scene": lambda a: bench_project_scene.run(a.repeats, a.devkit_repeats),
     "project_all": lambda a: bench_project_all.run(a.repeats),
     "render": lambda a: bench_render.run(a.repeats),
     "analytics": lambda a: bench_analytics.run(a.repeats),
+    "index": lambda a: bench_index.run(a.repeats),
+    "can_bus": lambda a: bench_can_bus.run(a.repeats),
+    "map": lambda a: bench_map.run(a.repeats, devkit_repeats=a.devkit_repeats),
+    "points": lambda a: bench_points.run(a.repeats),
     "scale_out": lambda a: bench_scale_out.run(1),
 }
 

@@ -116,6 +116,22 @@ def test_the_import_rules_hold():
             assert not {i for i in imported if i.startswith("nuparquet.synth")}, name  # the generator is input
 
 
+def test_geometry_imports_numpy_and_nothing_else_but_numba_in_its_compiled_kernels():
+    for path in sorted((PACKAGE / "geometry").glob("*.py")):
+        tree = ast.parse(path.read_text())
+        top_level = {id(node) for node in tree.body}
+        for node in ast.walk(tree):
+            if not isinstance(node, (ast.Import, ast.ImportFrom)) or getattr(node, "level", 0):
+                continue
+            roots = {a.name.split(".")[0] for a in node.names} if isinstance(node, ast.Import) \
+                else {(node.module or "").split(".")[0]}
+            third_party = roots - {"numpy", "nuparquet", "__future__"} - set(sys.stdlib_module_names)
+            if path.name == "compiled.py":  # numba, and only where a kernel is built: never at import
+                assert third_party <= {"numba"} and not (third_party and id(node) in top_level), (path.name, roots)
+            else:
+                assert not third_party, (path.name, roots)
+
+
 def test_no_module_passes_300_lines_without_saying_why():
     long = []
     for path in PACKAGE.rglob("*.py"):

@@ -17,20 +17,29 @@ COMMANDS = ["convert", "validate", "export_json", "synth", "info", "stats", "sql
             "export_mcap", "report"]
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser of every command, or only of `command` (a name as typed, e.g. "export-json"): a command's run
+    then imports no other command's options (start-up is part of every command's time)."""
     parser = argparse.ArgumentParser(
         prog="nuparquet",
         description="Convert nuScenes-format datasets to typed, denormalised Parquet; query and render them.",
     )
     parser.add_argument("--version", action="version", version=f"nuparquet {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name in COMMANDS:
+    for name in COMMANDS if command is None else [command.replace("-", "_")]:
         importlib.import_module(f"nuparquet.cli.{name}").register(sub)
     return parser
 
 
+def _command(argv: list[str]) -> str | None:
+    """The command `argv` names when it is the first argument (else None: `--help`, `--version`, a typo)."""
+    first = argv[0] if argv else None
+    return first if first is not None and first.replace("-", "_") in COMMANDS and "_" not in first else None
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser(_command(argv)).parse_args(argv)
     try:
         return int(args.run(args) or 0)
     except NuparquetError as exc:  # user-facing errors: a message, never a traceback

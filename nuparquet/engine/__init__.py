@@ -7,10 +7,24 @@ final output, writing its manifest) once the units are done. Outcomes come back 
 deterministic whichever engine ran the units and in whatever order they finished.
 """
 
-from nuparquet.engine.commit import move_parts
-from nuparquet.engine.options import ENGINES, EngineOptions
-from nuparquet.engine.run import check_engine, raise_failures, run_units
-from nuparquet.engine.units import UnitOutcome, UnitsFailed, WorkUnit, unit_file_name
+import importlib
 
-__all__ = ["ENGINES", "EngineOptions", "UnitOutcome", "UnitsFailed", "WorkUnit", "check_engine", "move_parts", "unit_file_name", "raise_failures",
-           "run_units"]
+# name -> module: loaded on first use, so `nuparquet.engine.options` (the CLI's flags) does not load the process
+# pool, Ray glue and multiprocessing with it (~20 ms of every `nuparquet` command).
+_WHERE = {"move_parts": "commit", "ENGINES": "options", "EngineOptions": "options", "check_engine": "run",
+          "raise_failures": "run", "run_units": "run", "UnitOutcome": "units", "UnitsFailed": "units",
+          "WorkUnit": "units", "unit_file_name": "units"}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name not in _WHERE:
+        raise AttributeError(f"module 'nuparquet.engine' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"nuparquet.engine.{_WHERE[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_WHERE))

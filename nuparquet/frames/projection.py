@@ -23,7 +23,8 @@ import polars as pl
 
 from nuparquet.frames.boxes import FRAME_COLUMNS, FrameBoxes, frame_boxes, lazy_with
 from nuparquet.frames.poses import CAMERA_COLUMNS, cameras_from_frames, pose_columns
-from nuparquet.geometry import Cameras, box_half_axes, box_visibility, corners_from_half_axes, perspective
+from nuparquet.geometry import Cameras, box_half_axes, corners_from_half_axes
+from nuparquet.geometry.box_projection import project_pairs
 
 Visibility = Literal["any", "all", "none"]
 VISIBILITIES: tuple[str, ...] = ("any", "all", "none")
@@ -70,17 +71,25 @@ def _transposed(matrices: np.ndarray) -> np.ndarray:
 def _half_axes_global(boxes: FrameBoxes) -> np.ndarray:
     """(M, 3, 3) each box's half-axes in the global frame (`geometry.box_half_axes`), built once per annotation
     (a keyframe annotation is seen by up to six cameras) and once per interpolated sweep box."""
+    table, row = half_axes_table(boxes)
+    return table[row]
+
+
+def half_axes_table(boxes: FrameBoxes) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct half-axes of M boxes, (K, 3, 3) global frame, and each box's row of them (M,): one row per
+    annotation (seen by up to six cameras) and one per interpolated sweep box."""
     moved = np.flatnonzero(boxes.interpolated)
     fixed = np.flatnonzero(~boxes.interpolated) if len(moved) else slice(None)
     _, first, inverse = np.unique(boxes.annotation_index[fixed], return_index=True, return_inverse=True)
     once = np.arange(len(boxes))[fixed][first]
     per_annotation = box_half_axes(boxes.size_wlh_m[once], boxes.rotation_wxyz[once])
     if not len(moved):  # keyframes only: every box is its annotation's
-        return per_annotation[inverse]
-    half_axes = np.empty((len(boxes), 3, 3))
-    half_axes[fixed] = per_annotation[inverse]
-    half_axes[moved] = box_half_axes(boxes.size_wlh_m[moved], boxes.rotation_wxyz[moved])
-    return half_axes
+        return per_annotation, inverse.reshape(-1)
+    row = np.empty(len(boxes), dtype=np.int64)
+    row[fixed] = inverse.reshape(-1)
+    row[moved] = len(per_annotation) + np.arange(len(moved))
+    table = np.concatenate([per_annotation, box_half_axes(boxes.size_wlh_m[moved], boxes.rotation_wxyz[moved])])
+    return table, row
 
 
 @dataclass(frozen=True)
@@ -199,11 +208,8 @@ def project_boxes(
     cameras_df = camera_rows(frames)
     boxes = frame_boxes(cameras_df.drop("frame_index"), annotations, samples)
     cameras = cameras_from_frames(cameras_df)  # F cameras; boxes.frame_index counts camera rows
-    seen = boxes_in_cameras(cameras, boxes)
-    frame = boxes.frame_index
-    corners_px, depths = perspective(cameras.image_from_camera[frame], seen.corners_camera_m)
-    corner_visible, in_front, visible = box_visibility(corners_px, depths, cameras.size_px[frame],
-                                                       cameras.scale[frame])
+    half_axes, axes_row = half_axes_table(boxes)
+    seen = project_pairs(cameras, boxes.frame_index, boxes.translation_m, half_axes, axes_row)
 
     projected = ProjectedBoxes(
         frame_index=cameras_df["frame_index"].to_numpy().astype(np.int64)[boxes.frame_index],
@@ -213,17 +219,17 @@ def project_boxes(
         category_name=boxes.category_name,
         interpolated=boxes.interpolated,
         corners_camera_m=seen.corners_camera_m,
-        corners_px=corners_px,
-        depths=depths,
-        corner_visible=corner_visible,
-        in_front=in_front,
-        visible=visible,
+        corners_px=seen.corners_px,
+        depths=seen.depths,
+        corner_visible=seen.corner_visible,
+        in_front=seen.in_front,
+        visible=seen.visible,
         center_ego_m=seen.center_ego_m,
         center_camera_m=seen.center_camera_m,
-        distance_m=np.linalg.norm(seen.center_camera_m, axis=1),
+        distance_m=seen.distance_m,
     )
     if visibility == "any":
-        return projected.take(visible)
+        return projected.take(seen.visible)
     if visibility == "all":
-        return projected.take(np.all(corner_visible, axis=1) & in_front)
+        return projected.take(np.all(seen.corner_visible, axis=1) & seen.in_front)
     return projected

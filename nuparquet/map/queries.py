@@ -18,8 +18,6 @@ built on first use). Every query takes arrays and answers for all of them at onc
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 import polars as pl
 import pyarrow as pa
@@ -27,6 +25,7 @@ import shapely
 from shapely import STRtree
 
 from nuparquet.map.centerlines import discretize_lanes as _discretize
+from nuparquet.map.lookup import _Layer, _Parts, records_on_point
 from nuparquet.map.layers import LANE_LAYERS, LINE_LAYERS, LOOKUP_POLYGON_LAYERS, NON_GEOMETRIC_LAYERS, POLYGON_LAYERS
 
 
@@ -36,44 +35,35 @@ def _read(dataset, layer: str, location: str, columns: list[str]) -> pa.Table:
     return dataset.scan(f"map/{layer}").filter(pl.col("location") == location).select(columns).collect().to_arrow()
 
 
-class _Indexed:
-    """Geometry with an STRtree built on first use (most queries touch a few layers)."""
+class _LayerRecords(dict):
+    """layer -> `_Layer` (tokens and geometry of its records, file order), each layer read on first use."""
 
-    geometry: np.ndarray
-    _tree: STRtree | None
+    def __init__(self, dataset, location: str) -> None:
+        super().__init__()
+        self._dataset, self._location = dataset, location
 
-    @property
-    def tree(self) -> STRtree:
-        if self._tree is None:
-            self._tree = STRtree(self.geometry)
-        return self._tree
-
-
-@dataclass
-class _Layer(_Indexed):
-    tokens: np.ndarray  # (R,) str
-    geometry: np.ndarray  # (R,) shapely (None: no geometry)
-    _tree: STRtree | None = None
+    def __missing__(self, layer: str) -> _Layer:
+        table = _read(self._dataset, layer, self._location, ["token", "geometry"])
+        self[layer] = _Layer(np.asarray(table.column("token").to_pylist(), dtype=object),
+                             shapely.from_wkb(table.column("geometry").to_numpy(zero_copy_only=False)))
+        return self[layer]
 
 
-@dataclass
-class _Parts(_Indexed):
-    """Polygons of a layer as the devkit walks them one by one (drivable_area: each polygon of each record)."""
-
-    owner: np.ndarray  # (K,) record index
-    geometry: np.ndarray  # (K,)
-    _tree: STRtree | None = None
-
-
-@dataclass
 class MapLayers:
-    location: str
-    layers: dict[str, _Layer]
-    parts: dict[str, _Parts]
-    line_nodes: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]  # layer -> (N, 2) node xy, (N,) owner, (R,) counts
-    arcline_path_3: dict[str, list[dict]]
-    _centerlines: dict[float, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
-    _lane_tree: STRtree | None = None
+    """One location's map layers (`MapLayers.open`): `layers` (token and geometry of each polygon and line layer
+    record, file order), `parts` (the polygons the devkit walks); the line layers' nodes and the lanes' arcline
+    paths are read on first use (`line_nodes`, `arcline_path_3`): point lookups need neither."""
+
+    def __init__(self, location: str, layers: dict[str, _Layer], parts: dict[str, _Parts], dataset=None, *,
+                 line_nodes: dict | None = None, arcline_path_3: dict | None = None) -> None:
+        self.location = location
+        self.layers = layers
+        self.parts = parts
+        self._dataset = dataset
+        self._line_nodes = line_nodes
+        self._arcline = arcline_path_3
+        self._centerlines: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        self._lane_tree: STRtree | None = None
 
     @classmethod
     def open(cls, dataset, location: str) -> MapLayers:
@@ -91,67 +81,73 @@ class MapLayers:
         locations = sorted(dataset.scan("map/lane").select("location").unique().collect()["location"].to_list())
         if location not in locations:
             raise UsageError(f"no map of {location!r} in {dataset.root}; maps: {', '.join(locations) or '(none)'}")
-        layers, parts, line_nodes = {}, {}, {}
-        for layer in LOOKUP_POLYGON_LAYERS + LINE_LAYERS:
-            table = _read(dataset, layer, location, ["token", "geometry"])
-            layers[layer] = _Layer(np.asarray(table.column("token").to_pylist(), dtype=object),
-                                   shapely.from_wkb(table.column("geometry").to_numpy(zero_copy_only=False)))
-        polygons = _read(dataset, "polygon", location, ["token", "geometry"])
-        polygon_geometry = dict(zip(polygons.column("token").to_pylist(),
-                                    shapely.from_wkb(polygons.column("geometry").to_numpy(zero_copy_only=False))))
+        layers, parts = _LayerRecords(dataset, location), {}
         for layer in LOOKUP_POLYGON_LAYERS:
             if layer == "drivable_area":
+                polygons = _read(dataset, "polygon", location, ["token", "geometry"])
+                polygon_geometry = dict(zip(polygons.column("token").to_pylist(),
+                                            shapely.from_wkb(polygons.column("geometry").to_numpy(zero_copy_only=False))))
                 lists = _read(dataset, layer, location, ["polygon_tokens"]).column("polygon_tokens").to_pylist()
                 owner = np.repeat(np.arange(len(lists)), [len(t) for t in lists])
                 geometry = np.array([polygon_geometry[t] for tokens in lists for t in tokens], dtype=object)
                 parts[layer] = _Parts(owner, geometry)
             else:
                 parts[layer] = _Parts(np.arange(len(layers[layer].tokens)), layers[layer].geometry)
-        nodes = _read(dataset, "node", location, ["token", "x", "y"])
-        node_index = {t: i for i, t in enumerate(nodes.column("token").to_pylist())}
-        node_xy = np.c_[nodes.column("x").to_numpy(), nodes.column("y").to_numpy()]
-        lines = _read(dataset, "line", location, ["token", "node_tokens"])
-        line_tokens = dict(zip(lines.column("token").to_pylist(), lines.column("node_tokens").to_pylist()))
-        for layer in LINE_LAYERS:
-            refs = _read(dataset, layer, location, ["line_token"]).column("line_token").to_pylist()
-            lists = [line_tokens[t] for t in refs]
-            counts = np.array([len(t) for t in lists], dtype=np.int64)
-            flat = np.fromiter((node_index[t] for tokens in lists for t in tokens), np.int64, int(counts.sum()))
-            line_nodes[layer] = (node_xy[flat].reshape(-1, 2), np.repeat(np.arange(len(lists)), counts), counts)
-        paths = _read(dataset, "arcline_path_3", location, ["lane_token", "paths"])
-        values = paths.column("paths").to_pylist()
-        if values and isinstance(values[0], str):  # kept as JSON text
-            import json
-            values = [json.loads(v) for v in values]
-        arcline = dict(zip(paths.column("lane_token").to_pylist(), values))
-        return cls(location, layers, parts, line_nodes, arcline)
+        return cls(location, layers, parts, dataset)
+
+    @property
+    def line_nodes(self) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """layer -> ((N, 2) node xy of each line record in order, (N,) record of each node, (R,) node counts)."""
+        if self._line_nodes is None:
+            dataset, location = self._dataset, self.location
+            nodes = _read(dataset, "node", location, ["token", "x", "y"])
+            node_index = {t: i for i, t in enumerate(nodes.column("token").to_pylist())}
+            node_xy = np.c_[nodes.column("x").to_numpy(), nodes.column("y").to_numpy()]
+            lines = _read(dataset, "line", location, ["token", "node_tokens"])
+            line_tokens = dict(zip(lines.column("token").to_pylist(), lines.column("node_tokens").to_pylist()))
+            line_nodes = {}
+            for layer in LINE_LAYERS:
+                refs = _read(dataset, layer, location, ["line_token"]).column("line_token").to_pylist()
+                lists = [line_tokens[t] for t in refs]
+                counts = np.array([len(t) for t in lists], dtype=np.int64)
+                flat = np.fromiter((node_index[t] for tokens in lists for t in tokens), np.int64, int(counts.sum()))
+                line_nodes[layer] = (node_xy[flat].reshape(-1, 2), np.repeat(np.arange(len(lists)), counts), counts)
+            self._line_nodes = line_nodes
+        return self._line_nodes
+
+    @property
+    def arcline_path_3(self) -> dict[str, list[dict]]:
+        """lane token -> its arcline paths (lanes and lane connectors)."""
+        if self._arcline is None:
+            paths = _read(self._dataset, "arcline_path_3", self.location, ["lane_token", "paths"])
+            values = paths.column("paths").to_pylist()
+            if values and isinstance(values[0], str):  # kept as JSON text
+                import json
+                values = [json.loads(v) for v in values]
+            self._arcline = dict(zip(paths.column("lane_token").to_pylist(), values))
+        return self._arcline
 
     # -- point queries ----------------------------------------------------------------------------------------
 
     def layers_on_point(self, x, y, layer_names: tuple[str, ...] | list[str] | None = None) -> dict[str, np.ndarray]:
         """{layer: (N,) token of the first record containing each point, '' where none}."""
-        x, y = np.atleast_1d(np.asarray(x, np.float64)), np.atleast_1d(np.asarray(y, np.float64))
-        layer_names = layer_names or POLYGON_LAYERS
-        for layer in layer_names:
-            if layer not in LOOKUP_POLYGON_LAYERS:  # lane_connector: an extension (the devkit refuses it)
-                raise ValueError(f"{layer} is not a polygon layer")  # lane_connector: an extension (the devkit refuses it)
-        # The points go in the tree and each polygon asks which of them it contains (the converse of `within`):
-        # GEOS prepares the query geometry, and a prepared polygon tests a point in O(log vertices), where a point
-        # asking polygons tests each in O(vertices) (a city's drivable area has thousands: 1.2M annotation
-        # centres took 36 s that way).
-        point_tree = STRtree(shapely.points(x, y))
+        records = self.records_on_point(x, y, layer_names)
         out = {}
-        for layer in layer_names:
-            parts = self.parts[layer]
-            found = np.full(len(x), np.iinfo(np.int64).max)
-            if len(parts.geometry):
-                part_i, point_i = point_tree.query(parts.geometry, predicate="contains")
-                np.minimum.at(found, point_i, parts.owner[part_i])
-            tokens = np.full(len(x), "", dtype=object)
-            hit = found < np.iinfo(np.int64).max
+        for layer, found in records.items():
+            tokens = np.full(len(found), "", dtype=object)
+            hit = found >= 0
             tokens[hit] = self.layers[layer].tokens[found[hit]]
             out[layer] = tokens
         return out
+
+    def records_on_point(self, x, y, layer_names: tuple[str, ...] | list[str] | None = None) -> dict[str, np.ndarray]:
+        """{layer: (N,) int64 row (file order) of the first record containing each point, -1 where none}: what
+        `layers_on_point` answers, as record rows (`layers[layer].tokens[row]`; `map.lookup`)."""
+        layer_names = layer_names or POLYGON_LAYERS
+        for layer in layer_names:
+            if layer not in LOOKUP_POLYGON_LAYERS:  # lane_connector: an extension (the devkit refuses it)
+                raise ValueError(f"{layer} is not a polygon layer")
+        return records_on_point({layer: self.parts[layer] for layer in layer_names}, x, y)
 
     def records_in_patch(self, box_coords: tuple[float, float, float, float],
                          layer_names: tuple[str, ...] | list[str] | None = None,

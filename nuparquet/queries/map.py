@@ -28,40 +28,70 @@ if TYPE_CHECKING:
 # names only: the map queries (shapely) load when a map query runs, not with `nuparquet stats`.
 LAYERS = LOOKUP_POLYGON_LAYERS
 SURFACES = ("ped_crossing", "walkway", "carpark_area", "intersection", "lane", "drivable_area", "off_map")
+SURFACE_CODES = {name: code for code, name in enumerate(SURFACES)}
 
 
-def _surfaces(ds: Dataset, points: pl.DataFrame) -> pl.DataFrame:
-    """points (location, x_m, y_m, ...) -> the same rows with one token column per layer and `surface`."""
+def _surfaces(ds: Dataset, points: pl.DataFrame, *, tokens: bool = True) -> pl.DataFrame:
+    """points (location, x_m, y_m, ...) -> the same rows with one token column per layer (unless `tokens` is
+    False) and `surface`. The map answers record rows (`MapLayers.records_on_point`); tokens are gathered by
+    polars, not built as Python strings."""
     locations = set(ds.scan("map/lane").select("location").unique().collect()["location"].to_list())
-    intersections = set(ds.scan("map/road_segment").filter(pl.col("is_intersection")).select("token")
-                        .collect()["token"].to_list())
+    intersections = (ds.scan("map/road_segment").filter(pl.col("is_intersection")).select("token").unique()
+                     .collect()["token"])
     parts = []
     for (location,), rows in points.group_by(["location"], maintain_order=True):
         if location in locations:
-            found = ds.map(location).layers_on_point(rows["x_m"].to_numpy(), rows["y_m"].to_numpy(), LAYERS)
+            m = ds.map(location)
+            found = m.records_on_point(rows["x_m"].to_numpy(), rows["y_m"].to_numpy(), LAYERS)
+            names = {layer: pl.Series(m.layers[layer].tokens.tolist(), dtype=pl.String) for layer in LAYERS}
+            intersection = names["road_segment"].is_in(intersections.implode()).to_numpy()
         else:  # a log whose location has no map file
-            found = {layer: np.full(rows.height, "", dtype=object) for layer in LAYERS}
-        parts.append(rows.with_columns(pl.Series(layer, found[layer].tolist(), pl.String) for layer in LAYERS))
-    out = pl.concat(parts) if parts else points.with_columns(pl.lit("", pl.String).alias(layer) for layer in LAYERS)
-    on = lambda layer: pl.col(layer) != ""  # noqa: E731
-    surface = (pl.when(on("ped_crossing")).then(pl.lit("ped_crossing"))
-               .when(on("walkway")).then(pl.lit("walkway"))
-               .when(on("carpark_area")).then(pl.lit("carpark_area"))
-               .when(pl.col("road_segment").is_in(list(intersections))).then(pl.lit("intersection"))
-               .when(on("lane") | on("lane_connector")).then(pl.lit("lane"))
-               .when(on("drivable_area")).then(pl.lit("drivable_area"))
-               .otherwise(pl.lit("off_map")))
-    return out.with_columns(surface.alias("surface"))
+            found = {layer: np.full(rows.height, -1, dtype=np.int64) for layer in LAYERS}
+            names = {layer: pl.Series([], dtype=pl.String) for layer in LAYERS}
+            intersection = np.zeros(0, dtype=bool)
+        on = {layer: found[layer] >= 0 for layer in LAYERS}
+        segment = found["road_segment"]
+        at_intersection = on["road_segment"] & intersection[np.where(on["road_segment"], segment, 0)] \
+            if len(intersection) else np.zeros(rows.height, dtype=bool)
+        surface = np.select([on["ped_crossing"], on["walkway"], on["carpark_area"], at_intersection,
+                             on["lane"] | on["lane_connector"], on["drivable_area"]],
+                            [SURFACE_CODES[s] for s in SURFACES[:-1]], SURFACE_CODES["off_map"])
+        columns = [pl.Series("surface", surface, pl.UInt8)]
+        if tokens:
+            columns += [_tokens(names[layer], found[layer]).alias(layer) for layer in LAYERS]
+        parts.append(rows.with_columns(columns))
+    if parts:
+        out = pl.concat(parts)
+    else:
+        out = points.with_columns([pl.lit(0, pl.UInt8).alias("surface")]
+                                  + ([pl.lit("", pl.String).alias(layer) for layer in LAYERS] if tokens else []))
+    surface = pl.col("surface").replace_strict(list(SURFACE_CODES.values()), list(SURFACE_CODES), return_dtype=pl.String)
+    ordered = [c for c in out.columns if c != "surface"] + ["surface"]
+    return out.with_columns(surface.alias("surface")).select(ordered)
+
+
+def _tokens(names: pl.Series, rows: np.ndarray) -> pl.Series:
+    """The tokens at record `rows` (-1: none, '')."""
+    if not len(names):
+        return pl.Series([""] * len(rows), dtype=pl.String)
+    none = np.flatnonzero(rows < 0)
+    gathered = names.gather(np.where(rows < 0, 0, rows))
+    return gathered.scatter(none, "") if len(none) else gathered
 
 
 def annotation_surfaces(ds: Dataset, *, scene: Scene = None) -> pl.LazyFrame:
     """``token, scene_name, location, category_name, x_m, y_m``, a token column per polygon layer, ``surface``."""
+    return _annotation_surfaces(ds, scene).sort("scene_name", "token").lazy()
+
+
+def _annotation_surfaces(ds: Dataset, scene: Scene, *, tokens: bool = True) -> pl.DataFrame:
+    """`annotation_surfaces` unsorted; without `tokens`, only category_name, location, x_m, y_m and surface."""
     boxes = (for_scene(ds.scan("annotations"), scene)
-             .select("token", "scene_name", pl.col("log_location").alias("location"),
+             .select(*(["token", "scene_name"] if tokens else []), pl.col("log_location").alias("location"),
                      pl.col("category_name").cast(pl.String), pl.col("translation").arr.get(0).alias("x_m"),
                      pl.col("translation").arr.get(1).alias("y_m"))
              .collect())
-    return _surfaces(ds, boxes).sort("scene_name", "token").lazy()
+    return _surfaces(ds, boxes, tokens=tokens)
 
 
 def ego_surfaces(ds: Dataset, *, scene: Scene = None) -> pl.LazyFrame:
@@ -75,7 +105,9 @@ def ego_surfaces(ds: Dataset, *, scene: Scene = None) -> pl.LazyFrame:
 
 def surfaces_by_category(ds: Dataset, *, scene: Scene = None) -> pl.LazyFrame:
     """Annotations per category and surface: ``category_name``, one count column per surface, ``total``."""
-    counts = annotation_surfaces(ds, scene=scene).group_by("category_name", "surface").agg(pl.len().alias("n")).collect()
+    # the counts need neither the token columns nor an order
+    counts = (_annotation_surfaces(ds, scene, tokens=False).group_by("category_name", "surface")
+              .agg(pl.len().alias("n")))
     wide = counts.pivot(on="surface", index="category_name", values="n").fill_null(0)
     wide = wide.with_columns(pl.lit(0, pl.UInt32).alias(s) for s in SURFACES if s not in wide.columns)
     return (wide.select("category_name", *[pl.col(s).cast(pl.Int64) for s in SURFACES])

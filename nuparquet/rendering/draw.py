@@ -144,6 +144,12 @@ def draw_labels(image_bgr, segments_px, keep, labels, colors_bgr, *, font_scale:
     return image_bgr
 
 
+def start_text() -> None:
+    """Start OpenCV's text engine on this thread: OpenCV 5 sets it up per thread on the first text call, ~30-80 ms
+    (more than the drawing of a 40-frame video's labels), so the render does it while its query runs elsewhere."""
+    cv2.getTextSize("0", TEXT_FONT, 1.0, 1)
+
+
 @lru_cache(maxsize=4096)
 def _text_size(text: str, font_scale: float, thickness: int) -> tuple[tuple[int, int], int]:
     """cv2.getTextSize of a label: labels repeat on every frame (a few categories, a few hundred tracks)."""

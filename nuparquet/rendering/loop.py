@@ -51,6 +51,9 @@ def render_frames(plan: TilePlan, make_sink, *, on_missing: str = "skip", thread
     pending: deque[Future] = deque()
     next_to_submit = 0
     try:
+        while next_to_submit < len(plan) and len(pending) < DECODE_AHEAD:  # decoding starts while the encoder opens
+            pending.append(pool.submit(load_output, next_to_submit))
+            next_to_submit += 1
         sink = make_sink(pool)
         for t in range(len(plan)):
             while next_to_submit < len(plan) and len(pending) < DECODE_AHEAD:

@@ -18,6 +18,7 @@ The stages, one module each (STYLE.md: vectorise over the batch; the only Python
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,6 +30,7 @@ from nuparquet.frames.boxes import frame_boxes
 from nuparquet.frames.poses import cameras_from_frames
 from nuparquet.options import resolve
 from nuparquet.progress import OnProgress, Reporter
+from nuparquet.rendering import draw
 from nuparquet.rendering.camera_tile import CameraTile
 from nuparquet.rendering.loop import render_frames
 from nuparquet.rendering.options import BEV_CHANNEL, RenderOptions
@@ -164,6 +166,38 @@ def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
             if target is not None:
                 check_apart(target, dataset.root, what="the converted dataset")
     dataroot = _dataroot(dataset, options.dataroot)
+    if options.labels == "none":
+        plan, channel, fps = _plan(dataset, scene, options, dataroot)
+    else:  # the query and projections run beside the start of OpenCV's text engine on this (the drawing) thread
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="nuparquet-plan") as side:
+            planned = side.submit(_plan, dataset, scene, options, dataroot)
+            draw.start_text()
+            plan, channel, fps = planned.result()
+
+    out = Path(options.out) if options.out is not None else None
+    frames_dir = Path(options.frames_dir) if options.frames_dir is not None else None
+
+    def make_sink(executor) -> FrameSink:
+        return FrameSink(executor, size=plan.size, fps=fps, video=out, crf=options.crf,
+                         preset=options.preset, frames_dir=frames_dir, frame_format=options.frame_format)
+
+    with Reporter(on_progress, f"render {scene} {channel}", total=len(plan), unit="frame") as reporter:
+        result = render_frames(plan, make_sink, on_missing=options.on_missing, threads=options.threads,
+                               reporter=reporter)
+    if result.written == 0:
+        raise InputError(
+            f"no frame of {scene} {channel} could be rendered: all {len(result.missing)} image "
+            f"file(s) are missing or unreadable, e.g. {result.missing[0] if result.missing else '?'} "
+            "(is --dataroot right?)"
+        )
+    width, height = even_size(*plan.size) if out is not None else plan.size
+    return RenderResult(scene=scene, channel=channel, frames_written=result.written,
+                        frames_skipped=result.skipped, width=width, height=height, fps=fps,
+                        out=out, frames_dir=frames_dir, missing=result.missing)
+
+
+def _plan(dataset, scene: str, options: RenderOptions, dataroot: Path) -> tuple[TilePlan, str, float]:
+    """The scene's query and every tile's plan: (plan, the channel as reported, the video's frame rate)."""
     dataset.check_scenes([scene])
     fps = options.frame_rate
     predictions = None
@@ -189,27 +223,7 @@ def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
         if options.bev:
             _check_bev_rows(rows, scene, bev_channel)
             plan = with_bev_tile(plan, dataset, rows, options, dataroot, predictions)
-
-    out = Path(options.out) if options.out is not None else None
-    frames_dir = Path(options.frames_dir) if options.frames_dir is not None else None
-
-    def make_sink(executor) -> FrameSink:
-        return FrameSink(executor, size=plan.size, fps=fps, video=out, crf=options.crf,
-                         preset=options.preset, frames_dir=frames_dir, frame_format=options.frame_format)
-
-    with Reporter(on_progress, f"render {scene} {channel}", total=len(plan), unit="frame") as reporter:
-        result = render_frames(plan, make_sink, on_missing=options.on_missing, threads=options.threads,
-                               reporter=reporter)
-    if result.written == 0:
-        raise InputError(
-            f"no frame of {scene} {channel} could be rendered: all {len(result.missing)} image "
-            f"file(s) are missing or unreadable, e.g. {result.missing[0] if result.missing else '?'} "
-            "(is --dataroot right?)"
-        )
-    width, height = even_size(*plan.size) if out is not None else plan.size
-    return RenderResult(scene=scene, channel=channel, frames_written=result.written,
-                        frames_skipped=result.skipped, width=width, height=height, fps=fps,
-                        out=out, frames_dir=frames_dir, missing=result.missing)
+    return plan, channel, fps
 
 
 def _check_bev_rows(rows: SceneRows, scene: str, lidar_channel: str) -> None:

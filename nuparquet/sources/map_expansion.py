@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from itertools import chain, repeat
+from operator import itemgetter
 from pathlib import Path
 
 import numpy as np
@@ -89,8 +91,7 @@ def read_map(dataroot: Path, relative: Path) -> tuple[MapRead | None, list[Probl
     if missing:
         return None, [Problem(name, f"lacks the layer(s) {', '.join(missing)} of a v1.3 map expansion")]
     problems = [Problem(name, f"{layer} must be a list of objects with a token") for layer in LIST_LAYERS
-                if not (isinstance(data[layer], list) and all(isinstance(r, dict) and isinstance(r.get("token"), str)
-                                                             for r in data[layer]))]
+                if not _records_with_tokens(data[layer])]
     problems += [Problem(name, f"{layer} must be an object keyed by lane token") for layer in DICT_LAYERS
                  if not isinstance(data[layer], dict)]
     if problems:
@@ -101,6 +102,15 @@ def read_map(dataroot: Path, relative: Path) -> tuple[MapRead | None, list[Probl
     read = MapRead(relative.stem, name, data)
     _add_geometry(data, read.geometry)
     return read, []
+
+
+def _records_with_tokens(records) -> bool:
+    """A list of JSON objects, each with a string `token` (json.loads makes exactly dict and str)."""
+    if type(records) is not list:
+        return False
+    if not all(type(r) is dict for r in records):
+        return False
+    return all(type(t) is str for t in map(dict.get, records, repeat("token", len(records))))
 
 
 def layer_columns(maps: list[MapRead], layer: str) -> tuple[LayerColumns | None, list[Problem]]:
@@ -116,9 +126,58 @@ def layer_columns(maps: list[MapRead], layer: str) -> tuple[LayerColumns | None,
 
 
 def _check_references(name: str, data: dict) -> list[Problem]:
-    """Every node a line or polygon names, and every polygon / line a layer record names, exists."""
-    problems: list[Problem] = []
+    """Every node a line or polygon names, and every polygon / line a layer record names, exists. Whole lists are
+    checked as sets first; only a list that names something unknown is walked record by record to say where."""
     nodes = {r["token"] for r in data["node"]}
+    problems = [] if _all_known(_node_lists(data), nodes) else _node_problems(name, data, nodes)
+    if len(problems) >= 20:
+        return problems
+    polygons = {r["token"] for r in data["polygon"]}
+    lines = {r["token"] for r in data["line"]}
+    for layer in LOOKUP_POLYGON_LAYERS + LINE_LAYERS:
+        key, known, what = (("polygon_tokens" if layer == "drivable_area" else "polygon_token"), polygons, "polygon") \
+            if layer in LOOKUP_POLYGON_LAYERS else ("line_token", lines, "line")
+        values = [record.get(key) for record in data[layer]]
+        if layer == "drivable_area":
+            if all(type(v) is list for v in values) and _all_known(values, known):
+                continue
+        elif _all_known([values], known) and None not in values:
+            continue
+        for i, (record, value) in enumerate(zip(data[layer], values)):
+            tokens = value if isinstance(value, list) else [value]
+            absent = next((t for t in tokens if t not in known), None)
+            if absent is not None or value is None:
+                problems.append(Problem(name, f"{layer} field {key} names {what} {echo(absent)}, which is not in the "
+                                              f"map's {what} list", i, record["token"]))
+            if len(problems) >= 20:
+                return problems
+    return problems
+
+
+def _node_lists(data: dict):
+    """Every node-token list of the lines and polygons (exteriors, holes); a malformed one as it is."""
+    for record in data["line"]:
+        yield record.get("node_tokens")
+    for record in data["polygon"]:
+        yield record.get("exterior_node_tokens")
+        holes = record.get("holes")
+        if not isinstance(holes, list):
+            yield None
+            continue
+        for hole in holes:
+            yield hole.get("node_tokens") if isinstance(hole, dict) else None
+
+
+def _all_known(lists, known: set) -> bool:
+    """Each of `lists` is a list whose items all are in `known` (hashable items: one C-level set check)."""
+    try:
+        return all(type(tokens) is list and known.issuperset(tokens) for tokens in lists)
+    except TypeError:  # an unhashable item (a nested list): the slow path names it
+        return False
+
+
+def _node_problems(name: str, data: dict, nodes: set) -> list[Problem]:
+    problems: list[Problem] = []
     for layer, keys in (("line", ("node_tokens",)), ("polygon", ("exterior_node_tokens", "holes"))):
         for i, record in enumerate(data[layer]):
             for key in keys:
@@ -135,20 +194,6 @@ def _check_references(name: str, data: dict) -> list[Problem]:
                                                       "the map's node list", i, record["token"]))
             if len(problems) >= 20:
                 return problems
-    polygons = {r["token"] for r in data["polygon"]}
-    lines = {r["token"] for r in data["line"]}
-    for layer in LOOKUP_POLYGON_LAYERS + LINE_LAYERS:
-        key, known, what = (("polygon_tokens" if layer == "drivable_area" else "polygon_token"), polygons, "polygon") \
-            if layer in LOOKUP_POLYGON_LAYERS else ("line_token", lines, "line")
-        for i, record in enumerate(data[layer]):
-            value = record.get(key)
-            tokens = value if isinstance(value, list) else [value]
-            absent = next((t for t in tokens if t not in known), None)
-            if absent is not None or value is None:
-                problems.append(Problem(name, f"{layer} field {key} names {what} {echo(absent)}, which is not in the "
-                                              f"map's {what} list", i, record["token"]))
-            if len(problems) >= 20:
-                return problems
     return problems
 
 
@@ -162,8 +207,8 @@ def _structure_json_fields(columns: Columns, records: list[dict]) -> list[str]:
             array = pa.array(values)
         except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
             continue
-        if array.to_pylist() == values and json.dumps(array.to_pylist()) == json.dumps(values) \
-                and not pa.types.is_null(array.type):
+        # repr, not ==: the same values with the same types (1 is not 1.0) and keys in the same order, as their JSON
+        if not pa.types.is_null(array.type) and repr(array.to_pylist()) == repr(values):
             index = columns.table.column_names.index(name)
             columns.table = columns.table.set_column(index, name, array)
             columns.json_fields.remove(name)
@@ -172,9 +217,10 @@ def _structure_json_fields(columns: Columns, records: list[dict]) -> list[str]:
 
 
 def _node_xy(data: dict) -> tuple[dict[str, int], np.ndarray]:
-    index = {r["token"]: i for i, r in enumerate(data["node"])}
-    xy = np.array([(r["x"], r["y"]) for r in data["node"]], dtype=np.float64).reshape(-1, 2)
-    return index, xy
+    nodes = data["node"]
+    index = dict(zip(map(itemgetter("token"), nodes), range(len(nodes))))
+    xy = np.fromiter(chain.from_iterable(map(itemgetter("x", "y"), nodes)), np.float64, 2 * len(nodes))
+    return index, xy.reshape(-1, 2)
 
 
 def _rings(token_lists: list[list[str]], index: dict[str, int], xy: np.ndarray) -> np.ndarray:
