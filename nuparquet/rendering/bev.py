@@ -79,6 +79,7 @@ class MapRaster:
     x0_m: float
     y1_m: float
     px_per_m: float
+    has_map: bool = False  # the map layers were drawn (False: the background only, no map converted)
 
     @classmethod
     def build(cls, map_layers, extent: tuple[float, float, float, float], px_per_m: float) -> MapRaster:
@@ -89,7 +90,7 @@ class MapRaster:
         height = int(np.ceil((ymax - ymin) * px_per_m)) + 1
         image = np.empty((height, width, 3), np.uint8)
         image[:] = BACKGROUND_BGR
-        raster = cls(image, xmin, ymax, px_per_m)
+        raster = cls(image, xmin, ymax, px_per_m, has_map=map_layers is not None)
         if map_layers is None:
             return raster
         box = shapely.box(xmin, ymin, xmax, ymax)
@@ -202,7 +203,8 @@ class BevTile(RowTile):
             self._draw_points(image, *cloud, row, to_pixel)
         self._draw_boxes(image, row, to_pixel)
         self._draw_ego(image, ego[:2, 3], ego_yaw, to_pixel)
-        draw_legend(image, points="height" if self.clouds is None or self.clouds.color == "depth" else self.clouds.color)
+        draw_legend(image, points="height" if self.clouds is None or self.clouds.color == "depth" else self.clouds.color,
+                    map_layers=self.raster.has_map)
         return image
 
     def _draw_points(self, image: np.ndarray, points: np.ndarray, labels: np.ndarray | None, row: int,
@@ -250,22 +252,23 @@ class BevTile(RowTile):
 LEGEND = tuple((layer.replace("_", " "), color) for layer, color, _ in MAP_STYLE)
 
 
-def draw_legend(image: np.ndarray, points: str = "height") -> None:
-    """Layer swatches and the point colouring (the height scale, or the name of the colouring) in the top-left
-    corner."""
+def draw_legend(image: np.ndarray, points: str = "height", map_layers: bool = True) -> None:
+    """Layer swatches (only when the map was drawn: `map_layers`) and the point colouring (the height scale, or the
+    name of the colouring) in the top-left corner."""
     h = image.shape[0]
     font = max(0.3, h / 1800)
     step = max(10, int(22 * font * 2))
     x, y = 6, 6
-    panel_h = step * (len(LEGEND) + 2) + 6
+    legend = LEGEND if map_layers else ()
+    panel_h = step * (len(legend) + 2) + 6
     panel_w = int(150 * font * 2.2)
     image[y:y + panel_h, x:x + panel_w] = (image[y:y + panel_h, x:x + panel_w] * 0.35).astype(np.uint8)
-    for i, (name, color) in enumerate(LEGEND):
+    for i, (name, color) in enumerate(legend):
         top = y + 4 + i * step
         cv2.rectangle(image, (x + 4, top), (x + 4 + step - 4, top + step - 4), color, -1)
         cv2.putText(image, name, (x + step + 6, top + step - 5), cv2.FONT_HERSHEY_SIMPLEX, font, (255, 255, 255), 1,
                     cv2.LINE_AA)
-    top = y + 4 + len(LEGEND) * step
+    top = y + 4 + len(legend) * step
     lo, hi = POINT_HEIGHT_RANGE_M
     text = f"points: {points}"
     if points == "height":
