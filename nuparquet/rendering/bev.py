@@ -4,10 +4,9 @@ boxes as oriented rectangles with a heading line in their category colours, the 
 centred on the ego vehicle, north-up or ego-up.
 
 The map is rasterised once per scene (`MapRaster`: every layer's polygons over the scene's extent, at the
-output's pixels per metre); each output warps it into the view with one `cv2.warpAffine`. Points and boxes go
-through one view transform per output over all their coordinates at once; points are set by array indexing,
-boxes drawn by one `cv2.polylines` call per colour. Polygons are filled one call each, once per scene: OpenCV
-fills several polygons of one call even-odd, so overlapping roads would cancel out.
+output's pixels per metre, `map_canvas`'s polygon and line drawing); each output warps it into the view with one
+`cv2.warpAffine`. Points and boxes go through one view transform per output over all their coordinates at once;
+points are set by array indexing, boxes drawn by one `cv2.polylines` call per colour.
 
 Pixel convention: pixel (u, v) has its centre at (u, v); u grows east (north-up) or to the ego's right
 (ego-up), v grows south / backwards.
@@ -22,6 +21,7 @@ import numpy as np
 import shapely
 
 from nuparquet.frames.boxes import FrameBoxes
+from nuparquet.rendering.map_canvas import draw_lines, fill_polygons, layer_geometries
 from nuparquet.rendering.palette import category_rgb
 from nuparquet.geometry.quaternions import heading_from_quaternions
 from nuparquet.rendering.plan import RowTile, TileLoad
@@ -95,56 +95,25 @@ class MapRaster:
             return raster
         box = shapely.box(xmin, ymin, xmax, ymax)
         for layer, color, how in MAP_STYLE:
-            if layer == "drivable_area":
-                parts = map_layers.parts[layer]
-                geoms = parts.geometry[np.sort(parts.tree.query(box, predicate="intersects"))] if len(parts.geometry) else []
-            else:
-                records = map_layers.layers[layer]
-                geoms = records.geometry[np.sort(records.tree.query(box, predicate="intersects"))] \
-                    if len(records.geometry) else []
+            geoms = layer_geometries(map_layers, layer, box)
             if how == "fill":
-                raster._fill(geoms, color)
+                fill_polygons(raster.image, geoms, raster.to_pixels, color, BACKGROUND_BGR)
             else:
-                raster._lines(geoms, color, thickness=2 if layer == "road_divider" else 1)
+                draw_lines(raster.image, geoms, raster.to_pixels, color, thickness=2 if layer == "road_divider" else 1)
         return raster
 
     def to_pixels(self, xy: np.ndarray) -> np.ndarray:
         return np.c_[(xy[:, 0] - self.x0_m) * self.px_per_m, (self.y1_m - xy[:, 1]) * self.px_per_m]
 
-    def _rings(self, geoms) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """Exterior and hole rings of every polygon (all coordinates transformed in one call), fixed point 1/8 px."""
-        polygons = shapely.get_parts(np.asarray(geoms, dtype=object)) if len(geoms) else np.empty(0, object)
-        if not len(polygons):
-            return [], []
-        rings, ring_index = shapely.get_rings(polygons, return_index=True)
-        coords, coord_ring = shapely.get_coordinates(rings, return_index=True)
-        fixed = np.round(self.to_pixels(coords) * 8).astype(np.int32)
-        split = np.split(fixed, np.flatnonzero(np.diff(coord_ring)) + 1)
-        first_ring = np.r_[True, ring_index[1:] != ring_index[:-1]]  # each polygon's exterior comes first
-        return split, first_ring
-
-    def _fill(self, geoms, color) -> None:
-        rings, exterior = self._rings(geoms)
-        for ring, is_exterior in zip(rings, exterior):  # one call per ring: a multi-ring call fills even-odd
-            cv2.fillPoly(self.image, [ring], color if is_exterior else BACKGROUND_BGR, lineType=cv2.LINE_8, shift=3)
-
-    def _lines(self, geoms, color, thickness: int) -> None:
-        lines = [g for g in geoms if g is not None and not shapely.is_empty(g)]
-        if not lines:
-            return
-        coords, index = shapely.get_coordinates(np.asarray(lines, dtype=object), return_index=True)
-        fixed = np.round(self.to_pixels(coords) * 8).astype(np.int32)
-        cv2.polylines(self.image, np.split(fixed, np.flatnonzero(np.diff(index)) + 1), False, color, thickness,
-                      lineType=cv2.LINE_AA, shift=3)
-
-    def warp(self, view: View, world_to_pixel: np.ndarray) -> np.ndarray:
-        """The raster as seen by the tile: (H, W, 3) for the affine `world_to_pixel` (global -> tile pixel)."""
+    def warp(self, size: tuple[int, int], world_to_pixel: np.ndarray) -> np.ndarray:
+        """The raster as seen by a picture of `size` (width, height): (H, W, 3) for the affine `world_to_pixel`
+        (global -> picture pixel)."""
         raster_from_world = np.array([[self.px_per_m, 0.0, -self.x0_m * self.px_per_m],
                                       [0.0, -self.px_per_m, self.y1_m * self.px_per_m]])
         world_from_tile = cv2.invertAffineTransform(world_to_pixel)
         raster_from_tile = raster_from_world[:, :2] @ world_from_tile
         raster_from_tile[:, 2] += raster_from_world[:, 2]
-        return cv2.warpAffine(self.image, raster_from_tile, view.size, flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+        return cv2.warpAffine(self.image, raster_from_tile, tuple(size), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
                               borderMode=cv2.BORDER_CONSTANT, borderValue=BACKGROUND_BGR)
 
 
@@ -178,6 +147,8 @@ class BevTile(RowTile):
     clouds: CloudReader | None
     boxes: FrameBoxes
     label: str = "BEV"
+    tokens: tuple[str, ...] = ()  # (L,) sample_data token of each lidar frame (the frame index)
+    timestamps_us: np.ndarray | None = None  # (L,)
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)
@@ -198,7 +169,7 @@ class BevTile(RowTile):
         ego = self.global_from_ego[row]
         ego_yaw = float(np.arctan2(ego[1, 0], ego[0, 0]))
         to_pixel = self.view.world_to_pixel(ego[:2, 3], ego_yaw)
-        image = self.raster.warp(self.view, to_pixel)
+        image = self.raster.warp(self.view.size, to_pixel)
         if cloud is not None and len(cloud[0]):
             self._draw_points(image, *cloud, row, to_pixel)
         self._draw_boxes(image, row, to_pixel)

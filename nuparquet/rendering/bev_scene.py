@@ -42,5 +42,6 @@ def bev_source(dataset, rows: SceneRows, dataroot: Path, view: View, *, times_us
     raster = MapRaster.build(_map_layers(dataset, rows.location),
                              scene_extent(global_from_ego[frame_rows][:, :2, 3], view), view.px_per_m)
     tile = BevTile(frame_rows.astype(np.int64), view, raster, global_from_ego, ego_from_sensor,
-                   CloudReader.build(lidar, dataroot, dataset=dataset, color=lidar_color), boxes)
+                   CloudReader.build(lidar, dataroot, dataset=dataset, color=lidar_color), boxes,
+                   tokens=tuple(lidar["token"].to_list()), timestamps_us=stamps)
     return tile, np.asarray(times_us, dtype=np.float64)

@@ -35,6 +35,8 @@ class CameraTile(RowTile):
     style: DrawStyle
     lidar: LidarPoints | None = None
     image_size_px: np.ndarray | None = None  # (F, 2) width, height of each row's image as its sample_data says
+    tokens: tuple[str, ...] = ()  # (F,) sample_data token of each camera row (the frame index)
+    timestamps_us: np.ndarray | None = None  # (F,)
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)

@@ -43,7 +43,9 @@ __all__ = ["RenderOptions", "RenderResult", "render"]
 
 @dataclass
 class RenderResult:
-    """What a render wrote. `missing` lists the image files that were missing or unreadable (skipped)."""
+    """What a render wrote: `frames_written` pictures, one per output time (so picture n is at n / fps), of which
+    `frames_skipped` had nothing new to show and repeat the picture before; `missing` lists the image files that
+    were missing or unreadable. The frame index (`frame_index`) says which sample_data each picture shows."""
 
     scene: str
     channel: str
@@ -98,8 +100,9 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
     image_size_px = np.stack([cameras["width"].to_numpy(), cameras["height"].to_numpy()], axis=1)
     decode_scale = np.max(tile_cameras.scale, axis=1)  # the decoded image must cover the tile on both axes
     style = DrawStyle.for_scale(scale)
+    tokens, stamps = tuple(cameras["token"].to_list()), cameras["timestamp"].to_numpy()
     tiles = iter(CameraTile(channel, plan_rows[:, column], paths, decode_scale, size, overlay, style, lidar,
-                            image_size_px) for column, channel in enumerate(channels))
+                            image_size_px, tokens, stamps) for column, channel in enumerate(channels))
     return TilePlan(times_us, tuple(tuple(next(tiles) for _ in row) for row in layout), size)
 
 
@@ -182,7 +185,7 @@ def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
     with Reporter(on_progress, f"render {scene} {channel}", total=len(plan), unit="frame") as reporter:
         result = render_frames(plan, make_sink, on_missing=options.on_missing, threads=options.threads,
                                reporter=reporter)
-    if result.written == 0:
+    if result.written == result.skipped:  # nothing drawn at all (the sink wrote nothing)
         raise InputError(
             f"no frame of {scene} {channel} could be rendered: all {len(result.missing)} image "
             f"file(s) are missing or unreadable, e.g. {result.missing[0] if result.missing else '?'} "
