@@ -89,7 +89,9 @@ class ImageOptions:
 
     @property
     def wanted(self) -> bool:
-        return bool(self.targets)
+        """A picture was asked for: something to draw, or an option only a picture takes."""
+        return bool(self.targets) or self.map_in_image or self.pointcloud_in_image or any(
+            getattr(self, name) not in (None, (), False) for name in MAP_PICTURES)
 
     def map_picture(self) -> str:
         given = [name for name in MAP_PICTURES if getattr(self, name) not in (None, (), False)]
@@ -100,16 +102,17 @@ class ImageOptions:
 
     def check(self) -> None:
         """UsageError unless exactly one thing is asked for, with the options it takes."""
-        if len(self.targets) != 1:
-            raise UsageError("draw one thing at a time: --sample, --sample-data, --annotation, --instance or --map "
-                             f"(got {', '.join('--' + t.replace('_', '-') for t in self.targets)})")
-        if self.map is not None:
-            self.map_picture()
-        elif any(getattr(self, name) not in (None, (), False) for name in MAP_PICTURES):
+        if self.map is None and any(getattr(self, name) not in (None, (), False) for name in MAP_PICTURES):
             raise UsageError("--map-patch, --map-record, --map-mask, --centerlines, --ego-poses and --next-roads draw "
                              "a map: give --map LOCATION")
         if (self.map_in_image or self.pointcloud_in_image) and self.sample is None:
             raise UsageError("--map-in-image and --pointcloud-in-image draw one camera of a sample: give --sample TOKEN")
+        if len(self.targets) != 1:
+            given = ", ".join("--" + t.replace("_", "-") for t in self.targets)
+            raise UsageError("draw one thing at a time: --sample, --sample-data, --annotation, --instance or --map"
+                             + (f" (got {given})" if given else ""))
+        if self.map is not None:
+            self.map_picture()
         if self.map_in_image and self.pointcloud_in_image:
             raise UsageError("--map-in-image or --pointcloud-in-image, not both")
         if self.nsweeps < 1:
