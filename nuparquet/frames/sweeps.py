@@ -135,7 +135,7 @@ def frame_cloud(dataset, row: dict, modality: str, root: Path, radar_filters: bo
                 pass
         from nuparquet.sources.points import read_lidar_bin
 
-        return read_lidar_bin(root / row["filename"])[:, :4], LIDAR_COLUMNS
+        return read_point_file(read_lidar_bin, root / row["filename"])[:, :4], LIDAR_COLUMNS
     if modality != "radar":
         raise UsageError(f"{row['channel']} is a {modality} channel: sweeps aggregate lidar and radar points")
     if "radar_points" in dataset.datasets:
@@ -146,7 +146,7 @@ def frame_cloud(dataset, row: dict, modality: str, root: Path, radar_filters: bo
             pass
     from nuparquet.sources.points import passes_default_filters, read_radar_pcd
 
-    structured = read_radar_pcd(root / row["filename"])
+    structured = read_point_file(read_radar_pcd, root / row["filename"])
     names = structured.dtype.names
     if len(structured) and any(np.isnan(structured[0][n]) for n in names if structured.dtype[n].kind == "f"):
         return np.zeros((0, len(names))), names  # a NaN first point: the devkit's empty cloud
@@ -157,6 +157,19 @@ def frame_cloud(dataset, row: dict, modality: str, root: Path, radar_filters: bo
         if keep is not None:
             values = values[keep]
     return values, names
+
+
+def read_point_file(reader, path: Path):
+    """`reader(path)`, a missing or unreadable file an InputError naming it (a sweep's file is often not there: the
+    sweeps are a download of their own)."""
+    from nuparquet.errors import InputError
+
+    try:
+        return reader(path)
+    except FileNotFoundError:
+        raise InputError(f"missing point file: {path}") from None
+    except OSError as exc:
+        raise InputError(f"unreadable point file: {path} ({exc.strerror or exc})") from None
 
 
 def _radar_fields(dataset) -> list[str]:

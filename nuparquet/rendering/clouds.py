@@ -74,9 +74,10 @@ def lidar_cloud(dataset, row: dict, dataroot: Path, *, labels: str | None = None
             if column and frame[column].null_count() == 0:
                 truth = frame[column].to_numpy().astype(np.int64)
     if points is None:
+        from nuparquet.frames.sweeps import read_point_file
         from nuparquet.sources.points import read_lidar_bin
 
-        points = read_lidar_bin(_inside(dataroot, row["filename"]))[:, :4]
+        points = read_point_file(read_lidar_bin, _inside(dataroot, row["filename"]))[:, :4]
     if not labels:
         return Cloud(points)
     if preds_path is not None:
@@ -100,11 +101,13 @@ def _inside(dataroot: Path, filename: str) -> Path:
 def _read_labels(path: Path, labels: str) -> np.ndarray:
     from nuparquet.sources.points import read_lidarseg_bin, read_panoptic_npz
 
+    from nuparquet.frames.sweeps import read_point_file
+
     if not path.is_file():
         raise InputError(f"no labels file {path}")
     if labels == "panoptic" or path.suffix == ".npz":
-        return read_panoptic_npz(path).astype(np.int64)
-    return read_lidarseg_bin(path).astype(np.int64)
+        return read_point_file(read_panoptic_npz, path).astype(np.int64)
+    return read_point_file(read_lidarseg_bin, path).astype(np.int64)
 
 
 def _truth_from_files(dataset, row: dict, dataroot: Path, labels: str) -> np.ndarray:
