@@ -129,3 +129,17 @@ def test_render_help_names_the_birds_eye_view_and_the_pictures(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert "bird's-eye view" in text and "--sample-data" in text and "PNG or JPEG" in text
     assert "camera images only" not in text
+
+
+def test_a_missing_sweep_file_is_named(synth_out, tokens, tmp_path, capsys):
+    import os
+    from pathlib import Path
+
+    dataroot = Path(nuparquet.open(synth_out).dataroot)
+    (tmp_path / "root").mkdir()
+    os.symlink(dataroot / "samples", tmp_path / "root" / "samples")  # keyframes only: no sweeps/
+    flags = ["--sample-data", tokens["LIDAR_TOP"], "--dataroot", str(tmp_path / "root"), "--no-underlay-map"]
+    assert _render(synth_out, *flags, target=tmp_path / "one.png") == 0
+    assert _render(synth_out, *flags, "--nsweeps", "3", target=tmp_path / "three.png") == 1
+    err = capsys.readouterr().err
+    assert "missing point file:" in err and "/sweeps/LIDAR_TOP/" in err and "Traceback" not in err
