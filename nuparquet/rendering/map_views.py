@@ -175,13 +175,14 @@ def render_map_mask(dataset_or_path, location: str, patch_box, patch_angle: floa
 
 
 def render_centerlines(dataset_or_path, location: str, resolution_meters: float = 0.5, *,
-                       size_px: int = MAP_SIZE_PX) -> np.ndarray:
+                       size_px: int = MAP_SIZE_PX, extent=None) -> np.ndarray:
     """Every lane's then every lane connector's centreline (`discretize_centerlines`), lane i in the i-th colour of
-    matplotlib's cycle, as the devkit's `plt.plot` per lane gives them, over the whole map."""
+    matplotlib's cycle, as the devkit's `plt.plot` per lane gives them, over the whole map (or `extent`: x_min,
+    y_min, x_max, y_max)."""
     dataset = as_dataset(dataset_or_path)
     map_layers = dataset.map(location)
     poses, counts = map_layers.centerlines(resolution_meters)
-    canvas = MapCanvas.create(map_extent(dataset, location), size_px)
+    canvas = MapCanvas.create(extent or map_extent(dataset, location), size_px)
     starts = np.r_[0, np.cumsum(counts)]
     drawn = 0
     for lane, (lo, hi) in enumerate(zip(starts[:-1], starts[1:])):
