@@ -69,7 +69,8 @@ class RenderOptions:
         "depth", help="colour the --lidar points by depth (default), intensity, lidarseg class or panoptic "
         "instance (labels need `convert --sensors lidar` of a dataset with lidarseg/panoptic files). Points come "
         "from lidar_points/ when converted, else from the .pcd.bin files; a colour other than depth implies --lidar. "
-        "In the bird's-eye view (--channel bev, --bev) depth means height")
+        "In the bird's-eye view (--channel bev, --bev) depth means height; in a picture of a lidar or radar frame from "
+        "above (--sample-data) the devkit's distance from the sensor")
     labels: Literal["category", "track", "none"] = option(
         "category", help="box labels: category name, track (short instance token) or none (default category)")
     clip: bool = option(
