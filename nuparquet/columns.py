@@ -1,7 +1,7 @@
 """The one bridge between Arrow/polars list columns and numpy arrays.
 
 Vectors and matrices are stored as fixed-size lists (`schemas/`: translation `[3]`, rotation `[4]`, 4x4
-transforms `[16]` row-major, intrinsics `[3][3]`). Everything that needs them as numbers goes through
+transforms `[16]` and intrinsics `[9]`, row-major). Everything that needs them as numbers goes through
 here: `to_numpy` turns a column into an `(N, *shape)` array, `to_series` / `to_arrow` turn an array back
 into a column. No other module reshapes list columns by hand.
 """

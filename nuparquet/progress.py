@@ -23,7 +23,8 @@ class Progress:
     """One progress event of a task.
 
     task: what is running, e.g. "convert" or "render scene-0061 CAM_FRONT"; one bar per task.
-    done: units finished so far; total: units in all (None while unknown; it may grow as work is found).
+    done: units finished so far; total: units in all (None while unknown; once known it never changes, so a bar's
+    percentage only goes up).
     unit: what a unit is ("step", "frame", "scene", "file").
     step: what is being done now, e.g. "read sample_data" ("" when nothing new to say).
     finished: the last event of the task (the bar can close).
@@ -43,10 +44,10 @@ OnProgress = Callable[[Progress], None]
 class Reporter:
     """Counts one task's units and sends events to `on_progress` (a no-op when it is None).
 
-    reporter = Reporter(on_progress, "convert", total=30)
-    reporter.advance(step="read sample")   # done += 1
-    reporter.grow(5)                       # total += 5 (work found on the way)
-    reporter.close()                       # the finished event
+    reporter = Reporter(on_progress, "convert")   # total unknown yet
+    reporter.advance(step="read sample")          # done += 1
+    reporter.set_total(35)                        # once every unit is counted; never changed after
+    reporter.close()                              # the finished event
     """
 
     def __init__(self, on_progress: OnProgress | None, task: str, total: int | None = None, unit: str = "step"):
@@ -70,8 +71,12 @@ class Reporter:
         """Say what is being done now without counting a unit."""
         self._emit(step)
 
-    def grow(self, n: int) -> None:
-        self.total = (self.total or 0) + n
+    def set_total(self, total: int) -> None:
+        """The task's total, once it is known (it was None until then). A bar whose total changed midway would
+        read 97% and then 78%: setting it twice is a programming error."""
+        if self.total is not None:
+            raise RuntimeError(f"{self.task}: the progress total is already {self.total}")
+        self.total = max(int(total), self.done)
         self._emit("")
 
     def close(self) -> None:

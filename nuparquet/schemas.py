@@ -42,6 +42,9 @@ class Field:
     non_negative: bool = False  # every value (every element of a list) must be >= 0
     json_float_ok: bool = False  # the source may store it as a JSON float: kept as float64, losslessly
     empty_list_is_null: bool = False  # [] in the JSON, null in Arrow (camera_intrinsic)
+    # The JSON nests the list in this shape (rows first) where the column holds it flat: camera_intrinsic is
+    # [[..], [..], [..]] in calibrated_sensor.json and `fixed_size_list<float64>[9]` here, as the transforms are [16].
+    json_shape: tuple[int, ...] | None = None
     # A derived column filled by a join: null where the join has no partner, which only `convert --allow-dangling`
     # lets through (a trimmed extract); the strict default keeps the column non-null (`Schema.allowing_dangling`).
     null_if_dangling: bool = False
@@ -49,6 +52,11 @@ class Field:
     @property
     def arrow_type(self) -> pa.DataType:
         return parse_type(self.type)
+
+    @property
+    def nested_in_json(self) -> bool:
+        """The JSON holds this list as rows of lists (a 3x3 intrinsic), whatever the column's layout."""
+        return bool(self.json_shape) or self.type.count("fixed_size_list") == 2
 
 
 @dataclass(frozen=True)
@@ -180,7 +188,8 @@ def parse_type(spec: str) -> pa.DataType:
 
 def _load(path: Path) -> Schema:
     raw = json.loads(path.read_text())
-    fields = tuple(Field(**f) for f in raw["fields"])
+    fields = tuple(Field(**(f | ({"json_shape": tuple(f["json_shape"])} if "json_shape" in f else {})))
+                   for f in raw["fields"])
     return Schema(
         name=raw["name"], kind=raw["kind"], version=raw["version"], doc=raw.get("doc", ""), fields=fields,
         source=raw.get("source"), optional=raw.get("optional", False), sort_by=tuple(raw.get("sort_by", ())),

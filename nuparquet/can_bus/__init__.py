@@ -4,4 +4,6 @@
   continuous signals interpolated between the neighbouring messages.
 - `bevformer`: the 18-value `can_bus` vector of the BEVFormer / UniAD / VAD data converters, exactly as they
   compute it, and the corrected vector beside it.
+- `blacklists`: the devkit's lists of scenes with known CAN bus and localisation problems, as public data.
+- `routes`: scenes whose poses stray from the baseline route (`list_misaligned_routes`).
 """

@@ -31,18 +31,10 @@ import numpy as np
 import polars as pl
 
 from nuparquet.can_bus.align import neighbours
+from nuparquet.can_bus.blacklists import CAN_BLACKLIST, scene_number
 from nuparquet.columns import to_numpy
 
-# nuscenes-devkit NuScenesCanBus.can_blacklist: scenes whose get_messages raises ("does not have any CAN bus
-# data"), so the converters' `except` gives zeros whatever the files hold.
-DEVKIT_CAN_BLACKLIST = frozenset([161, 162, 163, 164, 165, 166, 167, 168, 170, 171, 172, 173, 174, 175, 176,
-                                  309, 310, 311, 312, 313, 314])
 HEAD = ("pos", "orientation")
-
-
-def _scene_id(name: str) -> int | None:
-    digits = name.rsplit("-", 1)[-1]
-    return int(digits) if digits.isdigit() else None
 
 
 def can_bus_vectors(samples: pl.DataFrame, poses: pl.DataFrame | None, pose_keys: list[str]) -> tuple[np.ndarray, np.ndarray]:
@@ -69,7 +61,8 @@ def can_bus_vectors(samples: pl.DataFrame, poses: pl.DataFrame | None, pose_keys
     last = np.where(prev_row >= 0, prev_row, first)  # the loop's `last_pose`
     after = np.where(next_row >= 0, next_row, last_of_scene)  # the loop's `pose` after `break` or the last
     head = np.concatenate([stacked[k][last] for k in HEAD], axis=1)
-    listed = np.array([(_scene_id(name) or -1) in DEVKIT_CAN_BLACKLIST for name in samples["scene_name"].to_list()])
+    # CAN_BLACKLIST: the devkit's get_messages raises for these scenes, so the converters' `except` gives zeros
+    listed = np.array([(scene_number(name) or -1) in CAN_BLACKLIST for name in samples["scene_name"].to_list()])
     usable = has_poses & ~listed
     exact[usable, :16] = np.concatenate([head, *(stacked[k][after] for k in tail)], axis=1)[usable]
     corrected[has_poses, :16] = np.concatenate([head, *(stacked[k][last] for k in tail)], axis=1)[has_poses]

@@ -1,7 +1,9 @@
-"""`nuparquet render OUT --scene NAME [--channel CHANNEL|all] --out scene.mp4`: annotated scene videos;
-`nuparquet render OUT --all-scenes --out-dir DIR [--engine ray]`: one video per scene, in parallel.
+"""`nuparquet render OUT --scene NAME [--channel CHANNEL|all|bev] --out scene.mp4`: annotated scene videos (cameras
+and / or the bird's-eye view); `nuparquet render OUT --all-scenes --out-dir DIR [--engine ray]`: one video per scene,
+in parallel; `nuparquet render OUT --sample TOKEN | --sample-data TOKEN | --annotation TOKEN | --instance TOKEN |
+--map LOCATION ... --out picture.png`: one picture (`nuparquet.rendering.single`).
 
-The flags are generated from `RenderOptions`, `SceneSelection` and `EngineOptions`
+The flags are generated from `RenderOptions`, `SceneSelection`, `EngineOptions` and `ImageOptions`
 (`nuparquet.cli.arguments.add_options`); only `OUT` and `--quiet` are the CLI's own.
 """
 
@@ -15,6 +17,7 @@ from nuparquet.cli.progress import bars
 from nuparquet.engine.options import EngineOptions
 from nuparquet.errors import UsageError
 from nuparquet.dataset.selection import SceneSelection
+from nuparquet.rendering.image_options import ImageOptions
 from nuparquet.rendering.options import RenderOptions
 
 _EPILOG = """\
@@ -27,6 +30,18 @@ examples:
   nuparquet render OUT --all-scenes --out-dir videos/ --channel all            # local processes, every core
   nuparquet render OUT --where "log_location = 'singapore-onenorth'" --out-dir videos/ --engine ray
   nuparquet render s3://bucket/OUT --all-scenes --out-dir /shared/videos --engine ray --ray-address auto
+one picture (PNG or JPEG):
+  nuparquet render OUT --sample-data TOKEN --out cam.png                   # a camera image with its boxes
+  nuparquet render OUT --sample-data TOKEN --nsweeps 5 --out lidar.png     # a lidar or radar frame from above
+  nuparquet render OUT --sample-data TOKEN --lidar-color lidarseg --lidarseg-legend --filter-lidarseg-labels 17,24 \
+      --lidarseg-preds preds.bin --out seg.png                             # predictions beside the ground truth
+  nuparquet render OUT --sample TOKEN --out sample.jpg                     # every sensor of a sample
+  nuparquet render OUT --sample TOKEN --pointcloud-in-image --camera-channel CAM_BACK --out points.png
+  nuparquet render OUT --sample TOKEN --map-in-image --out map-in-image.png
+  nuparquet render OUT --annotation TOKEN --extra-info --out ann.png;  nuparquet render OUT --instance TOKEN --out i.png
+  nuparquet render OUT --map boston-seaport --map-patch 300,1000,500,1200 --out patch.png
+  nuparquet render OUT --map boston-seaport --map-mask 400,1100,100,100 --map-angle 45 --map-layers lane,walkway --out m.png
+  nuparquet render OUT --map boston-seaport --ego-poses --scenes scene-0061 --out poses.png
 
 Channel names come from the dataset (`nuparquet info OUT`); --channel all tiles every camera, front row over
 back row; --channel bev is the bird's-eye view (map layers when map/ was converted, reference-lidar points
@@ -41,16 +56,25 @@ Many scenes (--all-scenes, --scenes, --where) write DIR/<scene>.mp4 and DIR/rend
 are the same bytes whichever --engine renders them. A failing scene is named with its error: the job stops
 and commits nothing, or with --keep-going the other scenes are written and the exit code is 1. --resume
 skips scenes already rendered into DIR (or finished by a run that stopped on a failure).
+
+One picture (--sample, --sample-data, --annotation, --instance, --map) is drawn as nuscenes-devkit's render_sample,
+render_sample_data, render_annotation, render_instance and its map renderers draw it (their boxes, colours and axes),
+with OpenCV, and written to --out as PNG or JPEG. Sample-data frames of lidar and radar are seen from above in the
+devkit's flat ego frame (x forward to the right), --axes-limit metres each way, the map underneath.
 """
 
 
 def register(sub) -> None:
     p = sub.add_parser(
         "render",
-        help="render a scene's camera images with 3D boxes into an MP4 video or image files",
+        help="render a scene's cameras and/or bird's-eye view with 3D boxes into an MP4 video or image files, or one "
+        "sample, sample_data, annotation, instance or map picture",
         description="Draw the annotated 3D boxes of one scene onto its camera images (projected exactly as "
         "nuscenes-devkit does; category colours, the front face marked with a thicker outline and a cross, "
-        "boxes drawn far to near) and write an H.264 MP4 and/or one image per frame. Headless: no window opens.",
+        "boxes drawn far to near) and/or its bird's-eye view (--channel bev, --bev: map layers, lidar points, boxes, "
+        "the ego), and write an H.264 MP4 and/or one image per frame (with a frame index, frames.parquet). Or draw "
+        "one picture of a sample, sample_data, annotation, instance or map (--sample, --sample-data, --annotation, "
+        "--instance, --map). Headless: no window opens.",
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -60,11 +84,15 @@ def register(sub) -> None:
     add_options(p, RenderOptions)
     add_options(p, SceneSelection)
     add_options(p, EngineOptions)
+    add_options(p, ImageOptions)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
+    image = options_from(args, ImageOptions)
+    if image.wanted:
+        return _run_image(args, image)
     selection = options_from(args, SceneSelection)
     if selection.many:
         return _run_many(args, selection)
@@ -82,7 +110,7 @@ def run(args) -> int:
     if result.missing:
         print(
             f"warning: {len(result.missing)} file(s) missing or unreadable, {result.frames_skipped} frame(s) "
-            f"skipped; first: {result.missing[0]}",
+            f"skipped (the frame before repeated, to keep the timing); first: {result.missing[0]}",
             file=sys.stderr,
         )
     return 0
@@ -104,4 +132,24 @@ def _run_many(args, selection: SceneSelection) -> int:
         raise
     resumed = f" ({len(result.resumed)} already done, skipped)" if result.resumed else ""
     print(f"rendered {len(result.written)} scene(s){resumed} -> {result.out_dir} (summary: {result.summary.name})")
+    return 0
+
+
+def _run_image(args, image: ImageOptions) -> int:
+    """One picture to --out (PNG or JPEG)."""
+    from nuparquet.rendering.image_options import check_image_path
+
+    if args.scene is not None or args.all_scenes or args.out_dir is not None or args.where is not None:
+        raise UsageError("one picture (--sample, --sample-data, --annotation, --instance, --map) or scenes (--scene, "
+                         "--all-scenes, --where), not both")
+    if args.out is None:
+        raise UsageError("give --out PICTURE.png (or .jpg) for the picture")
+    image.check()
+    out = check_image_path(args.out)
+    from nuparquet.rendering.single import render_image, save_image  # cv2 loads only when drawing
+
+    picture = render_image(args.dataset, image, scale=args.scale, labels=args.labels, lidar_color=args.lidar_color,
+                           dataroot=args.dataroot, scenes=tuple(args.scenes or ()))
+    save_image(picture, out)
+    print(f"rendered {picture.shape[1]}x{picture.shape[0]} -> {out}")
     return 0

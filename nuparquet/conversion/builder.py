@@ -114,6 +114,9 @@ class Builder:
     parts: Literal["one", "per_batch"] = "one"
     wanted: Callable[[BuildContext], str | None] = always
     needs: tuple[str, ...] = ()  # builders whose datasets it reads (ctx.dataset): skipped when they are
+    # Progress units its `build` reports itself (one per scene task, ...), counted before the builders run so the
+    # bar's total is known once and never grows; None: none beyond the one the run counts per builder.
+    units: Callable[[BuildContext], int] | None = None
 
 
 def needs_folder(relative: str) -> Callable[[BuildContext], str | None]:

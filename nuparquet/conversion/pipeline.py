@@ -98,12 +98,21 @@ def convert(dataroot: Path | str, version: str, out: Path | str, options: Conver
 
 def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertOptions, engine: EngineOptions,
              on_progress: OnProgress | None) -> dict:
-    with Reporter(on_progress, "convert", total=2 * len(table_schemas()) + 2) as reporter, \
+    # The total is unknown while the tables are read (which tables a version folder holds, how many scenes); it is
+    # set once they are, counting every unit still to come, and never changes after.
+    with Reporter(on_progress, "convert") as reporter, \
             atomic_directory(Path(out), overwrite=opts.overwrite) as tmp:
         result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"))
         datasets: dict[str, dict] = {}
         files: list[dict] = []
-        tables: dict[str, pl.DataFrame] = {}
+        tables = {name: pl.from_arrow(source.table) for name, source in result.tables.items()}
+        reporter.advance(step="check integrity")
+        problems, warnings = split_warnings(result.problems + check_integrity(tables, references=not opts.allow_dangling))
+        if problems:
+            raise ProblemsFound(problems)
+        ctx = BuildContext(Path(dataroot), version, opts, engine, tables, tmp, reporter)
+        # the tables written, every builder's units, the manifest
+        reporter.set_total(reporter.done + len(result.tables) + count_steps(ctx, BUILDERS) + 1)
         for name, source in result.tables.items():
             reporter.advance(step=f"write tables/{name}")
             size = write_parquet(source.table, tmp / "tables" / name)
@@ -116,18 +125,11 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
             if source.inferred is not None:  # an extra table (T4's object_ann, ...): typed by inference
                 entry |= {"kind": "table_inferred", **source.inferred}
             files.append(entry)
-            tables[name] = pl.from_arrow(source.table)
             source.table = None  # the polars copy is all we need from here on
-        reporter.advance(step="check integrity")
-        problems, warnings = split_warnings(result.problems + check_integrity(tables, references=not opts.allow_dangling))
-        if problems:
-            raise ProblemsFound(problems)
         findings = dangling.find(tables) if opts.allow_dangling else None
         if findings is not None:  # before the scene batches release sample_data
             datasets[dangling.DATASET] = _write_findings(findings, tmp)
         channels = _channel_facts(tables)
-        ctx = BuildContext(Path(dataroot), version, opts, engine, tables, tmp, reporter)
-        reporter.grow(count_steps(ctx, BUILDERS))
         built, skipped = build_datasets(ctx, BUILDERS)
         manifest = {
             "format": FORMAT_NAME,

@@ -52,10 +52,26 @@ def build_datasets(ctx: BuildContext, builders: tuple[Builder, ...]) -> tuple[di
 
 
 def count_steps(ctx: BuildContext, builders: tuple[Builder, ...]) -> int:
-    """Progress units `build_datasets` reports: one per scene batch, one per "whole" builder."""
+    """Progress units `build_datasets` reports, all of them, before it starts (the bar's total never grows): one
+    per scene batch (and the batch of rows of no scene, when there are any), one per "whole" builder it will run
+    and the units those report themselves (`Builder.units`)."""
+    active, _ = _select(ctx, builders)
     n_scenes = ctx.tables["scene"].height
-    batches = -(-n_scenes // ctx.options.scenes_per_batch) if any(b.scope == "scenes" for b in builders) else 0
-    return batches + sum(b.scope == "whole" for b in builders)
+    batches = 0
+    if any(b.scope == "scenes" for b in active):
+        batches = -(-n_scenes // ctx.options.scenes_per_batch) + _has_orphans(ctx)
+    return batches + sum(1 + (b.units(ctx) if b.units else 0) for b in active if b.scope == "whole")
+
+
+def _has_orphans(ctx: BuildContext) -> bool:
+    """Rows of the per-sample tables that belong to no scene (`_batches` gives them a last batch of their own)."""
+    batch_of = lookups.scene_batches(ctx.tables, samples(ctx), ctx.options.scenes_per_batch)
+    for table in PER_SAMPLE_TABLES:
+        key = "token" if table == "sample" else "sample_token"
+        rows = ctx.tables[table].select(key).join(batch_of.rename({"sample_token": key}), on=key, how="left")
+        if rows["_batch"].null_count():
+            return True
+    return False
 
 
 def _select(ctx: BuildContext, builders: tuple[Builder, ...]) -> tuple[list[Builder], dict[str, str]]:
@@ -93,9 +109,7 @@ def _batches(ctx: BuildContext):
     # Rows of no scene (their sample or its scene is absent: only `--allow-dangling` lets such input through) are
     # kept, as a last batch of their own, after every scene.
     orphans = {table: parts[table].pop((None,), None) for table in PER_SAMPLE_TABLES}
-    if any(rows is not None for rows in orphans.values()):
-        if ctx.reporter:
-            ctx.reporter.grow(1)
+    if any(rows is not None for rows in orphans.values()):  # counted by `count_steps` (`_has_orphans`)
         yield SceneBatch(n_batches, [], {t: empty[t] if r is None else r for t, r in orphans.items()})
 
 

@@ -76,6 +76,20 @@ def getter(array: pa.Array | pa.ChunkedArray, *, empty_list: bool = False, json_
     return lambda i: value(i) if valid[i] else None
 
 
+def nested(array: pa.ChunkedArray, shape: tuple[int, int]) -> pa.ChunkedArray:
+    """A flat fixed-size list column (camera_intrinsic's [9]) as the JSON nests it: rows of `shape[1]` values
+    (`Field.json_shape`); nulls kept."""
+    rows, width = shape
+
+    def one(chunk: pa.FixedSizeListArray) -> pa.Array:
+        values = chunk.values.slice(chunk.offset * rows * width, len(chunk) * rows * width)
+        inner = pa.FixedSizeListArray.from_arrays(values, width)
+        return pa.FixedSizeListArray.from_arrays(inner, rows, mask=chunk.is_null() if chunk.null_count else None)
+
+    return pa.chunked_array([one(chunk) for chunk in array.chunks],
+                            pa.list_(pa.list_(array.type.value_type, width), rows))
+
+
 def _chunked_getter(array: pa.ChunkedArray, **options) -> Getter:
     chunks = [chunk for chunk in array.chunks if len(chunk)]
     if not chunks:

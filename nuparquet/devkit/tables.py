@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from nuparquet.devkit.columns import Columns, RecordColumns, read_table
+from nuparquet.devkit.columns import Columns, RecordColumns, nested, read_table
 from nuparquet.devkit.errors import ReadOnly
 from nuparquet.errors import FormatError
 
@@ -184,4 +184,8 @@ class ConvertedTables:
         facts = self.manifest["tables"][name]
         schema = table_schemas().get(name)
         empty_list = {f.name for f in schema.fields if f.empty_list_is_null} if schema else set()
+        for field in schema.fields if schema else ():
+            if field.json_shape and field.name in table.column_names:  # flat in the column, nested in the JSON
+                i = table.column_names.index(field.name)
+                table = table.set_column(i, field.name, nested(table.column(i), field.json_shape))
         return Columns(table, facts["key_order"], facts.get("layouts"), set(facts.get("json_fields", ())), empty_list)

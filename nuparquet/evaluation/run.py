@@ -169,7 +169,9 @@ def evaluate(dataset, options: EvalOptions | None = None, *, on_progress: OnProg
     out = Path(options.out) if options.out is not None else None
     if out is not None:
         _check_out(out, ds, options.overwrite)
-    with Reporter(on_progress, "eval", total=6 + (1 if out is not None and options.plots else 0), unit="step") as rep:
+    steps = 6 + (1 if out is not None and options.plots else 0)
+    # with slices the total is known once their labels are (each is a step): a bar's total never changes
+    with Reporter(on_progress, "eval", total=None if by else steps, unit="step") as rep:
         rep.note("read the submission")
         sub = read_submission(options.results, max_boxes_per_sample=config.max_boxes_per_sample,
                               class_names=config.class_names)
@@ -222,7 +224,7 @@ def evaluate(dataset, options: EvalOptions | None = None, *, on_progress: OnProg
         if by:
             slices, slice_summaries, slice_details = _evaluate_slices(
                 by, gt, gt_kept, gt_boxes, pred_boxes, gt_distance[gt_kept], pred_distance[pred_kept], tp_match,
-                config, bins, sub.meta, rep)
+                config, bins, sub.meta, rep, steps)
         summary = whole.summary(sub.meta)
         details = whole.details()
         notes = _notes(gt)
@@ -244,7 +246,7 @@ def _notes(gt: GroundTruth) -> list[str]:
 
 
 def _evaluate_slices(by, gt: GroundTruth, gt_kept, gt_boxes: Boxes, pred_boxes: Boxes, gt_distance, pred_distance,
-                     tp_match, config, bins, meta, reporter) -> tuple[pl.DataFrame, dict, dict]:
+                     tp_match, config, bins, meta, reporter, steps: int) -> tuple[pl.DataFrame, dict, dict]:
     sample_scene = (pl.DataFrame({"sample_token": gt.samples.token, "scene_token": gt.samples.scene_token,
                                   "scene_name": gt.samples.scene_name, "timestamp": gt.samples.timestamp_us},
                                  schema={"sample_token": pl.String, "scene_token": pl.String,
@@ -255,7 +257,7 @@ def _evaluate_slices(by, gt: GroundTruth, gt_kept, gt_boxes: Boxes, pred_boxes: 
                             pred_attribute=pred_boxes.attribute, gt_sample=gt_boxes.sample_index,
                             pred_sample=pred_boxes.sample_index, sample_scene=sample_scene, pred_matched_gt=tp_match,
                             bins=bins) for name in by]
-    reporter.grow(sum(len(d.labels) for d in dimensions))
+    reporter.set_total(steps + sum(len(d.labels) for d in dimensions))
     rows, summaries, details = [], {}, {}
     for dim in dimensions:
         for label in dim.labels:

@@ -161,6 +161,7 @@ def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str,
     """`layout`: the source's whitespace (`sources.json_layout`; None: one record a line)."""
     schema = table_schemas().get(name)
     empty_list_fields = {f.name for f in schema.fields if f.empty_list_is_null} if schema else set()
+    shapes = {f.name: f.json_shape for f in schema.fields if f.json_shape} if schema else {}
     files = sorted(parquet_dir.glob("*.parquet"))
     opening, separator, closing, empty = json_layout.delimiters(layout)
     with path.open("w") as out:
@@ -172,6 +173,10 @@ def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str,
             for batch in parquet.iter_batches(batch_size=BATCH_ROWS, columns=key_order + hidden):
                 columns = [batch.column(k).to_pylist() for k in key_order]
                 for key, values in zip(key_order, columns):
+                    if key in shapes:  # flat in the column, nested in the JSON
+                        width = shapes[key][1]
+                        values[:] = [v if v is None else [v[i:i + width] for i in range(0, len(v), width)]
+                                     for v in values]
                     if key in empty_list_fields:
                         values[:] = [[] if v is None else v for v in values]
                     elif key in json_fields:  # fields the schema does not know, kept as raw JSON text

@@ -1,6 +1,6 @@
 """Sensor poses and cameras of `frames` rows, read once per query from the stored transform columns.
 
-`frames` stores `global_from_ego` and `ego_from_sensor` (row-major `[16]`), `camera_intrinsic` (`[3][3]`,
+`frames` stores `global_from_ego` and `ego_from_sensor` (row-major `[16]`), `camera_intrinsic` (row-major `[9]`,
 null for non-cameras), `width` and `height`. Rows that lack the matrix columns (hand-written tables) are
 built from the poses (`ego_translation`/`ego_rotation`, `sensor_translation`/`sensor_rotation`) with the
 same function the converter uses, so both give the same numbers.

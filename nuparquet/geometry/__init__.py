@@ -24,7 +24,7 @@ from nuparquet.geometry.projection import (
 )
 from nuparquet.geometry.quaternions import (
     heading_from_quaternions, invert_quaternions, multiply_quaternions, normalise_quaternions, quaternion_slerp,
-    rotation_matrices, yaw_from_quaternions,
+    rotation_matrices, vehicle_flat_from_vehicle, yaw_from_quaternions,
 )
 from nuparquet.geometry.rigid import invert_rigid, rigid_transforms, transform_points
 
@@ -32,6 +32,6 @@ __all__ = [
     "CORNER_MIN_DEPTH_M", "Cameras", "NEAR_PLANE_M", "box_corners", "box_half_axes", "box_visibility",
     "corners_from_half_axes", "count_points_in_boxes", "heading_from_quaternions", "interp_two_points",
     "invert_quaternions", "invert_rigid", "multiply_quaternions", "normalise_quaternions", "perspective", "pixels_in_image", "quaternion_slerp", "rigid_transforms",
-    "rotation_matrices", "scale_intrinsic", "scale_pixels", "slerp_amount", "transform_points", "view_points",
-    "yaw_from_quaternions",
+    "rotation_matrices", "scale_intrinsic", "scale_pixels", "slerp_amount", "transform_points",
+    "vehicle_flat_from_vehicle", "view_points", "yaw_from_quaternions",
 ]

@@ -163,3 +163,15 @@ def heading_from_quaternions(q_wxyz) -> np.ndarray:
     """
     rotation = rotation_matrices(q_wxyz)
     return np.arctan2(rotation[..., 1, 0], rotation[..., 0, 0])
+
+
+def vehicle_flat_from_vehicle(q_wxyz) -> np.ndarray:
+    """(..., 3, 3) the devkit's `rotation_vehicle_flat_from_vehicle` of ego orientations (`render_sample_data` with
+    `use_flat_vehicle_coordinates=True`): the rotation about z by the yaw (`yaw_from_quaternions`) times the inverse
+    of the full rotation, R_z(yaw) @ R^T. The identity for an upright ego; for a tilted one this is the devkit's
+    arithmetic (it takes the tilt inverted and turned by the yaw), kept so that its top views are reproduced."""
+    yaw = yaw_from_quaternions(q_wxyz)
+    half = yaw / 2.0
+    z_rotation = rotation_matrices(np.stack([np.cos(half), np.zeros_like(half), np.zeros_like(half), np.sin(half)],
+                                            axis=-1))
+    return z_rotation @ np.swapaxes(rotation_matrices(q_wxyz), -1, -2)

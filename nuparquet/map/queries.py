@@ -14,6 +14,13 @@ built on first use). Every query takes arrays and answers for all of them at onc
   later candidate (lanes before connectors, file order), as the devkit's `<=` does; '' where none.
 - `map_mask(patch_box, patch_angle_deg, layers, canvas_size)`: = `get_map_mask` pixel for pixel (`map.mask`).
 - `discretize_lanes(tokens, resolution_m)`: = `discretize_lanes` (`map.centerlines`).
+- `record_on_point`, `bounds`, `next_roads`: = `record_on_point`, `get_bounds`, `get_next_roads` (`map.roads`).
+- `arcline_path(token)`, `incoming_lanes`, `outgoing_lanes`: = `get_arcline_path`, `get_incoming_lane_ids`,
+  `get_outgoing_lane_ids`; the arcline helpers (`project_pose_to_lane`, `length_of_lane`, curvature) are
+  `nuparquet.map.arcline`.
+
+Longer than our ~300-line norm: it is the one face of a location's map, and every method keeps the devkit name it
+answers for beside its docstring; the work is done in `map.roads`, `map.mask`, `map.centerlines`, `map.arcline`.
 """
 
 from __future__ import annotations
@@ -59,7 +66,8 @@ class MapLayers:
         self.location = location
         self.layers = layers
         self.parts = parts
-        self._dataset = dataset
+        self.dataset = dataset  # record fields are read from it on first use
+        self._records: dict[str, pl.DataFrame] = {}
         self._line_nodes = line_nodes
         self._arcline = arcline_path_3
         self._centerlines: dict[float, tuple[np.ndarray, np.ndarray]] = {}
@@ -99,7 +107,7 @@ class MapLayers:
     def line_nodes(self) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """layer -> ((N, 2) node xy of each line record in order, (N,) record of each node, (R,) node counts)."""
         if self._line_nodes is None:
-            dataset, location = self._dataset, self.location
+            dataset, location = self.dataset, self.location
             nodes = _read(dataset, "node", location, ["token", "x", "y"])
             node_index = {t: i for i, t in enumerate(nodes.column("token").to_pylist())}
             node_xy = np.c_[nodes.column("x").to_numpy(), nodes.column("y").to_numpy()]
@@ -119,13 +127,102 @@ class MapLayers:
     def arcline_path_3(self) -> dict[str, list[dict]]:
         """lane token -> its arcline paths (lanes and lane connectors)."""
         if self._arcline is None:
-            paths = _read(self._dataset, "arcline_path_3", self.location, ["lane_token", "paths"])
+            paths = _read(self.dataset, "arcline_path_3", self.location, ["lane_token", "paths"])
             values = paths.column("paths").to_pylist()
             if values and isinstance(values[0], str):  # kept as JSON text
                 import json
                 values = [json.loads(v) for v in values]
             self._arcline = dict(zip(paths.column("lane_token").to_pylist(), values))
         return self._arcline
+
+    # -- records and their fields -----------------------------------------------------------------------------
+
+    def records(self, layer: str) -> pl.DataFrame:
+        """Every record of `layer` of this map, file order, with the map file's fields (geometry as WKB), read once."""
+        if layer not in self._records:
+            if self.dataset is None:
+                raise ValueError("this MapLayers was built without its dataset: records cannot be read")
+            self._records[layer] = (self.dataset.scan(f"map/{layer}").filter(pl.col("location") == self.location)
+                                    .drop("location").collect())
+        return self._records[layer]
+
+    def record(self, layer: str, token: str) -> dict:
+        """One record of `layer` as the map file holds it (the devkit's `get(layer, token)`, without its shortcuts)."""
+        rows = self.records(layer).filter(pl.col("token") == token)
+        if rows.is_empty():
+            from nuparquet.errors import UsageError
+
+            raise UsageError(f"no {layer} record {token!r} in the map of {self.location}")
+        return rows.drop("geometry", "bbox", strict=False).row(0, named=True)
+
+    def record_field(self, layer: str, token: str, name: str):
+        return self.record(layer, token)[name]
+
+    def line_node_tokens(self, line_token: str) -> list[str]:
+        """The node tokens of a `line` record."""
+        return self.record("line", line_token)["node_tokens"]
+
+    def exterior_nodes(self, layer: str) -> dict[str, frozenset[str]]:
+        """{record token: its polygon's exterior node tokens} of a polygon layer other than drivable_area (the
+        devkit's `exterior_node_tokens` shortcut)."""
+        polygons = self.records("polygon").select("token", "exterior_node_tokens")
+        nodes = dict(zip(polygons["token"].to_list(), polygons["exterior_node_tokens"].to_list()))
+        rows = self.records(layer).select("token", "polygon_token")
+        return {t: frozenset(nodes.get(p) or ()) for t, p in zip(rows["token"].to_list(), rows["polygon_token"].to_list())}
+
+    # -- the devkit's helpers by record -----------------------------------------------------------------------
+
+    def record_on_point(self, x: float, y: float, layer: str) -> str:
+        """The first record of polygon layer `layer` holding (x, y), '' where none (`record_on_point`)."""
+        if layer not in POLYGON_LAYERS:
+            raise ValueError(f"{layer} is not a polygon layer")
+        return str(self.layers_on_point(x, y, [layer])[layer][0])
+
+    def bounds(self, layer: str, token: str) -> tuple[float, float, float, float]:
+        """(x_min, y_min, x_max, y_max) of a record (`get_bounds`; `map.roads.bounds`)."""
+        from nuparquet.map.roads import bounds
+
+        return bounds(self, layer, token)
+
+    def next_roads(self, x: float, y: float) -> dict[str, list[str]]:
+        """The road segments, road blocks and lanes that may follow the road at (x, y) (`get_next_roads`)."""
+        from nuparquet.map.roads import next_roads
+
+        return next_roads(self, x, y)
+
+    def records_in_radius(self, x: float, y: float, radius_m: float, layer_names=None,
+                          mode: str = "intersect") -> dict[str, list[str]]:
+        """`records_in_patch` of the square of half-side `radius_m` around (x, y) (`get_records_in_radius`)."""
+        return self.records_in_patch((x - radius_m, y - radius_m, x + radius_m, y + radius_m), layer_names, mode)
+
+    def arcline_path(self, lane_token: str) -> list[dict]:
+        """The lane's arcline paths (`get_arcline_path`); UsageError for a token without any."""
+        paths = self.arcline_path_3.get(lane_token)
+        if not paths:
+            from nuparquet.errors import UsageError
+
+            raise UsageError(f"lane {lane_token!r} has no arcline path in the map of {self.location}")
+        return paths
+
+    def incoming_lanes(self, lane_token: str) -> list[str]:
+        """Lanes that end where this one starts (`get_incoming_lane_ids`)."""
+        return self._connected(lane_token, "incoming")
+
+    def outgoing_lanes(self, lane_token: str) -> list[str]:
+        """Lanes that start where this one ends (`get_outgoing_lane_ids`)."""
+        return self._connected(lane_token, "outgoing")
+
+    def _connected(self, lane_token: str, direction: str) -> list[str]:
+        rows = self.records("connectivity").filter(pl.col("lane_token") == lane_token)
+        if rows.is_empty():
+            from nuparquet.errors import UsageError
+
+            raise UsageError(f"{lane_token!r} is not a lane of the map of {self.location} (no connectivity)")
+        values = rows[direction][0]
+        return [] if values is None else values.to_list()
+
+    # -- point queries ----------------------------------------------------------------------------------------
+
 
     # -- point queries ----------------------------------------------------------------------------------------
 

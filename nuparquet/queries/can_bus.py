@@ -33,7 +33,8 @@ def _scene_start(ds: Dataset) -> pl.LazyFrame:
 
 def speed_over_time(ds: Dataset, *, scene: Scene = None) -> pl.LazyFrame:
     """Speed from three sources, in one long table: ``scene_name, source, time_s, speed_mps`` with `source`
-    "vehicle_monitor" (wheel speed, 2 Hz), "pose" (CAN pose |vel|, 50 Hz) and "ego_pose" (from the reference
+    "vehicle_monitor" (its `vehicle_speed`, 2 Hz; the wheel speeds are zoe_veh_info's), "pose" (CAN pose |vel|,
+    50 Hz) and "ego_pose" (from the reference
     lidar keyframe poses, 2 Hz, `queries.ego_motion`); time since the scene's first sample."""
     start = _scene_start(ds)
     monitor = for_scene(ds.scan("can_bus/vehicle_monitor"), scene)
@@ -53,7 +54,7 @@ def speed_over_time(ds: Dataset, *, scene: Scene = None) -> pl.LazyFrame:
 
 
 def can_speed(ds: Dataset, *, scene: Scene = None) -> pl.LazyFrame:
-    """Per scene: mean and max speed from CAN (vehicle_monitor wheel speed, pose |vel|) next to the ego-pose speed
+    """Per scene: mean and max speed from CAN (vehicle_monitor vehicle_speed, pose |vel|) next to the ego-pose speed
     (reference lidar keyframes), m/s; `ego_vs_can_mps` = mean ego-pose speed - mean vehicle_monitor speed."""
     series = speed_over_time(ds, scene=scene).drop_nulls("speed_mps")
     wide = series.group_by("scene_name", "source").agg(

@@ -60,6 +60,7 @@ class Section:
     default: bool = True  # printed by a plain `nuparquet stats`; else only on request (--only)
     requires: tuple[str, ...] = ()  # datasets the query reads beyond the core four; absent -> not in the default run
     when: Callable[[Dataset], bool] | None = None  # and in the default run only if this holds (labels converted)
+    unmet: str = ""  # what is missing when `when` does not hold (asking for the section then is a usage error)
 
 
 SECTIONS: tuple[Section, ...] = (
@@ -77,7 +78,7 @@ SECTIONS: tuple[Section, ...] = (
     Section("tracks", "Tracks (instances) by category", _query("scenes:track_stats")),
     Section("ego_speed", "Ego motion per scene (reference lidar keyframe poses)", _query("frames:ego_speed_summary")),
     Section("channel_rates", "Frames per channel (rates measured from timestamps)", _query("frames:channel_rates")),
-    Section("can_speed", "CAN bus speed per scene, m/s (vehicle_monitor wheel speed, pose |vel|) vs ego-pose speed",
+    Section("can_speed", "CAN bus speed per scene, m/s (vehicle_monitor vehicle_speed, pose |vel|) vs ego-pose speed",
             _query("can_bus:can_speed"), requires=("can_bus/vehicle_monitor", "can_bus/pose")),
     Section("brake_throttle", "CAN bus pedals per scene (vehicle_monitor: share of messages pressed, mean, max)",
             _query("can_bus:brake_throttle"), requires=("can_bus/vehicle_monitor",)),
@@ -86,9 +87,13 @@ SECTIONS: tuple[Section, ...] = (
     Section("ego_on_map", "Ego keyframes per scene on each map surface (shares; intersection = ego time there)",
             _query("map:ego_time_on_surfaces"), requires=("map/lane", "map/road_segment")),
     Section("lidarseg", "nuScenes-lidarseg: labelled lidar points per class (like NuScenes.list_lidarseg_categories)",
-            _query("points:lidarseg_class_counts"), requires=("lidar_points",), when=_has_labels("lidarseg")),
+            _query("points:lidarseg_class_counts"), requires=("lidar_points",), when=_has_labels("lidarseg"),
+            unmet="lidar_points/ holds no lidarseg labels (the dataroot had no lidarseg/ label files when it was "
+                  "converted)"),
     Section("panoptic", "Panoptic nuScenes: instances per class (like NuScenes.list_panoptic_instances, ddof=0)",
-            _query("points:panoptic_instance_stats"), requires=("lidar_points",), when=_has_labels("panoptic")),
+            _query("points:panoptic_instance_stats"), requires=("lidar_points",), when=_has_labels("panoptic"),
+            unmet="lidar_points/ holds no panoptic labels (the dataroot had no panoptic/ label files when it was "
+                  "converted)"),
     Section("class_distribution_by_scene", "Categories per scene",
             _query("annotations:class_distribution", by_scene=True), default=False),
     Section("channel_rates_by_scene", "Frames per channel and scene", _query("frames:channel_rates", by_scene=True),
@@ -125,5 +130,10 @@ def summary(ds: Dataset, *, scene: Scene = None, sections: Sequence[str] | None 
 
         raise UsageError("; ".join(f"section {s} needs dataset(s) {', '.join(d)}, not in this output"
                                    for s, d in missing.items()))
+    unmet = [s for s in names if BY_NAME[s].when is not None and not BY_NAME[s].when(ds)]
+    if unmet:  # asked for by name (--only) while its data is absent: say so rather than print zeros
+        from nuparquet.errors import UsageError
+
+        raise UsageError("; ".join(f"section {s}: {BY_NAME[s].unmet}" for s in unmet))
     options = SectionOptions(bin_width_m=bin_width_m)
     return {name: BY_NAME[name].query(ds, scene, options) for name in names}

@@ -4,10 +4,9 @@ boxes as oriented rectangles with a heading line in their category colours, the 
 centred on the ego vehicle, north-up or ego-up.
 
 The map is rasterised once per scene (`MapRaster`: every layer's polygons over the scene's extent, at the
-output's pixels per metre); each output warps it into the view with one `cv2.warpAffine`. Points and boxes go
-through one view transform per output over all their coordinates at once; points are set by array indexing,
-boxes drawn by one `cv2.polylines` call per colour. Polygons are filled one call each, once per scene: OpenCV
-fills several polygons of one call even-odd, so overlapping roads would cancel out.
+output's pixels per metre, `map_canvas`'s polygon and line drawing); each output warps it into the view with one
+`cv2.warpAffine`. Points and boxes go through one view transform per output over all their coordinates at once;
+points are set by array indexing, boxes drawn by one `cv2.polylines` call per colour.
 
 Pixel convention: pixel (u, v) has its centre at (u, v); u grows east (north-up) or to the ego's right
 (ego-up), v grows south / backwards.
@@ -22,6 +21,7 @@ import numpy as np
 import shapely
 
 from nuparquet.frames.boxes import FrameBoxes
+from nuparquet.rendering.map_canvas import draw_lines, fill_polygons, layer_geometries
 from nuparquet.rendering.palette import category_rgb
 from nuparquet.geometry.quaternions import heading_from_quaternions
 from nuparquet.rendering.plan import RowTile, TileLoad
@@ -79,6 +79,7 @@ class MapRaster:
     x0_m: float
     y1_m: float
     px_per_m: float
+    has_map: bool = False  # the map layers were drawn (False: the background only, no map converted)
 
     @classmethod
     def build(cls, map_layers, extent: tuple[float, float, float, float], px_per_m: float) -> MapRaster:
@@ -89,61 +90,30 @@ class MapRaster:
         height = int(np.ceil((ymax - ymin) * px_per_m)) + 1
         image = np.empty((height, width, 3), np.uint8)
         image[:] = BACKGROUND_BGR
-        raster = cls(image, xmin, ymax, px_per_m)
+        raster = cls(image, xmin, ymax, px_per_m, has_map=map_layers is not None)
         if map_layers is None:
             return raster
         box = shapely.box(xmin, ymin, xmax, ymax)
         for layer, color, how in MAP_STYLE:
-            if layer == "drivable_area":
-                parts = map_layers.parts[layer]
-                geoms = parts.geometry[np.sort(parts.tree.query(box, predicate="intersects"))] if len(parts.geometry) else []
-            else:
-                records = map_layers.layers[layer]
-                geoms = records.geometry[np.sort(records.tree.query(box, predicate="intersects"))] \
-                    if len(records.geometry) else []
+            geoms = layer_geometries(map_layers, layer, box)
             if how == "fill":
-                raster._fill(geoms, color)
+                fill_polygons(raster.image, geoms, raster.to_pixels, color, BACKGROUND_BGR)
             else:
-                raster._lines(geoms, color, thickness=2 if layer == "road_divider" else 1)
+                draw_lines(raster.image, geoms, raster.to_pixels, color, thickness=2 if layer == "road_divider" else 1)
         return raster
 
     def to_pixels(self, xy: np.ndarray) -> np.ndarray:
         return np.c_[(xy[:, 0] - self.x0_m) * self.px_per_m, (self.y1_m - xy[:, 1]) * self.px_per_m]
 
-    def _rings(self, geoms) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """Exterior and hole rings of every polygon (all coordinates transformed in one call), fixed point 1/8 px."""
-        polygons = shapely.get_parts(np.asarray(geoms, dtype=object)) if len(geoms) else np.empty(0, object)
-        if not len(polygons):
-            return [], []
-        rings, ring_index = shapely.get_rings(polygons, return_index=True)
-        coords, coord_ring = shapely.get_coordinates(rings, return_index=True)
-        fixed = np.round(self.to_pixels(coords) * 8).astype(np.int32)
-        split = np.split(fixed, np.flatnonzero(np.diff(coord_ring)) + 1)
-        first_ring = np.r_[True, ring_index[1:] != ring_index[:-1]]  # each polygon's exterior comes first
-        return split, first_ring
-
-    def _fill(self, geoms, color) -> None:
-        rings, exterior = self._rings(geoms)
-        for ring, is_exterior in zip(rings, exterior):  # one call per ring: a multi-ring call fills even-odd
-            cv2.fillPoly(self.image, [ring], color if is_exterior else BACKGROUND_BGR, lineType=cv2.LINE_8, shift=3)
-
-    def _lines(self, geoms, color, thickness: int) -> None:
-        lines = [g for g in geoms if g is not None and not shapely.is_empty(g)]
-        if not lines:
-            return
-        coords, index = shapely.get_coordinates(np.asarray(lines, dtype=object), return_index=True)
-        fixed = np.round(self.to_pixels(coords) * 8).astype(np.int32)
-        cv2.polylines(self.image, np.split(fixed, np.flatnonzero(np.diff(index)) + 1), False, color, thickness,
-                      lineType=cv2.LINE_AA, shift=3)
-
-    def warp(self, view: View, world_to_pixel: np.ndarray) -> np.ndarray:
-        """The raster as seen by the tile: (H, W, 3) for the affine `world_to_pixel` (global -> tile pixel)."""
+    def warp(self, size: tuple[int, int], world_to_pixel: np.ndarray) -> np.ndarray:
+        """The raster as seen by a picture of `size` (width, height): (H, W, 3) for the affine `world_to_pixel`
+        (global -> picture pixel)."""
         raster_from_world = np.array([[self.px_per_m, 0.0, -self.x0_m * self.px_per_m],
                                       [0.0, -self.px_per_m, self.y1_m * self.px_per_m]])
         world_from_tile = cv2.invertAffineTransform(world_to_pixel)
         raster_from_tile = raster_from_world[:, :2] @ world_from_tile
         raster_from_tile[:, 2] += raster_from_world[:, 2]
-        return cv2.warpAffine(self.image, raster_from_tile, view.size, flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+        return cv2.warpAffine(self.image, raster_from_tile, tuple(size), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
                               borderMode=cv2.BORDER_CONSTANT, borderValue=BACKGROUND_BGR)
 
 
@@ -179,6 +149,8 @@ class BevTile(RowTile):
     label: str = "BEV"
     predictions: FrameBoxes | None = None  # predicted boxes per lidar row (`render.predictions`), thin outlines
     prediction_colors_rgb: np.ndarray | None = None  # (M, 3)
+    tokens: tuple[str, ...] = ()  # (L,) sample_data token of each lidar frame (the frame index)
+    timestamps_us: np.ndarray | None = None  # (L,)
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)
@@ -199,14 +171,15 @@ class BevTile(RowTile):
         ego = self.global_from_ego[row]
         ego_yaw = float(np.arctan2(ego[1, 0], ego[0, 0]))
         to_pixel = self.view.world_to_pixel(ego[:2, 3], ego_yaw)
-        image = self.raster.warp(self.view, to_pixel)
+        image = self.raster.warp(self.view.size, to_pixel)
         if cloud is not None and len(cloud[0]):
             self._draw_points(image, *cloud, row, to_pixel)
         self._draw_boxes(image, row, to_pixel)
         if self.predictions is not None:
             self._draw_predictions(image, row, to_pixel)
         self._draw_ego(image, ego[:2, 3], ego_yaw, to_pixel)
-        draw_legend(image, points="height" if self.clouds is None or self.clouds.color == "depth" else self.clouds.color)
+        draw_legend(image, points="height" if self.clouds is None or self.clouds.color == "depth" else self.clouds.color,
+                    map_layers=self.raster.has_map)
         return image
 
     def _draw_points(self, image: np.ndarray, points: np.ndarray, labels: np.ndarray | None, row: int,
@@ -270,22 +243,23 @@ class BevTile(RowTile):
 LEGEND = tuple((layer.replace("_", " "), color) for layer, color, _ in MAP_STYLE)
 
 
-def draw_legend(image: np.ndarray, points: str = "height") -> None:
-    """Layer swatches and the point colouring (the height scale, or the name of the colouring) in the top-left
-    corner."""
+def draw_legend(image: np.ndarray, points: str = "height", map_layers: bool = True) -> None:
+    """Layer swatches (only when the map was drawn: `map_layers`) and the point colouring (the height scale, or the
+    name of the colouring) in the top-left corner."""
     h = image.shape[0]
     font = max(0.3, h / 1800)
     step = max(10, int(22 * font * 2))
     x, y = 6, 6
-    panel_h = step * (len(LEGEND) + 2) + 6
+    legend = LEGEND if map_layers else ()
+    panel_h = step * (len(legend) + 2) + 6
     panel_w = int(150 * font * 2.2)
     image[y:y + panel_h, x:x + panel_w] = (image[y:y + panel_h, x:x + panel_w] * 0.35).astype(np.uint8)
-    for i, (name, color) in enumerate(LEGEND):
+    for i, (name, color) in enumerate(legend):
         top = y + 4 + i * step
         cv2.rectangle(image, (x + 4, top), (x + 4 + step - 4, top + step - 4), color, -1)
         cv2.putText(image, name, (x + step + 6, top + step - 5), cv2.FONT_HERSHEY_SIMPLEX, font, (255, 255, 255), 1,
                     cv2.LINE_AA)
-    top = y + 4 + len(LEGEND) * step
+    top = y + 4 + len(legend) * step
     lo, hi = POINT_HEIGHT_RANGE_M
     text = f"points: {points}"
     if points == "height":

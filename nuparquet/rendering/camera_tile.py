@@ -37,6 +37,8 @@ class CameraTile(RowTile):
     image_size_px: np.ndarray | None = None  # (F, 2) width, height of each row's image as its sample_data says
     predictions: Overlay | None = None  # predicted boxes (`render.predictions`), drawn over the ground truth
     prediction_style: DrawStyle | None = None
+    tokens: tuple[str, ...] = ()  # (F,) sample_data token of each camera row (the frame index)
+    timestamps_us: np.ndarray | None = None  # (F,)
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)

@@ -147,11 +147,11 @@ def plot_ego_speed(motion: pl.DataFrame, path: Path, *, max_scenes: int = MAX_SC
 
 
 def plot_can_speed(speeds: pl.DataFrame, path: Path, *, scene: str) -> Path:
-    """Speed over time of one scene from the CAN bus (vehicle_monitor wheel speed, pose |vel|) and from the ego
+    """Speed over time of one scene from the CAN bus (vehicle_monitor vehicle speed, pose |vel|) and from the ego
     poses (`queries.can_bus.speed_over_time`)."""
     fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
     rows = speeds.filter(pl.col("scene_name") == scene)
-    styles = {"pose": ("CAN pose |vel| (50 Hz)", "-", None), "vehicle_monitor": ("CAN wheel speed (2 Hz)", "-", "o"),
+    styles = {"pose": ("CAN pose |vel| (50 Hz)", "-", None), "vehicle_monitor": ("CAN vehicle_monitor vehicle_speed (2 Hz)", "-", "o"),
               "ego_pose": ("ego pose, reference lidar keyframes (2 Hz)", "--", "x")}
     for source, (label, line, marker) in styles.items():
         part = rows.filter(pl.col("source") == source).drop_nulls("speed_mps")

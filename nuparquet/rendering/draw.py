@@ -123,6 +123,21 @@ def draw_boxes(
     return image_bgr
 
 
+def draw_segments(image_bgr: np.ndarray, segments_px, colors_rgb, width: int = 2, antialias: bool = True) -> np.ndarray:
+    """Draw (K, 2, 2) line segments (start, end; u, v pixels) in (K, 3) RGB colours, in place; one polylines call
+    per colour."""
+    segments_px = np.asarray(segments_px, dtype=np.float64).reshape(-1, 2, 2)
+    if not len(segments_px):
+        return image_bgr
+    fixed = _fixed_point(np.nan_to_num(segments_px, nan=0.0))
+    colors_bgr = rgb_to_bgr(colors_rgb).reshape(-1, 3)
+    unique, inverse = np.unique(colors_bgr, axis=0, return_inverse=True)
+    for k, color in enumerate(unique):
+        cv2.polylines(image_bgr, list(fixed[inverse.reshape(-1) == k]), False, tuple(int(c) for c in color), width,
+                      cv2.LINE_AA if antialias else cv2.LINE_8, _SHIFT)
+    return image_bgr
+
+
 def draw_labels(image_bgr, segments_px, keep, labels, colors_bgr, *, font_scale: float = 0.5) -> np.ndarray:
     """Label each box at the top-left of its projected outline, kept inside the image; text on a box-coloured
     background, black or white, whichever reads better. Boxes whose label is empty are skipped."""

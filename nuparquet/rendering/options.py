@@ -46,9 +46,12 @@ class RenderOptions:
         f"'{BEV_CHANNEL}' for the bird's-eye view (map layers, reference lidar points coloured by height, boxes, "
         "ego; keyframes, or every lidar frame with --all-frames). Default: "
         f"{DEFAULT_CAMERA} when the dataset has it, else the first front camera")
-    out: str | Path | None = option(None, metavar="FILE.mp4", help="the video to write")
+    out: str | Path | None = option(
+        None, metavar="FILE", help="the video to write (FILE.mp4); for one picture (--sample, --sample-data, "
+        "--annotation, --instance, --map) the PNG or JPEG")
     frames_dir: str | Path | None = option(
-        None, metavar="DIR", help="also (or instead) write each frame as an image: DIR/00000.jpg, ...")
+        None, metavar="DIR", help="also (or instead) write each frame as an image: DIR/00000.jpg, ..., with "
+        "DIR/frames.parquet saying which sample_data each frame shows")
     frame_format: Literal["jpg", "png"] = option("jpg", help="image format for --frames-dir (default jpg)")
     overwrite: bool = option(False, help="replace the frames a --frames-dir already holds (refused otherwise)")
     all_frames: bool = option(
@@ -66,7 +69,8 @@ class RenderOptions:
         "depth", help="colour the --lidar points by depth (default), intensity, lidarseg class or panoptic "
         "instance (labels need `convert --sensors lidar` of a dataset with lidarseg/panoptic files). Points come "
         "from lidar_points/ when converted, else from the .pcd.bin files; a colour other than depth implies --lidar. "
-        "In the bird's-eye view (--channel bev, --bev) depth means height")
+        "In the bird's-eye view (--channel bev, --bev) depth means height; in a picture of a lidar or radar frame from "
+        "above (--sample-data) the devkit's distance from the sensor")
     labels: Literal["category", "track", "none"] = option(
         "category", help="box labels: category name, track (short instance token) or none (default category)")
     clip: bool = option(

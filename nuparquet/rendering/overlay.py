@@ -74,7 +74,7 @@ def segments_touch_image(segments_px: np.ndarray, keep: np.ndarray, size_px: np.
 
 
 def build_overlay(tile_cameras: Cameras, boxes: FrameBoxes, *, clip: bool = False,
-                  labels: str = "category", colors_rgb: np.ndarray | None = None,
+                  labels: str = "category", visibility: str = "any", colors_rgb: np.ndarray | None = None,
                   texts: list[str] | None = None) -> Overlay:
     """Project every box of every camera row into its tile, once, and order the boxes for drawing.
 
@@ -83,17 +83,26 @@ def build_overlay(tile_cameras: Cameras, boxes: FrameBoxes, *, clip: bool = Fals
         boxes: the boxes of those rows (`frame_boxes` over the same rows: frame_index counts them).
         clip: clip edges at the near plane instead of keeping only the boxes the devkit draws.
         labels: "category", "track" or "none".
+        visibility: the boxes the devkit draws (without `clip`): "any" (BoxVisibility.ANY) or "all" (every corner
+            in the image); "none" (every box, BoxVisibility.NONE) draws each box's part in front of the near plane,
+            as `clip` does, rather than the mirrored projection of corners behind the camera.
         colors_rgb, texts: (M,) colours and labels of the boxes instead of the category's (predicted boxes).
     """
     frame = boxes.frame_index
     seen = boxes_in_cameras(tile_cameras, boxes)
+    if visibility not in ("any", "all", "none"):
+        raise ValueError(f"visibility must be any, all or none, got {visibility!r}")
+    clip = clip or visibility == "none"
     if clip:
         cameras = tile_cameras.take(frame)  # clip_segments projects each box with its own camera
         segments_px, keep = cameras.clip_segments(seen.corners_camera_m[:, draw.BOX_SEGMENT_CORNERS])
         shown = segments_touch_image(segments_px, keep, cameras.size_px)
     else:
         corners_px, depths = perspective(tile_cameras.image_from_camera[frame], seen.corners_camera_m)
-        _, _, shown = box_visibility(corners_px, depths, tile_cameras.size_px[frame], tile_cameras.scale[frame])
+        corner_visible, in_front, shown = box_visibility(corners_px, depths, tile_cameras.size_px[frame],
+                                                         tile_cameras.scale[frame])
+        if visibility == "all":
+            shown = corner_visible.all(axis=1) & in_front
         segments_px = draw.box_segments_px(corners_px)
         keep = np.ones(segments_px.shape[:2], dtype=bool)
     distance_m = np.linalg.norm(seen.center_camera_m, axis=1)

@@ -55,3 +55,20 @@ def category_rgb(name: str) -> tuple[int, int, int]:
     digest = hashlib.md5(name.encode("utf-8")).digest()
     # Keep every channel in 40..215 so the colour stays visible on both dark and light backgrounds.
     return tuple(40 + b % 176 for b in digest[:3])  # type: ignore[return-value]
+
+
+def _hex(code: str) -> tuple[int, int, int]:
+    return int(code[1:3], 16), int(code[3:5], 16), int(code[5:7], 16)
+
+
+# RGB of the map layers as nuscenes-devkit 1.2.0's `NuScenesMapExplorer` draws them (its default `color_map`).
+MAP_LAYER_RGB: dict[str, tuple[int, int, int]] = {
+    layer: _hex(code) for layer, code in {
+        "drivable_area": "#a6cee3", "road_segment": "#1f78b4", "road_block": "#b2df8a", "lane": "#33a02c",
+        "ped_crossing": "#fb9a99", "walkway": "#e31a1c", "stop_line": "#fdbf6f", "carpark_area": "#ff7f00",
+        "road_divider": "#cab2d6", "lane_divider": "#6a3d9a", "traffic_light": "#7e772e",
+    }.items()
+}
+# matplotlib's default colour cycle ("tab10"): the devkit's render_centerlines draws lane i in colour i % 10.
+LINE_CYCLE_RGB: tuple[tuple[int, int, int], ...] = tuple(_hex(c) for c in (
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf"))

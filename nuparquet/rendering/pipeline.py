@@ -45,7 +45,9 @@ __all__ = ["RenderOptions", "RenderResult", "render"]
 
 @dataclass
 class RenderResult:
-    """What a render wrote. `missing` lists the image files that were missing or unreadable (skipped)."""
+    """What a render wrote: `frames_written` pictures, one per output time (so picture n is at n / fps), of which
+    `frames_skipped` had nothing new to show and repeat the picture before; `missing` lists the image files that
+    were missing or unreadable. The frame index (`frame_index`) says which sample_data each picture shows."""
 
     scene: str
     channel: str
@@ -109,8 +111,10 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
         predicted = build_overlay(tile_cameras, boxes, clip=clip, colors_rgb=predictions.colors_rgb(rows),
                                   texts=predictions.labels(rows))
         predicted_style = prediction_style(style)
+    tokens, stamps = tuple(cameras["token"].to_list()), cameras["timestamp"].to_numpy()
     tiles = iter(CameraTile(channel, plan_rows[:, column], paths, decode_scale, size, overlay, style, lidar,
-                            image_size_px, predicted, predicted_style) for column, channel in enumerate(channels))
+                            image_size_px, predicted, predicted_style, tokens, stamps)
+                 for column, channel in enumerate(channels))
     return TilePlan(times_us, tuple(tuple(next(tiles) for _ in row) for row in layout), size)
 
 
@@ -184,7 +188,7 @@ def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
     with Reporter(on_progress, f"render {scene} {channel}", total=len(plan), unit="frame") as reporter:
         result = render_frames(plan, make_sink, on_missing=options.on_missing, threads=options.threads,
                                reporter=reporter)
-    if result.written == 0:
+    if result.written == result.skipped:  # nothing drawn at all (the sink wrote nothing)
         raise InputError(
             f"no frame of {scene} {channel} could be rendered: all {len(result.missing)} image "
             f"file(s) are missing or unreadable, e.g. {result.missing[0] if result.missing else '?'} "

@@ -46,15 +46,27 @@ class TileSource(Protocol):
     def draw(self, t: int, loaded: TileLoad) -> np.ndarray | None:
         """The (tile height, tile width, 3) BGR tile of output t, or None when there is nothing to show."""
 
+    def shows(self, t: int) -> tuple[str, int] | None:
+        """(sample_data token, timestamp) of the frame output t shows, or None (the frame index)."""
+
 
 class RowTile:
-    """`key` for tile sources that show one row of their frames per output (`rows`: (T,) int, -1 = nothing)."""
+    """`key` and `shows` for tile sources that show one row of their frames per output (`rows`: (T,) int, -1 =
+    nothing; `tokens`, `timestamps_us`: the sample_data token and timestamp of each of their rows)."""
 
     rows: np.ndarray
+    tokens: tuple[str, ...] = ()
+    timestamps_us: np.ndarray | None = None
 
     def key(self, t: int) -> int | None:
         row = int(self.rows[t])
         return row if row >= 0 else None
+
+    def shows(self, t: int) -> tuple[str, int] | None:
+        row = self.key(t)
+        if row is None or not len(self.tokens):
+            return None
+        return str(self.tokens[row]), int(self.timestamps_us[row])
 
 
 @dataclass(frozen=True)

@@ -4,13 +4,12 @@ the poses read once from the stored transforms, the points projected straight in
 Points come from `lidar_points/` when the output has them (`convert --sensors lidar`; `ds.points` reads only the
 frame's row groups), else from the `.pcd.bin` files. Colours (`--lidar-color`): depth (default), intensity (the
 devkit's `render_intensity` scaling), lidarseg (the category colours, `palette.category_rgb`, which are the
-devkit's colormap for nuScenes names and a stable hash colour for others) or panoptic (one stable colour per
-instance; points without an instance in their class colour). Labels need `lidar_points/` with labels.
+devkit's colormap for nuScenes names and a stable hash colour for others) or panoptic (the devkit's colour per
+instance, stuff in its class colour): `point_colors`. Labels need `lidar_points/` with labels.
 """
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,7 +19,7 @@ import polars as pl
 
 from nuparquet.geometry import Cameras
 from nuparquet.errors import UsageError
-from nuparquet.rendering.palette import category_rgb
+from nuparquet.rendering.point_colors import intensity_levels, label_rgb
 from nuparquet.sources.points import read_lidar_bin
 from nuparquet.frames.poses import sensor_poses
 from nuparquet.frames.points_in_image import lidar_for_cameras, points_in_image
@@ -28,31 +27,6 @@ from nuparquet.rendering.options import LIDAR_COLORS
 
 _LABEL_COLUMN = {"lidarseg": "lidarseg_label", "panoptic": "panoptic_label"}
 _POINT_COLUMNS = ["x", "y", "z", "intensity"]
-
-
-def intensity_levels(intensity: np.ndarray) -> np.ndarray:
-    """(P,) values in [0, 0.5] the devkit colours by when `render_intensity=True`: min-max scaled over the whole
-    cloud, to the power 0.1, minus 0.5, floored at 0."""
-    intensity = np.asarray(intensity, dtype=np.float64)
-    span = intensity.max() - intensity.min() if intensity.size else 0.0
-    scaled = (intensity - intensity.min()) / span if span > 0 else np.zeros_like(intensity)
-    return np.maximum(0.0, scaled ** 0.1 - 0.5)
-
-
-def label_colors_rgb(labels: np.ndarray, mode: str, names_by_index: dict[int, str]) -> np.ndarray:
-    """(P, 3) uint8 RGB of point labels: lidarseg -> the class colour; panoptic -> a stable colour per label
-    with an instance id (label % 1000 > 0), else the class colour of label // 1000."""
-    labels = np.asarray(labels, dtype=np.int64)
-    unique, inverse = np.unique(labels, return_inverse=True)
-    colours = np.zeros((unique.size, 3), dtype=np.uint8)
-    for k, label in enumerate(unique.tolist()):
-        index = label if mode == "lidarseg" else label // 1000
-        if mode == "panoptic" and label % 1000:
-            digest = hashlib.md5(str(label).encode()).digest()
-            colours[k] = [40 + b % 176 for b in digest[:3]]
-        else:
-            colours[k] = category_rgb(names_by_index.get(index, f"class {index}"))
-    return colours[inverse.reshape(-1)]
 
 
 @dataclass(frozen=True)
@@ -109,7 +83,7 @@ class CloudReader:
         if self.color == "intensity":
             levels = np.rint(255.0 * 2.0 * intensity_levels(points[:, 3])[index]).astype(np.uint8)  # [0, .5] -> [0, 255]
             return cv2.applyColorMap(levels.reshape(-1, 1), cv2.COLORMAP_VIRIDIS).reshape(-1, 3)
-        return label_colors_rgb(labels[index], self.color, self.names_by_index)[:, ::-1].copy()
+        return label_rgb(labels[index], self.color, self.names_by_index)[:, ::-1].copy()
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,5 @@
-"""Where output pictures go: an H.264 MP4 (opened at the first picture) and/or a folder of numbered images."""
+"""Where output pictures go: an H.264 MP4 (opened at the first picture) and/or a folder of numbered images, with
+the frame index (`frame_index`) beside the video and in the folder."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import numpy as np
 
 from nuparquet.atomic import partial_path, remove_stale
 from nuparquet.rendering.decode import write_image
+from nuparquet.rendering.frame_index import INDEX_NAME, index_for_video, write_index
 from nuparquet.rendering.options import existing_frames
 from nuparquet.rendering.video import VideoWriter
 
@@ -52,13 +54,19 @@ class FrameSink:
             self._image_writes.append(self.executor.submit(write_image, target, picture_bgr))
         self.written += 1
 
-    def close(self) -> None:
-        """Wait for the image files (raising the first error) and finish the video."""
+    def close(self, index: list[dict] | None = None) -> None:
+        """Wait for the image files (raising the first error), finish the video, and write the frame index
+        (`frame_index`) beside the video and into the frames folder."""
         for future in self._image_writes:
             future.result()
         if self._writer is not None:
             self._writer.close()
             self._writer = None
+        if index is not None:
+            if self.video is not None:
+                write_index(index, index_for_video(self.video))
+            if self._frames_partial is not None:
+                write_index(index, self._frames_partial / INDEX_NAME)
         if self._frames_partial is not None:
             self._frames_partial, partial = None, self._frames_partial
             if not self.frames_dir.exists():
@@ -66,6 +74,7 @@ class FrameSink:
                 return
             for old in existing_frames(self.frames_dir):  # --overwrite was given (options.check refuses otherwise)
                 old.unlink()
+            (self.frames_dir / INDEX_NAME).unlink(missing_ok=True)
             for new in sorted(partial.iterdir()):
                 os.replace(new, self.frames_dir / new.name)
             partial.rmdir()

@@ -175,7 +175,9 @@ def _array(values: list, kind: str) -> pa.Array:
     kind = kind.removesuffix("_with_nulls")
     element = {"list_int": pa.int64(), "list_float": pa.float64(), "list_string": pa.string()}[kind]
     lengths = set(map(len, values)) if None not in values else {len(v) for v in values if v is not None} | {-1}
-    if len(lengths) == 1 and 0 not in lengths:
+    # Strings stay variable lists even when every record has as many: polars cannot reverse (or take every
+    # operation on) a fixed-size list of strings, and a map layer's token lists have no fixed size in the format.
+    if len(lengths) == 1 and 0 not in lengths and kind != "list_string":
         size = lengths.pop()
         if numeric:  # numbers: numpy reads the nested lists in C, much faster than pa.array
             flat = np.array(values, dtype=np.int64 if kind == "list_int" else np.float64).reshape(-1)

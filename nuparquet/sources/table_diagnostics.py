@@ -78,7 +78,7 @@ def _accepted_structures(f: Field) -> tuple[set[str], str]:
     """JSON structures (duckdb json_structure) a list field may hold, and a word for the error message."""
     if f.type == "list<string>":
         return {'["VARCHAR"]', '["NULL"]'}, "a list of strings"
-    if f.type.count("fixed_size_list") == 2:
+    if f.nested_in_json:
         return {'[["DOUBLE"]]', '[["UBIGINT"]]', '[["BIGINT"]]', '["NULL"]'}, "a 3x3 list of numbers or []"
     return {'["DOUBLE"]', '["UBIGINT"]', '["BIGINT"]'}, "a list of numbers"
 

@@ -36,7 +36,7 @@ def _path(name: str, nested: bool = False) -> str:
 
 def element_types(f: Field) -> str:
     """SQL: the JSON types of a float list field's elements (flattened)."""
-    return f"list_transform(json_extract(json, {_path(f.name, f.type.count('fixed_size_list') == 2)}), lambda x: json_type(x))"
+    return f"list_transform(json_extract(json, {_path(f.name, f.nested_in_json)}), lambda x: json_type(x))"
 
 
 def has_int_elements(f: Field) -> str:

@@ -35,10 +35,13 @@ def to_schema_types(raw: pa.Table, schema: Schema, file: str, float_fields: list
         if f.name in float_fields:
             target = pa.float64()
         if pa.types.is_fixed_size_list(target):
-            col, bad = _fixed_size(col, target, empty_is_null=f.empty_list_is_null)
+            nested = _nested_type(f.json_shape, target) if f.json_shape else target
+            col, bad = _fixed_size(col, nested, empty_is_null=f.empty_list_is_null)
+            if bad is None and nested is not target:  # [[..], [..]] in the JSON, flat in the column
+                col = _flattened(col, target)
             if bad is not None:
-                n = target.list_size
-                shape = f"{n}x{target.value_type.list_size}" if pa.types.is_fixed_size_list(target.value_type) else n
+                n = nested.list_size
+                shape = f"{n}x{nested.value_type.list_size}" if pa.types.is_fixed_size_list(nested.value_type) else n
                 record_problems(bad, f"field {f.name!r} must have {shape} numbers" + (" or be []" if f.empty_list_is_null else ""))
                 continue
         else:
@@ -53,6 +56,27 @@ def to_schema_types(raw: pa.Table, schema: Schema, file: str, float_fields: list
     nullable = {f.name: f.nullable for f in schema.fields}
     fields = [pa.field(n, columns[n].type, nullable=nullable.get(n, True)) for n in order]
     return pa.table([columns[n] for n in order], schema=pa.schema(fields)), []
+
+
+def _nested_type(shape: tuple[int, ...], flat: pa.FixedSizeListType) -> pa.DataType:
+    """The nested fixed-size list type a field of `json_shape` (rows, columns) has in the JSON."""
+    rows, columns = shape
+    if rows * columns != flat.list_size:
+        raise ValueError(f"json_shape {shape} does not hold {flat.list_size} values")
+    return pa.list_(pa.list_(flat.value_type, columns), rows)
+
+
+def _flattened(col: pa.ChunkedArray, flat: pa.FixedSizeListType) -> pa.ChunkedArray:
+    """Nested fixed-size lists (rows of columns) -> one flat fixed-size list per row, row-major; nulls kept."""
+    arr = col.combine_chunks()
+    values = pc.list_flatten(pc.list_flatten(arr)) if arr.null_count == 0 else None
+    if values is None:  # list_flatten skips null rows: spread the valid rows back out
+        keep = pc.is_valid(arr)
+        dense = pa.FixedSizeListArray.from_arrays(pc.list_flatten(pc.list_flatten(arr.filter(keep))), flat.list_size)
+        positions = pc.subtract(pc.cumulative_sum(keep.cast(pa.int64())), 1)
+        taken = dense.take(pc.if_else(keep, positions, 0)) if len(dense) else pa.nulls(len(arr), flat)
+        return pa.chunked_array([pc.if_else(keep, taken, pa.scalar(None, flat))])
+    return pa.chunked_array([pa.FixedSizeListArray.from_arrays(values.cast(flat.value_type), flat.list_size)])
 
 
 def _fixed_size(col: pa.ChunkedArray, target: pa.FixedSizeListType, *, empty_is_null: bool):

@@ -74,7 +74,9 @@ def version_dir(dataroot: Path | str, version: str) -> Path:
         raise UsageError(f"dataroot {dataroot} is not a directory")
     folder = dataroot / version
     if not folder.is_dir():
-        found = sorted(p.name for p in dataroot.iterdir() if p.is_dir() and any(p.glob("*.json")))
+        # A version folder holds the core tables; can_bus/ (or any other folder of JSON files) is not one.
+        core = [schema.source for schema in table_schemas().values() if not schema.optional]
+        found = sorted(p.name for p in dataroot.iterdir() if p.is_dir() and any((p / name).is_file() for name in core))
         hint = f"; versions found: {', '.join(found)}" if found else ""
         raise UsageError(f"version folder {folder} does not exist{hint}")
     return folder
@@ -336,7 +338,7 @@ def _duckdb_message(exc: duckdb.Error) -> str:
 def _duckdb_type(f: Field) -> str:
     """The DuckDB type a field is read as (lists of numbers as variable lists: lengths are checked after)."""
     if f.type.startswith("fixed_size_list"):
-        return "DOUBLE[][]" if f.type.count("fixed_size_list") == 2 else "DOUBLE[]"
+        return "DOUBLE[][]" if f.nested_in_json else "DOUBLE[]"
     return {"string": "VARCHAR", "bool": "BOOLEAN", "int64": "BIGINT", "float64": "DOUBLE",
             "list<string>": "VARCHAR[]"}[f.type]
 

@@ -58,14 +58,20 @@ class _MapWriter:
         self.map = {"version": VERSION, **{layer: [] for layer in LAYERS},
                     "canvas_edge": CANVAS_EDGE_M.get(location, [3000.0, 3000.0]),
                     "connectivity": {}, "arcline_path_3": {}, "lane_connector": []}
+        self._node_of: dict[tuple[float, float], str] = {}
 
     def token(self) -> str:
         return random_tokens(self.rng, 1)[0]
 
     def nodes(self, xy: np.ndarray) -> list[str]:
-        tokens = random_tokens(self.rng, len(xy))
-        self.map["node"] += [{"token": t, "x": float(x), "y": float(y)} for t, (x, y) in zip(tokens, xy)]
-        return tokens
+        """Node tokens of the points `xy`: a point already placed (the same x and y) keeps its node, so neighbouring
+        polygons and their edge lines share nodes, as in nuScenes' maps (`get_next_roads` follows them)."""
+        points = [(float(x), float(y)) for x, y in xy]
+        new = list(dict.fromkeys(p for p in points if p not in self._node_of))
+        for point, token in zip(new, random_tokens(self.rng, len(new)) if new else []):
+            self._node_of[point] = token
+            self.map["node"].append({"token": token, "x": point[0], "y": point[1]})
+        return [self._node_of[p] for p in points]
 
     def line(self, xy: np.ndarray) -> tuple[str, list[str]]:
         token, nodes = self.token(), self.nodes(xy)

@@ -13,7 +13,9 @@ the painted cuboids on every frame, keyframe or sweep.
   sensor-facing faces of each box (just inside them) and ring-pattern returns from the ground plane z = 0
   outside the boxes' footprints.
 - Radar (PCD v0.7, the 18 fields of nuScenes radar): a few returns near each box with `num_radar_pts` > 0
-  whose centre lies in the radar's +-60 degree field of view, plus clutter; velocities are written as 0.
+  whose centre lies in the radar's +-60 degree field of view, plus clutter. A box's returns carry its velocity
+  (the track's displacement from its previous sample over the time between, turned into the radar's frame) as
+  `vx_comp`, `vy_comp` (and `vx`, `vy`: the ego's motion is not modelled); clutter is still.
 """
 
 from __future__ import annotations
@@ -107,6 +109,21 @@ class SceneSensors:
                                             np.full(prev.size, amount))
         return FrameBoxes(center, w.annotation_size_m[ann], rotation, w.instance_category[w.annotation_instance[ann]],
                           w.annotation_num_lidar_pts[ann], w.annotation_num_radar_pts[ann])
+
+    def box_velocity_mps(self, frame: int) -> np.ndarray:
+        """(B, 3) global velocity of the boxes of `frame` (`frame_boxes` order): each track's displacement from its
+        annotation in the previous sample over the time between; 0 at a track's start."""
+        w, tl = self.world, self.world.timeline
+        k = int(tl.frame_sample_index[frame])
+        ann = self._annotations_of_sample[k]
+        velocity = np.zeros((ann.size, 3))
+        if k == 0 or not ann.size:
+            return velocity
+        has_prev = w.annotation_has_prev[ann] & (w.annotation_sample[ann - 1] == k - 1)
+        dt_s = (tl.sample_timestamp_us[k] - tl.sample_timestamp_us[k - 1]) * 1e-6
+        velocity[has_prev] = (w.annotation_translation_m[ann[has_prev]]
+                              - w.annotation_translation_m[ann[has_prev] - 1]) / dt_s
+        return velocity
 
     def sensor_from_global(self, frame: int) -> np.ndarray:
         """(4, 4) transform from the global frame into the frame's sensor frame (through its own ego pose)."""
@@ -260,7 +277,11 @@ class SceneSensors:
         clutter_range = rng.uniform(5.0, RADAR_MAX_RANGE_M, n_clutter)
         clutter_xy = np.c_[clutter_range * np.cos(clutter_az), clutter_range * np.sin(clutter_az)]
         xy = np.concatenate([box_xy, clutter_xy])
+        sensor_velocity = self.box_velocity_mps(frame)[seen] @ self.sensor_from_global(frame)[:3, :3].T
+        velocity = np.concatenate([np.repeat(sensor_velocity[:, :2], per_box, axis=0), np.zeros((n_clutter, 2))])
         points = np.zeros(xy.shape[0], dtype=_RADAR_DTYPE)
+        points["vx"], points["vy"] = velocity[:, 0], velocity[:, 1]
+        points["vx_comp"], points["vy_comp"] = velocity[:, 0], velocity[:, 1]
         points["x"], points["y"] = xy[:, 0], xy[:, 1]  # z stays 0, as in the real radar files
         points["dyn_prop"] = 1  # stationary
         points["id"] = np.arange(xy.shape[0])

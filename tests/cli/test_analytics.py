@@ -220,6 +220,22 @@ def test_stats_plots_writes_four_png_charts_and_two_from_the_can_bus(run, synth_
         assert image.shape[0] > 300 and image.shape[1] > 500 and image[..., :3].std() > 0.01  # not blank
 
 
+def test_can_speed_chart_names_vehicle_monitor_speed_as_the_vehicle_speed(synth_out, tmp_path, monkeypatch):
+    """vehicle_monitor.vehicle_speed is the vehicle's speed (the devkit tutorial's "Vehicle speed"); the wheel
+    speeds are zoe_veh_info's FL_wheel_speed, ... (issue 24: the chart called it "CAN wheel speed")."""
+    from nuparquet.queries.can_bus import speed_over_time
+    from nuparquet.rendering import charts
+
+    figures = []
+    saved = charts._save
+    monkeypatch.setattr(charts, "_save", lambda fig, path: (figures.append(fig), saved(fig, path))[1])
+    speeds = speed_over_time(nuparquet.open(synth_out)).collect()
+    charts.plot_can_speed(speeds, tmp_path / "can_speed.png", scene=speeds["scene_name"][0])
+    labels = [t.get_text() for t in figures[0].axes[0].get_legend().get_texts()]
+    assert any("vehicle_monitor vehicle_speed" in label for label in labels)
+    assert not any("wheel" in label for label in labels)
+
+
 # --- sql ----------------------------------------------------------------------------------------------------------
 
 def test_sql_csv_result_equals_counts_from_the_json(run, case):

@@ -492,7 +492,7 @@ def test_a_field_differing_from_another_only_in_case_is_named_with_its_record(ro
             "columns as DuckDB and Spark read them cannot hold both (rename one)\n") in out
 
 
-def test_a_missing_version_folder_lists_the_folders_holding_json(tmp_path):
+def test_a_missing_version_folder_lists_the_folders_holding_tables(tmp_path):
     from nuparquet.errors import UsageError
     from nuparquet.sources.tables import version_dir
 
@@ -500,6 +500,9 @@ def test_a_missing_version_folder_lists_the_folders_holding_json(tmp_path):
     (tmp_path / "v1.0-mini" / "scene.json").write_text("[]")
     (tmp_path / "maps").mkdir()  # a folder without JSON tables is not a version
     (tmp_path / "samples.json").write_text("[]")  # nor is a file
+    (tmp_path / "can_bus").mkdir()  # nor a folder of other JSON files (the CAN bus expansion, the map's)
+    (tmp_path / "can_bus" / "scene-0001_pose.json").write_text("[]")
+    (tmp_path / "maps" / "boston-seaport.json").write_text("{}")
     with pytest.raises(UsageError) as error:
         version_dir(tmp_path, "v1.0-trainval")
     assert str(error.value) == f"version folder {tmp_path / 'v1.0-trainval'} does not exist; versions found: v1.0-mini"

@@ -42,3 +42,4 @@ def test_progress_is_reported_step_by_step(submissions, eval_out, tmp_path):
     assert steps[0] == "read the submission" and "match and score" in steps and "plots" in steps
     assert any(step.startswith("slice night") for step in steps)
     assert [e.done for e in events] == sorted(e.done for e in events)
+    assert len({e.total for e in events if e.total is not None}) == 1  # a bar's total never changes midway

@@ -121,3 +121,39 @@ def test_the_real_extract_converts_its_can_bus(extract_out):
     assert {f["path"] for f in manifest["files"] if f["kind"].startswith("can_bus")} == \
         {f"can_bus/scene-{s}_{m}.json" for s in ("0523", "0916")
          for m in ("meta", "ms_imu", "pose", "route", "steeranglefeedback", "vehicle_monitor")}
+
+
+def test_misaligned_routes_equal_list_misaligned_routes(case, tmp_path):
+    """`can_bus.routes.misaligned_routes` = `NuScenesCanBus.list_misaligned_routes` at several thresholds, some scenes
+    on each side (the devkit walks every file of can_bus/: the scene files are copied apart from a README)."""
+    import shutil
+
+    import numpy as np
+    from nuscenes.can_bus.can_bus_api import NuScenesCanBus
+
+    import nuparquet
+    from nuparquet.can_bus.routes import misaligned_routes, route_misalignment_m
+
+    root, out, _ = case
+    (tmp_path / "can_bus").mkdir()
+    for path in _files(root):
+        shutil.copy(path, tmp_path / "can_bus" / path.name)
+    can = NuScenesCanBus(dataroot=str(tmp_path))
+    ds = nuparquet.open(out)
+    distances = route_misalignment_m(ds)["misalignment_m"].to_numpy()
+    assert len(distances) == len({_scene_message(p)[0] for p in _files(root)})
+    for threshold in (0.0, float(np.median(distances)), 5.0):
+        assert misaligned_routes(ds, threshold) == can.list_misaligned_routes(max_misalignment=threshold)
+    assert misaligned_routes(ds, 0.0) and not misaligned_routes(ds, 5.0)
+
+
+def test_the_blacklists_are_the_devkits(tmp_path):
+    from nuscenes.can_bus.can_bus_api import NuScenesCanBus
+
+    from nuparquet.can_bus import blacklists
+
+    (tmp_path / "can_bus").mkdir()
+    can = NuScenesCanBus(dataroot=str(tmp_path))  # the default 5 m: the hard-coded route blacklist
+    assert set(can.can_blacklist) == blacklists.CAN_BLACKLIST and len(blacklists.CAN_BLACKLIST) == 21
+    assert set(can.route_blacklist) == blacklists.ROUTE_BLACKLIST and len(blacklists.ROUTE_BLACKLIST) == 87
+    assert blacklists.scene_number("scene-0161") == 161 and blacklists.scene_number("lyft-scene-x") is None

@@ -63,7 +63,8 @@ def test_frames_carry_the_devkit_pose_calibration_channel_and_modality(case):
         calib = nusc.get("calibrated_sensor", sd["calibrated_sensor_token"])
         assert row["ego_translation"] == pose["translation"] and row["ego_rotation"] == pose["rotation"]
         assert row["sensor_translation"] == calib["translation"] and row["sensor_rotation"] == calib["rotation"]
-        assert (row["camera_intrinsic"] or []) == calib["camera_intrinsic"]
+        # Stored flat, row-major (format 2): the devkit's 3x3 rows one after the other.
+        assert (row["camera_intrinsic"] or []) == [x for r in calib["camera_intrinsic"] for x in r]
         assert row["channel"] == sd["channel"] and row["modality"] == sd["sensor_modality"]
         assert row["sample_token"] == sd["sample_token"] and row["timestamp"] == sd["timestamp"]
         scene = nusc.get("scene", nusc.get("sample", sd["sample_token"])["scene_token"])
@@ -85,7 +86,7 @@ def test_frame_transforms_equal_the_devkit_transform_matrices(case):
         # A global point 10 m ahead of the camera lands where the devkit chain puts it.
         point = (global_from_ego @ ego_from_sensor @ np.array([0.3, -0.2, 10.0, 1.0]))
         pixel = np.reshape(row["image_from_global"], (4, 4)) @ point
-        intrinsic = np.array(row["camera_intrinsic"])
+        intrinsic = np.reshape(row["camera_intrinsic"], (3, 3))
         expected = intrinsic @ np.array([0.3, -0.2, 10.0])
         np.testing.assert_allclose(pixel[:2] / pixel[2], expected[:2] / expected[2], atol=1e-6)
 

@@ -147,3 +147,82 @@ def test_a_line_node_exactly_on_the_patch_edge_is_not_inside_the_patch(maps):
                     assert (record["token"] in expected["lane_divider"]) == (holds and mode == "intersect"), box
                 checked += 1
     assert checked >= 20
+
+
+# --- the helpers by record (issue 24) ------------------------------------------------------------------------------
+
+
+def test_record_on_point_for_every_polygon_layer(maps):
+    rng = np.random.default_rng(4)
+    found = 0
+    for nusc_map, ours in maps.values():
+        for x, y in _points(nusc_map, rng, 60):
+            for layer in nusc_map.non_geometric_polygon_layers:
+                expected = nusc_map.record_on_point(x, y, layer)
+                assert ours.record_on_point(x, y, layer) == expected
+                found += expected != ""
+    assert found > 60
+    with pytest.raises(ValueError, match="road_divider is not a polygon layer"):
+        ours.record_on_point(0.0, 0.0, "road_divider")
+
+
+def test_bounds_of_every_record(maps):
+    checked = 0
+    for nusc_map, ours in maps.values():
+        for layer in nusc_map.non_geometric_polygon_layers + ["road_divider", "lane_divider"]:
+            for record in getattr(nusc_map, layer):
+                assert ours.bounds(layer, record["token"]) == nusc_map.get_bounds(layer, record["token"])
+                checked += 1
+    assert checked > 100
+
+
+def test_next_roads_from_points_on_lanes_blocks_and_segments(maps):
+    rng = np.random.default_rng(5)
+    answered = refused = non_empty = 0
+    for nusc_map, ours in maps.values():
+        for x, y in _points(nusc_map, rng, 160):
+            try:
+                expected = nusc_map.get_next_roads(x, y)
+            except AssertionError:  # no road record under the point
+                with pytest.raises(ValueError, match="no road_segment, road_block or lane"):
+                    ours.next_roads(x, y)
+                refused += 1
+                continue
+            assert ours.next_roads(x, y) == expected, (x, y)
+            answered += 1
+            non_empty += any(expected.values())
+    assert answered > 40 and refused > 10 and non_empty > 20
+
+
+def test_arcline_paths_and_lane_connectivity(maps):
+    for nusc_map, ours in maps.values():
+        for record in nusc_map.lane + nusc_map.lane_connector:
+            token = record["token"]
+            assert ours.arcline_path(token) == nusc_map.get_arcline_path(token)
+            assert ours.incoming_lanes(token) == nusc_map.get_incoming_lane_ids(token)
+            assert ours.outgoing_lanes(token) == nusc_map.get_outgoing_lane_ids(token)
+
+
+def test_arcline_helpers_equal_arcline_path_utils(maps):
+    from nuscenes.map_expansion import arcline_path_utils as devkit
+
+    from nuparquet.map import arcline
+
+    rng = np.random.default_rng(6)
+    curved = 0
+    for nusc_map, ours in maps.values():
+        for record in nusc_map.lane + nusc_map.lane_connector:
+            lane = ours.arcline_path(record["token"])
+            assert arcline.length_of_lane(lane) == devkit.length_of_lane(lane)
+            start = lane[0]["start_pose"]
+            for _ in range(3):
+                pose = (start[0] + rng.normal(0, 8), start[1] + rng.normal(0, 8), rng.uniform(-3, 3))
+                for resolution in (0.5, 1.0):
+                    mine, along = arcline.project_pose_to_lane(pose, lane, resolution)
+                    theirs, their_along = devkit.project_pose_to_lane(pose, lane, resolution)
+                    assert mine == tuple(theirs) and along == their_along
+                distance = rng.uniform(0, devkit.length_of_lane(lane))
+                curvature = arcline.curvature_at_distance(distance, lane)
+                assert curvature == devkit.get_curvature_at_distance_along_lane(distance, lane)
+                curved += curvature > 0
+    assert curved > 5  # arcs as well as straight segments

@@ -72,7 +72,8 @@ def test_frames_equal_the_devkit_where_it_answers(case):
         assert row["ego_translation"] == expect(pose if pose is MISSING else pose["translation"])
         assert row["ego_rotation"] == expect(pose if pose is MISSING else pose["rotation"])
         calib = nusc.get("calibrated_sensor", sd["calibrated_sensor_token"])
-        assert row["sensor_translation"] == calib["translation"] and (row["camera_intrinsic"] or []) == calib["camera_intrinsic"]
+        assert row["sensor_translation"] == calib["translation"] and (row["camera_intrinsic"] or []) == [
+            x for r in calib["camera_intrinsic"] for x in r]
         scene = answer(lambda: nusc.get("scene", nusc.get("sample", sd["sample_token"])["scene_token"]))
         assert row["scene_name"] == expect(scene if scene is MISSING else scene["name"])
         location = answer(lambda: nusc.get("log", scene["log_token"])["location"]) if scene is not MISSING else MISSING

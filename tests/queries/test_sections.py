@@ -37,3 +37,34 @@ def test_bin_width_reaches_the_distance_histogram(synth_out):
     for width in (5.0, 20.0):
         hist = sections.summary(ds, sections=["distance_histogram"], bin_width_m=width)["distance_histogram"].collect()
         assert ((hist["bin_end_m"] - hist["bin_start_m"]) == width).all()
+
+
+@pytest.fixture(scope="module")
+def unlabelled_points_out(tmp_path_factory):
+    """lidar_points/ converted from a dataroot whose lidarseg and panoptic labels were removed."""
+    import shutil
+
+    from conftest import SYNTH_VERSION
+    from nuparquet.synth import synthesize
+
+    root = synthesize(tmp_path_factory.mktemp("unlabelled") / "data", scenes=1, samples_per_scene=2, with_lidar=True,
+                      seed=2, version=SYNTH_VERSION, with_can_bus=False)
+    for extension in ("lidarseg", "panoptic"):
+        shutil.rmtree(root / extension)
+        (root / SYNTH_VERSION / f"{extension}.json").unlink()
+    out = tmp_path_factory.mktemp("unlabelled-out") / "out"
+    nuparquet.convert(root, SYNTH_VERSION, out, sensors=("lidar",), workers=1)
+    return out
+
+
+@pytest.mark.parametrize("section", ["lidarseg", "panoptic"])
+def test_asking_for_label_sections_without_labels_says_there_are_none(unlabelled_points_out, section, capsys):
+    from nuparquet.cli.main import main
+
+    ds = nuparquet.open(unlabelled_points_out)
+    assert section not in sections.default_sections(ds)
+    with pytest.raises(UsageError, match=f"section {section}: lidar_points/ holds no {section} labels"):
+        sections.summary(ds, sections=[section])
+    assert main(["stats", str(unlabelled_points_out), "--only", section]) == 2
+    captured = capsys.readouterr()
+    assert f"no {section} labels" in captured.err and "points" not in captured.out

@@ -142,3 +142,28 @@ def test_bev_option_errors(map_out, tmp_path, capsys):
     assert main(["render", str(map_out), "--scene", "scene-9999", "--channel", "bev", "--out",
                  str(tmp_path / "a.mp4"), "--quiet"]) == 2
     assert "unknown scene 'scene-9999'" in capsys.readouterr().err
+
+
+def _legend_swatch_pixels(image):
+    """Pixels of the legend's swatch column (left of its text, above the point colouring's line) holding a map
+    layer's colour (the map under the panel is darkened to 35 %, so only swatches keep these colours there)."""
+    swatches = [c for _, c in FILLS] + [(0, 200, 235), (215, 215, 215)]
+    panel = image[:image.shape[0] // 2, 8:20]
+    return sum(int((panel == c).all(axis=2).sum()) for c in swatches)
+
+
+def test_the_legend_lists_map_layers_only_when_the_map_is_drawn(map_root, map_out, tmp_path):
+    """Issue 24: the legend listed the map layers of a dataset converted without its map."""
+    no_map = tmp_path / "no-map"
+    nuparquet.convert(map_root, "v1.0-synth", no_map, no_map=True)
+    assert not any(d.startswith("map/") for d in nuparquet.open(no_map).datasets)
+    for out, name in ((map_out, "with"), (no_map, "without")):
+        assert main(["render", str(out), "--scene", SCENE, "--channel", "bev", "--frames-dir", str(tmp_path / name),
+                     "--frame-format", "png", "--bev-size", "400", "--quiet"]) == 0
+    with_map = cv2.imread(str(tmp_path / "with" / "00000.png"))
+    without_map = cv2.imread(str(tmp_path / "without" / "00000.png"))
+    assert _legend_swatch_pixels(with_map) > 100  # eight layer swatches
+    # Without the map the panel (the background darkened to 35 %: 11 from 32) holds the point colouring only:
+    # two lines of 13 px at this size, where the eight layers took ten.
+    panel_rows = int((without_map[:, 7] == (11, 11, 11)).all(axis=1).sum())
+    assert 20 <= panel_rows <= 3 * 13

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import av
+import polars as pl
 import pytest
 
 from nuparquet.cli.main import main
@@ -123,7 +124,10 @@ def test_bad_images_are_reported_and_never_drawn_on(synth_out, tmp_path, capsys,
     assert main(base + ["--out", str(out)]) == 0  # a named pipe must not block the render
     err = capsys.readouterr().err
     assert "1 file(s) missing or unreadable" in err and str(bad) in err
-    assert frames_of(out) == keyframes - 1
+    assert frames_of(out) == keyframes  # the bad image's frame repeats the one before: the timing is kept
+    index = pl.read_parquet(tmp_path / "x.frames.parquet")
+    assert index["drawn"].to_list() == [True, True, False] + [True] * (keyframes - 3)
+    assert index["shows_frame"].to_list() == [0, 1, 1] + list(range(3, keyframes))
     assert main(base + ["--out", str(tmp_path / "y.mp4"), "--on-missing", "error"]) == 1
     assert str(bad) in capsys.readouterr().err and not (tmp_path / "y.mp4").exists()
 

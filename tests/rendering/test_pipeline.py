@@ -38,9 +38,13 @@ def test_every_cli_render_option_is_a_flag_with_the_library_default():
     assert given == RenderOptions(channel="all", out="v.mp4", frames_dir="d", frame_format="png",
                                   all_frames=True, fps=3.0, scale=0.3, crf=30, lidar=True, labels="track", clip=True,
                                   on_missing="error", dataroot="root")
-    # Every field is either a flag or explicitly library-only; the other flags choose scenes and the engine.
-    flagged = {f.name for option_class in (RenderOptions, SceneSelection, EngineOptions)
+    # Every field is either a flag or explicitly library-only; the other flags choose scenes and the engine, or
+    # what one picture draws.
+    from nuparquet.rendering.image_options import ImageOptions
+
+    flagged = {f.name for option_class in (RenderOptions, SceneSelection, EngineOptions, ImageOptions)
                for f in dataclasses.fields(option_class) if f.metadata["cli"]}
     assert flagged == {a.dest for a in parser._subparsers._group_actions[0].choices["render"]._actions} - {
         "help", "dataset", "scene", "quiet"}
     assert options_from(args, SceneSelection) == SceneSelection() and options_from(args, EngineOptions) == EngineOptions()
+    assert options_from(args, ImageOptions) == ImageOptions() and not ImageOptions().wanted

@@ -96,7 +96,8 @@ def test_ray_renders_every_scene_to_one_video_of_its_keyframes(ray_session, scen
     out_dir = tmp_path / "videos"
     assert main(["render", str(scenes_out), "--all-scenes", "--out-dir", str(out_dir), "--engine", "ray", *SMALL]) == 0
     assert "rendered 3 scene(s)" in capsys.readouterr().out
-    assert sorted(p.name for p in out_dir.iterdir()) == sorted([f"{s}.mp4" for s in SCENES] + [SUMMARY_NAME])
+    assert sorted(p.name for p in out_dir.iterdir()) == sorted([f"{s}.mp4" for s in SCENES] + [SUMMARY_NAME]
+                                                               + [f"{s}.frames.parquet" for s in SCENES])
     summary = json.loads((out_dir / SUMMARY_NAME).read_text())
     assert sorted(summary["scenes"]) == SCENES and summary["failed"] == {}
     for scene in SCENES:

@@ -96,7 +96,8 @@ def test_frames_dir_writes_one_image_per_frame(synth_out, tmp_path):
     assert code == 0
     expected = _camera_frames(synth_out, scene, "CAM_FRONT_LEFT", keyframes_only=True).height
     written = sorted(frames_dir.iterdir())
-    assert [p.name for p in written] == [f"{i:05d}.png" for i in range(expected)]
+    assert [p.name for p in written] == [f"{i:05d}.png" for i in range(expected)] + ["frames.parquet"]
+    written = written[:-1]
     import cv2
 
     assert cv2.imread(str(written[0])).shape == (450, 800, 3)
@@ -168,7 +169,8 @@ def test_missing_image_is_skipped_with_a_warning_count(partial_dataroot, synth_o
     assert code == 0
     err = capsys.readouterr().err
     assert "warning: 1 file(s) missing" in err and str(absent) in err
-    expected = _camera_frames(synth_out, scene, "CAM_FRONT", keyframes_only=True).height - 1
+    # every keyframe keeps its place in time: the missing one repeats the picture before
+    expected = _camera_frames(synth_out, scene, "CAM_FRONT", keyframes_only=True).height
     assert _probe(out)["frames"] == expected
 
 
@@ -201,7 +203,16 @@ def test_real_extract_all_frames_reports_the_missing_sweeps(extract_out, tmp_pat
     frames = _camera_frames(extract_out, "scene-0916", "CAM_FRONT", keyframes_only=False)
     sweeps = frames.filter(~pl.col("is_key_frame")).height
     assert f"warning: {sweeps} file(s) missing" in err and "sweeps/CAM_FRONT/" in err
-    assert _probe(out)["frames"] == frames.height - sweeps
+    # the true timing: one video frame per camera frame at 12 Hz, the missing sweeps repeating the keyframe before
+    # (the frames before the first keyframe: a placeholder)
+    assert _probe(out)["frames"] == frames.height
+    index = pl.read_parquet(tmp_path / "all.frames.parquet")
+    assert index["sample_data_token"].to_list() == frames.sort("timestamp")["token"].to_list()
+    assert index["drawn"].to_list() == frames.sort("timestamp")["is_key_frame"].to_list()
+    first = index["drawn"].arg_max()
+    shown = index["shows_frame"].to_list()
+    assert all(shown[i] == (i if drawn else max((j for j in range(first, i) if index["drawn"][j]), default=0))
+               for i, drawn in enumerate(index["drawn"].to_list()))
 
     assert main(args + ["--on-missing", "error"]) == 1
     assert "sweeps/CAM_FRONT/" in capsys.readouterr().err

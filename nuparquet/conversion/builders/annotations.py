@@ -8,7 +8,7 @@ import polars as pl
 
 from nuparquet.geometry import quaternions
 from nuparquet.columns import to_numpy
-from nuparquet.conversion.builders.common import declared_fields, reference_poses, samples
+from nuparquet.conversion.builders.common import declared_fields, file_positions, reference_poses, samples
 from nuparquet.conversion.builder import BuildContext, Builder, SceneBatch
 
 # devkit NuScenes.box_velocity's default: neighbours further apart than this (doubled for a centred
@@ -17,10 +17,12 @@ MAX_VELOCITY_TIME_DIFF_S = 1.5
 
 
 def build_annotations(tables: dict[str, pl.DataFrame], annotations: pl.DataFrame, samples: pl.DataFrame,
-                      references: pl.DataFrame, *, allow_dangling: bool = False) -> pl.DataFrame:
+                      references: pl.DataFrame, *, allow_dangling: bool = False,
+                      positions: pl.DataFrame | None = None) -> pl.DataFrame:
     """One row per row of `annotations` (sample_annotation rows of a batch of scenes). `references` is
     `lookups.reference_poses(tables, samples)`. `allow_dangling` (a trimmed extract): velocity is null where the devkit's
-    box_velocity fails (`velocity_defined`); joins without a partner give nulls in any case."""
+    box_velocity fails (`velocity_defined`); joins without a partner give nulls in any case. `positions`: token ->
+    file_index of every sample_annotation record (`common.file_positions`; default: the order of `annotations`)."""
     names = dict(zip(tables["attribute"]["token"].to_list(), tables["attribute"]["name"].to_list()))  # a handful
     ann = declared_fields(annotations, "sample_annotation").with_columns(
         attribute_names=pl.col("attribute_tokens").list.eval(
@@ -36,6 +38,8 @@ def build_annotations(tables: dict[str, pl.DataFrame], annotations: pl.DataFrame
               on="category_token", how="left")
         .join(ego.lazy(), on="sample_token", how="left")
         .join(visibility_levels(tables["visibility"]).lazy(), on="visibility_token", how="left")
+        .join((annotations.select("token").with_row_index("file_index") if positions is None else positions).lazy(),
+              on="token", how="left")
         .collect()
     )
     translation = to_numpy(ann["translation"], (3,))
@@ -118,7 +122,8 @@ def velocity_defined(ann: pl.DataFrame) -> np.ndarray:
 
 def build(ctx: BuildContext, batch: SceneBatch) -> pl.DataFrame:
     return build_annotations(ctx.tables, batch.rows["sample_annotation"], samples(ctx), reference_poses(ctx),
-                             allow_dangling=ctx.options.allow_dangling)
+                             allow_dangling=ctx.options.allow_dangling,
+                             positions=file_positions(ctx, "sample_annotation"))
 
 
 BUILDER = Builder("annotations", build, schema="annotations")

@@ -19,6 +19,12 @@ def reference_poses(ctx: BuildContext) -> pl.DataFrame:
     return ctx.shared("reference_poses", lambda: lookups.reference_poses(ctx.tables, samples(ctx)))
 
 
+def file_positions(ctx: BuildContext, table: str) -> pl.DataFrame:
+    """token -> `file_index` (uint32): each record's position in its JSON file, the devkit's list index
+    (`nusc.sample_annotation[i]`, `nusc.instance[i]`; a sample's `anns` list follows it)."""
+    return ctx.shared(f"file_positions/{table}", lambda: ctx.tables[table].select("token").with_row_index("file_index"))
+
+
 def declared_fields(rows: pl.DataFrame, table: str) -> pl.DataFrame:
     """`rows` of source table `table` with only the fields its schema declares: a field the source adds (a
     `category_name` in sample_annotation, kept as JSON text in tables/) must not shadow a column a join adds."""

@@ -25,6 +25,7 @@ import polars as pl
 import pyarrow.parquet as pq
 
 from nuparquet.conversion.builder import BuildContext, Builder, WrittenParts
+from nuparquet.conversion.builders.common import samples
 from nuparquet.conversion.write import parquet_part_name
 from nuparquet.engine import EngineOptions, WorkUnit, move_parts, run_units
 from nuparquet.engine.backends import default_workers
@@ -95,8 +96,6 @@ def build_points(ctx: BuildContext, modality: str, name: str) -> dict[str, Writt
     tasks = [SceneTask(str(ctx.dataroot), str(directory / parquet_part_name(part)), part, scene, modality,
                        rows.drop("scene_name").to_dict(as_series=False), ctx.options.lidar_columns)
              for part, ((scene,), rows) in enumerate(frames.partition_by("scene_name", as_dict=True, maintain_order=True).items())]
-    if ctx.reporter:
-        ctx.reporter.grow(len(tasks))
 
     def done(scene: str) -> None:
         if ctx.reporter:
@@ -151,7 +150,22 @@ def build_radar(ctx: BuildContext) -> dict[str, WrittenParts]:
     return build_points(ctx, "radar", "radar_points")
 
 
+def _scene_tasks(modality: str) -> Callable[[BuildContext], int]:
+    """`Builder.units`: the scene tasks `build_points` will run (one per scene with frames of `modality`, keyframes
+    unless --sweeps), counted from the source tables before any dataset is written."""
+    def units(ctx: BuildContext) -> int:
+        sensors = ctx.tables["sensor"].filter(pl.col("modality") == modality)["token"]
+        calibrations = ctx.tables["calibrated_sensor"].filter(pl.col("sensor_token").is_in(sensors.implode()))["token"]
+        frames = ctx.tables["sample_data"].filter(pl.col("calibrated_sensor_token").is_in(calibrations.implode()))
+        if not ctx.options.sweeps:
+            frames = frames.filter(pl.col("is_key_frame"))
+        scenes = frames.select("sample_token").join(samples(ctx).select("sample_token", "scene_name"),
+                                                    on="sample_token", how="left")["scene_name"]
+        return scenes.drop_nulls().n_unique()
+    return units
+
+
 LIDAR_BUILDER = Builder("lidar_points", build_lidar, scope="whole", schema="lidar_points", wanted=_wanted("lidar"),
-                        needs=("frames",))
+                        needs=("frames",), units=_scene_tasks("lidar"))
 RADAR_BUILDER = Builder("radar_points", build_radar, scope="whole", schema="radar_points", wanted=_wanted("radar"),
-                        needs=("frames",))
+                        needs=("frames",), units=_scene_tasks("radar"))

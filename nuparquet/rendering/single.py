@@ -1,0 +1,134 @@
+"""Pictures of one thing, each an (H, W, 3) uint8 RGB array, with the devkit's names and arguments (so that
+`nuparquet.devkit.NuScenes.render_*` is a thin call), and `save_image` to write one as PNG or JPEG.
+
+```python
+from nuparquet.rendering import single
+ds = nuparquet.open("OUT")
+image = single.render_sample_data(ds, token, nsweeps=5)          # camera with boxes, or lidar / radar from above
+image = single.render_pointcloud_in_image(ds, sample_token, show_lidarseg=True, show_lidarseg_legend=True)
+image = single.render_annotation(ds, annotation_token)           # lidar view beside the camera that sees it
+image = single.render_instance(ds, instance_token)
+image = single.render_sample(ds, sample_token)                   # every sensor in one picture
+image = single.render_map_patch(ds, "boston-seaport", (300, 1000, 500, 1200))
+image = single.render_map_in_image(ds, sample_token, camera_channel="CAM_FRONT")
+single.save_image(image, "picture.png")
+```
+
+`render_image(ds, ImageOptions(...))` is what `nuparquet render OUT --sample TOKEN ... --out picture.png` runs.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from nuparquet.atomic import partial_path, remove_stale
+from nuparquet.dataset import as_dataset
+from nuparquet.errors import EnvironmentFault, UsageError
+from nuparquet.options import resolve
+from nuparquet.rendering.annotation import instance_annotation, render_annotation, render_instance
+from nuparquet.rendering.image_options import ImageOptions, check_image_path
+from nuparquet.rendering.map_in_image import render_map_in_image
+from nuparquet.rendering.map_views import (
+    ego_poses_on_map, render_centerlines, render_egoposes_on_map, render_layers, render_map_mask, render_map_patch,
+    render_next_roads, render_record,
+)
+from nuparquet.rendering.pointcloud_image import render_pointcloud_in_image
+from nuparquet.rendering.sample_data import render_sample_data
+from nuparquet.rendering.sample_grid import render_sample
+
+__all__ = [
+    "ImageOptions", "ego_poses_on_map", "instance_annotation", "render_annotation", "render_centerlines",
+    "render_egoposes_on_map", "render_image", "render_instance", "render_layers", "render_map_in_image",
+    "render_map_mask", "render_map_patch", "render_next_roads", "render_pointcloud_in_image", "render_record",
+    "render_sample", "render_sample_data", "save_image",
+]
+
+
+def save_image(image_rgb: np.ndarray, path) -> Path:
+    """Write an (H, W, 3) RGB picture as PNG or JPEG (by the suffix), atomically (a hidden partial, then renamed)."""
+    path = check_image_path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    remove_stale(path)
+    partial = partial_path(path)
+    ok, data = cv2.imencode(path.suffix.lower(), np.ascontiguousarray(np.asarray(image_rgb)[..., ::-1]))
+    if not ok:
+        raise EnvironmentFault(f"could not encode {path}")
+    try:
+        partial.write_bytes(data.tobytes())
+        os.replace(partial, path)
+    except OSError as exc:
+        partial.unlink(missing_ok=True)
+        raise EnvironmentFault(f"{path}: {exc.strerror or exc}") from exc
+    return path
+
+
+def render_image(dataset_or_path, options: ImageOptions | None = None, *, scale: float = 0.5,
+                 labels: str = "none", lidar_color: str = "depth", dataroot=None,
+                 scenes: tuple[str, ...] = (), **fields) -> np.ndarray:
+    """The one picture `options` (or keyword fields of `ImageOptions`) asks for; `scale` (camera images), `labels`
+    (box labels), `lidar_color` (depth, intensity, lidarseg, panoptic) and `dataroot` as for a scene render;
+    `scenes`: the scene names of `ego_poses` (default: every scene at the location)."""
+    options = resolve(ImageOptions, options, fields)
+    options.check()
+    dataset = as_dataset(dataset_or_path)
+    show_lidarseg, show_panoptic = lidar_color == "lidarseg", lidar_color == "panoptic"
+    labelled = dict(show_lidarseg=show_lidarseg, show_panoptic=show_panoptic,
+                    filter_lidarseg_labels=options.class_indices(), lidarseg_preds_bin_path=options.lidarseg_preds)
+    if options.map is not None:
+        return _map_picture(dataset, options, scenes)
+    if options.sample is not None:
+        if options.map_in_image:
+            return render_map_in_image(dataset, options.sample, options.camera_channel or "CAM_FRONT",
+                                       layer_names=list(options.map_layers) or None, scale=scale, dataroot=dataroot)
+        if options.pointcloud_in_image:
+            return render_pointcloud_in_image(dataset, options.sample, pointsensor_channel=options.pointsensor_channel,
+                                              camera_channel=options.camera_channel,
+                                              render_intensity=lidar_color == "intensity",
+                                              show_lidarseg_legend=options.lidarseg_legend, scale=scale,
+                                              dataroot=dataroot, **labelled)
+        return render_sample(dataset, options.sample, options.box_vis_level, options.nsweeps, scale=scale,
+                             axes_limit=options.axes_limit, underlay_map=options.underlay_map, dataroot=dataroot,
+                             **labelled)
+    if options.sample_data is not None:
+        return render_sample_data(dataset, options.sample_data, box_vis_level=options.box_vis_level,
+                                  axes_limit=options.axes_limit, nsweeps=options.nsweeps,
+                                  underlay_map=options.underlay_map, show_lidarseg_legend=options.lidarseg_legend,
+                                  color="intensity" if lidar_color == "intensity" else None, labels=labels,
+                                  scale=scale, truth_beside_preds=True, dataroot=dataroot, **labelled)
+    common = dict(box_vis_level=options.box_vis_level, extra_info=options.extra_info, scale=scale, labels=labels,
+                  dataroot=dataroot)
+    if options.annotation is not None:
+        return render_annotation(dataset, options.annotation, **common)
+    return render_instance(dataset, options.instance, annotation=options.instance_annotation, **common)
+
+
+def _map_picture(dataset, options: ImageOptions, scenes: tuple[str, ...]) -> np.ndarray:
+    location, picture = options.map, options.map_picture()
+    layers = list(options.map_layers) or None
+    if picture == "map_patch":
+        return render_map_patch(dataset, location, options.floats("map_patch", 4), layers)
+    if picture == "map_record":
+        layer, _, token = options.map_record.partition(":")
+        if not token:
+            raise UsageError(f"--map-record takes LAYER:TOKEN (e.g. lane:0a1b...), got {options.map_record!r}")
+        return render_record(dataset, location, layer, token)
+    if picture == "map_mask":
+        height, width = (int(v) for v in options.floats("canvas_size", 2))
+        return render_map_mask(dataset, location, options.floats("map_mask", 4), options.map_angle, layers,
+                               (height, width), n_row=1)
+    if picture == "centerlines":
+        return render_centerlines(dataset, location)
+    if picture == "next_roads":
+        x, y = options.floats("next_roads", 2)
+        return render_next_roads(dataset, location, x, y)
+    tokens = None
+    if scenes:
+        import polars as pl
+
+        dataset.check_scenes(list(scenes))
+        tokens = dataset.scan("scenes").filter(pl.col("name").is_in(list(scenes))).collect()["token"].to_list()
+    return render_egoposes_on_map(dataset, location, tokens)

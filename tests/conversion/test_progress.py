@@ -1,0 +1,64 @@
+"""The conversion's progress: the total is unknown while the tables are read, then set once with every unit still to
+come (the tables written, each scene batch, each builder and its own units: one per scene of points, the batch of
+rows of no scene) and never changed, so a bar never reads 97% and then 78% (issue 24: it grew 32 -> 40 -> 43 -> 46)."""
+
+from __future__ import annotations
+
+import pytest
+
+import nuparquet
+from conftest import SYNTH_VERSION
+from nuparquet.progress import Reporter
+
+
+def _events(root, version, out, **options):
+    events = []
+    nuparquet.convert(root, version, out, on_progress=events.append, **options)
+    return events
+
+
+def _check(events):
+    totals = [e.total for e in events]
+    known = [t for t in totals if t is not None]
+    first = totals.index(known[0])
+    assert all(t is None for t in totals[:first]) and set(totals[first:]) == {known[0]}  # set once, never changed
+    assert first > 3  # unknown while the tables are read
+    assert [e.done for e in events] == sorted(e.done for e in events)
+    assert events[-1].finished and events[-1].done == events[-1].total
+    return known[0]
+
+
+def test_the_total_is_set_once_and_reached_with_points_of_every_scene(labelled_root, tmp_path):
+    events = _events(labelled_root, SYNTH_VERSION, tmp_path / "out", sensors=("lidar", "radar"), workers=1,
+                     scenes_per_batch=1)
+    total = _check(events)
+    steps = [e.step for e in events if e.step]
+    # two scenes: a batch each, and a unit per scene for each points dataset
+    assert sum(s.startswith("scene batch") for s in steps) == 2
+    assert sum(s.startswith("lidar_points scene-") for s in steps) == 2
+    assert sum(s.startswith("radar_points scene-") for s in steps) == 2
+    without_points = _check(_events(labelled_root, SYNTH_VERSION, tmp_path / "plain", scenes_per_batch=1))
+    assert total - without_points == 2 * (1 + 2)  # each points builder, and its two scenes
+
+
+def test_the_total_counts_the_batch_of_rows_of_no_scene(tmp_path):
+    """--allow-dangling: samples whose scene is absent form a last batch, counted before the run."""
+    import json
+
+    from nuparquet.synth import synthesize
+
+    root = synthesize(tmp_path / "data", scenes=2, samples_per_scene=2, seed=1, version=SYNTH_VERSION,
+                      with_can_bus=False)
+    scenes = json.loads((root / SYNTH_VERSION / "scene.json").read_text())
+    (root / SYNTH_VERSION / "scene.json").write_text(json.dumps(scenes[:1]))  # scene 2's samples now belong to none
+    events = _events(root, SYNTH_VERSION, tmp_path / "out", allow_dangling=True, scenes_per_batch=1)
+    _check(events)
+    assert sum(e.step.startswith("scene batch") for e in events if e.step) == 2  # scene-0001's and the orphans'
+
+
+def test_a_total_is_set_once():
+    reporter = Reporter(None, "task")
+    reporter.advance()
+    reporter.set_total(5)
+    with pytest.raises(RuntimeError, match="already 5"):
+        reporter.set_total(6)
