@@ -17,8 +17,10 @@ pre-check is `nuparquet.geometry`; points and labels come from the dataroot's fi
 `view_points`, `transform_matrix`, a slerped rotation), the devkit's own small formulas are kept operation for
 operation with pyquaternion, so the results are bit-identical to the devkit's.
 
-Not served (each raises `NotServed` saying what does it): the `render_*` methods (`nuparquet render`), tables
-that were not converted.
+The one-picture renderers (`render_sample_data`, `render_sample`, `render_pointcloud_in_image`,
+`render_annotation`, `render_instance`) draw with `nuparquet.rendering.single` and write `out_path`, draw on `ax`
+or show with matplotlib as the devkit does. Not served (each raises `NotServed` saying what does it): the scene
+videos and `render_egoposes_on_map` (`nuparquet render`), tables that were not converted.
 """
 
 from nuparquet.devkit.errors import NotServed, ReadOnly

@@ -1,11 +1,11 @@
 """`NuScenesExplorer`: the devkit's printers (`list_*`, `get_sample_lidarseg_stats`) and its one data call
-(`map_pointcloud_to_image`) over a `nuparquet.devkit.NuScenes`; its renderers raise `NotServed`, naming the
-nuparquet command that renders.
+(`map_pointcloud_to_image`) over a `nuparquet.devkit.NuScenes`; its renderers (`devkit.renders`) draw with
+`nuparquet.rendering.single`.
 
 The printers print what the devkit prints, character for character. The two that walk every annotation
 (`list_categories`, `list_attributes`) read the few columns they need instead of building a million records:
 they answer from the converted data, not from records a user may have changed. One module, as the devkit's
-explorer is one class: most of its length is the printers' exact formats and the renderers' refusals.
+explorer is one class: most of its length is the printers' exact formats.
 
 Longer than our ~300-line norm on purpose: it mirrors a devkit module whose whole surface user code calls, so its
 pieces stay where the devkit's users look for them.
@@ -24,21 +24,13 @@ from pyquaternion import Quaternion
 from nuparquet.devkit import labels
 from nuparquet.devkit.columns import fixed_block, single_chunk, token_bytes
 from nuparquet.devkit.errors import NotServed
+from nuparquet.devkit.renders import ExplorerRenders
 from nuparquet.devkit.utils.data_classes import LidarPointCloud, RadarPointCloud
 from nuparquet.devkit.utils.data_io import load_bin_file
 from nuparquet.devkit.utils.geometry_utils import view_points
 
-_RENDER_CAMERA = ("`nuparquet render OUT --scene NAME --channel CHANNEL --frames-dir DIR` (nuparquet.rendering.pipeline"
-                  ".render) draws every frame of a scene with its boxes, --lidar adds the lidar points, --channel bev "
-                  "draws the bird's-eye view")
-_RENDER_VIDEO = ("`nuparquet render OUT --scene NAME --channel all --out scene.mp4` writes the scene's video "
-                 "(--all-frames for every camera frame)")
-_WITH_DEVKIT = ("; with nuscenes-devkit installed, nuscenes.nuscenes.NuScenesExplorer(nusc).{name}(...) also "
-                "accepts this object")
-
-
-class NuScenesExplorer:
-    """The devkit's explorer over `nusc` (a `nuparquet.devkit.NuScenes`)."""
+class NuScenesExplorer(ExplorerRenders):
+    """The devkit's explorer over `nusc` (a `nuparquet.devkit.NuScenes`); its renderers are `devkit.renders`."""
 
     def __init__(self, nusc):
         self.nusc = nusc
@@ -278,55 +270,6 @@ class NuScenesExplorer:
         mask = np.logical_and(mask, points[1, :] > 1)
         mask = np.logical_and(mask, points[1, :] < im.size[1] - 1)
         return points[:, mask], coloring[mask], im
-
-    # --- renderers --------------------------------------------------------------------------------------------
-
-    def render_sample_data(self, *args, **kwargs):
-        raise NotServed(f"render_sample_data draws with matplotlib, which nuparquet does not: {_RENDER_CAMERA}"
-                        + _WITH_DEVKIT.format(name="render_sample_data"))
-
-    def render_sample(self, *args, **kwargs):
-        raise NotServed(f"render_sample is not served: {_RENDER_CAMERA}" + _WITH_DEVKIT.format(name="render_sample"))
-
-    def render_pointcloud_in_image(self, *args, **kwargs):
-        raise NotServed("render_pointcloud_in_image is not served: `nuparquet render OUT --scene NAME --channel "
-                        "CAM_FRONT --lidar [--lidar-color depth|intensity|lidarseg|panoptic] --frames-dir DIR` draws "
-                        "the lidar points into the keyframe images"
-                        + _WITH_DEVKIT.format(name="render_pointcloud_in_image"))
-
-    def render_annotation(self, *args, **kwargs):
-        raise NotServed(f"render_annotation is not served: {_RENDER_CAMERA}"
-                        + _WITH_DEVKIT.format(name="render_annotation"))
-
-    def render_instance(self, *args, **kwargs):
-        raise NotServed(f"render_instance is not served: {_RENDER_CAMERA}" + _WITH_DEVKIT.format(name="render_instance"))
-
-    def render_scene(self, *args, **kwargs):
-        raise NotServed(f"render_scene is not served: {_RENDER_VIDEO}" + _WITH_DEVKIT.format(name="render_scene"))
-
-    def render_scene_channel(self, *args, **kwargs):
-        raise NotServed("render_scene_channel is not served: `nuparquet render OUT --scene NAME --channel CAM_FRONT "
-                        "--out scene.mp4` writes the channel's video"
-                        + _WITH_DEVKIT.format(name="render_scene_channel"))
-
-    def render_egoposes_on_map(self, *args, **kwargs):
-        raise NotServed("render_egoposes_on_map is not served: the ego poses are the frames dataset's ego_translation "
-                        "(nuparquet.open(OUT).scan('frames')), the maps nuparquet's map/ datasets; "
-                        "`nuparquet render OUT --scene NAME --channel bev` draws a scene over its map"
-                        + _WITH_DEVKIT.format(name="render_egoposes_on_map"))
-
-    def render_scene_channel_lidarseg(self, *args, **kwargs):
-        raise NotServed("render_scene_channel_lidarseg is not served: `nuparquet render OUT --scene NAME --channel "
-                        "CAM_FRONT --lidar --lidar-color lidarseg --out scene.mp4`"
-                        + _WITH_DEVKIT.format(name="render_scene_channel_lidarseg"))
-
-    def render_scene_lidarseg(self, *args, **kwargs):
-        raise NotServed("render_scene_lidarseg is not served: `nuparquet render OUT --scene NAME --channel all --lidar "
-                        "--lidar-color lidarseg --out scene.mp4`" + _WITH_DEVKIT.format(name="render_scene_lidarseg"))
-
-    def render_ego_centric_map(self, *args, **kwargs):
-        raise NotServed("render_ego_centric_map is not served: `nuparquet render OUT --scene NAME --channel bev` "
-                        "draws the map about the ego vehicle" + _WITH_DEVKIT.format(name="render_ego_centric_map"))
 
 
 def _needs_labels(nusc, gt_from: str) -> None:

@@ -61,7 +61,9 @@ class NuScenes:
             where memory matters more than repeated-lookup speed.
 
     Everything read-only the devkit's object offers is here (see the README's "Switching from the devkit"); the
-    renderers raise `NotServed` naming the nuparquet command that renders, and writes raise `ReadOnly`.
+    pictures (`render_sample_data`, `render_sample`, `render_pointcloud_in_image`, `render_annotation`,
+    `render_instance`) are drawn from the Parquet by `nuparquet.rendering.single` (`devkit.renders`), the scene
+    videos raise `NotServed` naming the `nuparquet render` command, and writes raise `ReadOnly`.
     """
 
     def __init__(self, version: str = "v1.0-mini", dataroot: str | os.PathLike | None = None, verbose: bool = True,
@@ -314,22 +316,32 @@ class NuScenes:
     def list_sample(self, sample_token: str) -> None:
         self.explorer.list_sample(sample_token)
 
-    # --- renderers: another nuparquet command does them --------------------------------------------------------
+    # --- renderers: `devkit.renders` (pictures from `nuparquet.rendering.single`; the videos refused) -------------
 
-    def render_pointcloud_in_image(self, *args, **kwargs) -> None:
-        self.explorer.render_pointcloud_in_image(*args, **kwargs)
+    def render_pointcloud_in_image(self, sample_token: str, dot_size: int = 5, pointsensor_channel: str = "LIDAR_TOP",
+                                   camera_channel: str = "CAM_FRONT", out_path: str | None = None,
+                                   render_intensity: bool = False, show_lidarseg: bool = False,
+                                   filter_lidarseg_labels=None, show_lidarseg_legend: bool = False,
+                                   verbose: bool = True, lidarseg_preds_bin_path: str | None = None,
+                                   show_panoptic: bool = False):
+        # the devkit's NuScenes takes no `ax` here, so its positional order differs from the explorer's
+        return self.explorer.render_pointcloud_in_image(
+            sample_token, dot_size, pointsensor_channel=pointsensor_channel, camera_channel=camera_channel,
+            out_path=out_path, render_intensity=render_intensity, show_lidarseg=show_lidarseg,
+            filter_lidarseg_labels=filter_lidarseg_labels, show_lidarseg_legend=show_lidarseg_legend,
+            verbose=verbose, lidarseg_preds_bin_path=lidarseg_preds_bin_path, show_panoptic=show_panoptic)
 
-    def render_sample(self, *args, **kwargs) -> None:
-        self.explorer.render_sample(*args, **kwargs)
+    def render_sample(self, *args, **kwargs):
+        return self.explorer.render_sample(*args, **kwargs)
 
-    def render_sample_data(self, *args, **kwargs) -> None:
-        self.explorer.render_sample_data(*args, **kwargs)
+    def render_sample_data(self, *args, **kwargs):
+        return self.explorer.render_sample_data(*args, **kwargs)
 
-    def render_annotation(self, *args, **kwargs) -> None:
-        self.explorer.render_annotation(*args, **kwargs)
+    def render_annotation(self, *args, **kwargs):
+        return self.explorer.render_annotation(*args, **kwargs)
 
-    def render_instance(self, *args, **kwargs) -> None:
-        self.explorer.render_instance(*args, **kwargs)
+    def render_instance(self, *args, **kwargs):
+        return self.explorer.render_instance(*args, **kwargs)
 
     def render_scene(self, *args, **kwargs) -> None:
         self.explorer.render_scene(*args, **kwargs)

@@ -45,6 +45,8 @@ COLORS = ("distance", "height", "intensity")
 
 def visibility_name(box_vis_level) -> str:
     """"any" / "all" / "none" from a string or the devkit's `BoxVisibility` member."""
+    if type(box_vis_level) is int:  # the devkit's BoxVisibility values as plain numbers
+        box_vis_level = {0: "all", 1: "any", 2: "none"}.get(box_vis_level, box_vis_level)
     name = str(getattr(box_vis_level, "name", box_vis_level)).lower()
     if name not in ("any", "all", "none"):
         raise UsageError(f"box_vis_level must be any, all or none, got {box_vis_level!r}")

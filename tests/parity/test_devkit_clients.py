@@ -203,21 +203,63 @@ def test_the_devkits_explorer_renders_sample_data_from_it_headlessly(synth_mappe
     assert len(np.unique(images[0].reshape(-1, images[0].shape[-1]), axis=0)) > 20  # boxes and points drawn
 
 
-def test_our_explorers_renderers_name_the_nuparquet_command_that_renders(extract):
+def test_our_renderers_put_nuparquets_pictures_where_the_devkits_figures_go(extract, tmp_path):
+    """`render_*` of our NuScenes draw with `nuparquet.rendering.single` (checked against the devkit's pixels in
+    test_single_renders_devkit.py), take the devkit's arguments in its order, and write `out_path` / draw on `ax`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    import nuparquet
+    from nuparquet.rendering import single
+
+    ds, ours = nuparquet.open(extract.out), extract.ours
+    sample = extract.theirs.sample[3]
+    camera, lidar = sample["data"]["CAM_FRONT"], sample["data"]["LIDAR_TOP"]
+    annotation = sample["anns"][0]
+    instance = extract.theirs.get("sample_annotation", annotation)["instance_token"]
+
+    def written(call, name):
+        out = tmp_path / f"{name}.png"
+        returned = call(str(out))
+        assert np.array_equal(np.asarray(Image.open(out).convert("RGB")), returned)
+        return returned
+
+    expected = single.render_sample_data(ds, camera, box_vis_level="all")
+    assert np.array_equal(written(lambda out: ours.render_sample_data(camera, True, 0, out_path=out, verbose=False),
+                                  "camera"), expected)  # BoxVisibility.ALL as the number 0, positionally
+    assert not np.array_equal(expected, single.render_sample_data(ds, camera, box_vis_level="none"))
+    top = written(lambda out: ours.render_sample_data(lidar, axes_limit=20, out_path=out, verbose=False), "lidar")
+    assert np.array_equal(top, single.render_sample_data(ds, lidar, axes_limit=20))  # (the extract has no sweeps)
+    # NuScenes.render_pointcloud_in_image takes no `ax`: its fifth argument is out_path, as in the devkit
+    back = written(lambda out: ours.render_pointcloud_in_image(sample["token"], 5, "LIDAR_TOP", "CAM_BACK", out),
+                   "points")
+    assert np.array_equal(back, single.render_pointcloud_in_image(ds, sample["token"], 5, "LIDAR_TOP", "CAM_BACK"))
+    assert not np.array_equal(back, single.render_pointcloud_in_image(ds, sample["token"], camera_channel="CAM_FRONT"))
+    assert np.array_equal(written(lambda out: ours.render_annotation(annotation, out_path=out), "annotation"),
+                          single.render_annotation(ds, annotation))
+    assert np.array_equal(written(lambda out: ours.render_instance(instance, out_path=out), "instance"),
+                          single.render_instance(ds, instance))  # the annotation nearest the ego, as the devkit's
+    figure, ax = plt.subplots()
+    drawn = ours.explorer.render_sample_data(camera, ax=ax, verbose=False)
+    assert np.array_equal(np.asarray(ax.images[0].get_array()), drawn)
+    plt.close(figure)
+
+
+def test_our_explorers_video_renderers_name_the_nuparquet_command_that_renders(extract):
     from nuparquet.devkit import NotServed
 
     token = extract.theirs.sample[0]["data"]["CAM_FRONT"]
-    for call in (lambda: extract.ours.render_sample_data(token), lambda: extract.ours.render_sample(token),
-                 lambda: extract.ours.render_scene(extract.theirs.scene[0]["token"]),
-                 lambda: extract.ours.render_pointcloud_in_image(extract.theirs.sample[0]["token"]),
-                 lambda: extract.ours.render_annotation(extract.theirs.sample_annotation[0]["token"]),
-                 lambda: extract.ours.render_instance(extract.theirs.instance[0]["token"]),
-                 lambda: extract.ours.render_scene_channel(extract.theirs.scene[0]["token"]),
-                 lambda: extract.ours.render_egoposes_on_map("boston-seaport"),
-                 lambda: extract.ours.render_scene_channel_lidarseg(extract.theirs.scene[0]["token"], "CAM_FRONT"),
-                 lambda: extract.ours.render_scene_lidarseg(extract.theirs.scene[0]["token"]),
+    scene = extract.theirs.scene[0]["token"]
+    for call in (lambda: extract.ours.render_scene(scene), lambda: extract.ours.render_scene_channel(scene),
+                 lambda: extract.ours.render_scene_channel_lidarseg(scene, "CAM_FRONT"),
+                 lambda: extract.ours.render_scene_lidarseg(scene),
                  lambda: extract.ours.explorer.render_ego_centric_map(token)):
         with pytest.raises(NotServed, match="nuparquet render"):
             call()
         with pytest.raises(NotImplementedError):
             call()
+    with pytest.raises(NotServed, match="render_egoposes_on_map"):
+        extract.ours.render_egoposes_on_map("boston-seaport")
