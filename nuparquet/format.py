@@ -4,5 +4,5 @@ Kept free of heavy imports: `nuparquet.open` checks these before anything else i
 """
 
 FORMAT_NAME = "nuparquet"
-FORMAT_VERSION = 1  # bump when a column of schemas/ changes name or meaning
+FORMAT_VERSION = 2  # bump when a column of schemas/ changes name, type or meaning (2: dimension strings as dictionaries)
 MANIFEST = "manifest.json"

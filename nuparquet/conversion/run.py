@@ -163,6 +163,11 @@ def _to_arrow(frame: pl.DataFrame | pa.Table) -> pa.Table:
 def to_schema(frame: pl.DataFrame | pa.Table, schema: Schema) -> pa.Table:
     """Exactly the columns and Arrow types of `schema` (the single definition in schemas/); a schema with `extra`
     columns keeps the frame's other columns where they stand, typed as built."""
+    if isinstance(frame, pl.DataFrame):  # dictionary columns leave polars as one dictionary, never a copy per row
+        categorical = [f.name for f in schema.fields if pa.types.is_dictionary(f.arrow_type) and f.name in frame.columns
+                       and frame.schema[f.name] == pl.String]
+        if categorical:
+            frame = frame.with_columns(pl.col(categorical).cast(pl.Categorical))
     table = _to_arrow(frame)
     if not schema.extra:
         table = table.select(schema.names)

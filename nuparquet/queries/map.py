@@ -57,7 +57,7 @@ def _surfaces(ds: Dataset, points: pl.DataFrame) -> pl.DataFrame:
 def annotation_surfaces(ds: Dataset, *, scene: Scene = None) -> pl.LazyFrame:
     """``token, scene_name, location, category_name, x_m, y_m``, a token column per polygon layer, ``surface``."""
     boxes = (for_scene(ds.scan("annotations"), scene)
-             .select("token", "scene_name", pl.col("log_location").alias("location"),
+             .select("token", "scene_name", pl.col("log_location").cast(pl.String).alias("location"),
                      pl.col("category_name").cast(pl.String), pl.col("translation").arr.get(0).alias("x_m"),
                      pl.col("translation").arr.get(1).alias("y_m"))
              .collect())

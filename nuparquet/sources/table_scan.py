@@ -177,7 +177,7 @@ class _Fields:
         self.spellings.append((index, spelling))
 
     def names(self) -> np.ndarray:
-        width = 2 + max(len(b) for _, b in self.spellings)
+        width = 2 + max((len(b) for _, b in self.spellings), default=0)
         names = np.zeros((len(self.spellings), width), np.int64)
         for row, (index, spelling) in enumerate(self.spellings):
             names[row, 0], names[row, 1] = index, len(spelling)

@@ -154,6 +154,12 @@ def read_table(path: Path, schema: Schema) -> tuple[SourceTable | None, list[Pro
     if not head.startswith("["):
         what = "is a JSON object" if head.startswith("{") else ("is empty" if not head else f"starts with {head[:1]!r}")
         return None, [Problem(file, f"expected a JSON array of records, but the file {what}")]
+    if head == "[]":  # (what follows is checked by the scan: whitespace only)
+        scanned, problems = scan_table(path, (), after)
+        if scanned is None:
+            return None, problems
+        empty = pa.table({f.name: pa.array([], f.arrow_type) for f in schema.fields})
+        return SourceTable(schema.name, path, empty, schema.names), []
     scanned, problems = scan_table(path, schema.fields, after)
     if scanned is None:
         return None, problems

@@ -60,8 +60,8 @@ def visibility_levels(visibility: pl.DataFrame) -> pl.DataFrame:
     ranked = bounds.rank("dense").cast(pl.Int8) if bounds.null_count() == 0 and len(bounds) else pl.repeat(
         None, len(visibility), dtype=pl.Int8, eager=True)
     return visibility.select(pl.col("token").alias("visibility_token"),
-                             ranked.alias("visibility_level"), pl.col("level").alias("visibility_name"),
-                             pl.col("description").alias("visibility_description"))
+                             ranked.alias("visibility_level"), pl.col("level").cast(pl.Categorical).alias("visibility_name"),
+                             pl.col("description").cast(pl.Categorical).alias("visibility_description"))
 
 
 def _xy_distance(translation: np.ndarray, ego: pl.Series) -> np.ndarray:
