@@ -121,6 +121,8 @@ def typed_table(path: Path, schema: Schema, scanned: Scanned):
             ok = np.isin(kind, allowed + ([] if f.required else [k.NULL, k.ABSENT]))
             report.wrong(f, kind, ~ok, _SCALAR_WORDS[f.type])
             columns[name] = pa.chunked_array(column.values, f.arrow_type)
+            if f.max_bytes is not None and column.cls == k.C_STRING:
+                _too_long(report, f, columns[name], columns[name])
         elif column.cls == k.C_INT:
             typed, mark, is_float = _integers(report, f, column, kind)
             if typed is not None:
@@ -256,7 +258,9 @@ def _lists(report: _Report, f: Field, column: Column, kind: np.ndarray):
     if len(report.problems) > before:
         return None, None
     if strings:
-        return lists.cast(target), None
+        if f.max_bytes is not None:
+            _too_long(report, f, pc.list_flatten(lists), lists)
+        return (lists.cast(target) if len(report.problems) == before else None), None
     flags = np.concatenate(column.flags) if column.flags else np.zeros(0, np.uint8)
     values = pc.list_flatten(lists).to_numpy(zero_copy_only=False) if len(flags) else np.zeros(0)
     if flags.any():  # integers written as integers: exact in float64, or refused
@@ -266,6 +270,25 @@ def _lists(report: _Report, f: Field, column: Column, kind: np.ndarray):
     typed = _fixed(lists, values, target, f.empty_list_is_null, lengths)
     mark = _list_marks(name, flags, lists, len(kind)) if flags.any() else None
     return typed, mark
+
+
+def _too_long(report: _Report, f: Field, strings, owners) -> None:
+    """Records holding a string of field `f` longer than its `max_bytes` (`strings`: the values, or a list field's
+    elements with `owners` its lists)."""
+    lengths = pc.binary_length(strings).fill_null(0).to_numpy()
+    over = lengths > f.max_bytes
+    if not over.any():
+        return
+    if strings is not owners:  # list elements: their records
+        parents = pc.list_parent_indices(owners).to_numpy()
+        mask = np.zeros(len(owners), bool)
+        mask[parents[over]] = True
+        longest = {int(parents[i]): int(lengths[i]) for i in np.flatnonzero(over)[::-1]}
+    else:
+        mask, longest = over, None
+    report.records(mask, lambda i: f"field {f.name!r} holds a string of "
+                                   f"{(longest[i] if longest else int(lengths[i])):,} bytes, over its limit of "
+                                   f"{f.max_bytes:,}: {echo(report.value_text(i, f.name), quote=False)}")
 
 
 def _exact_list_integers(report: _Report, f: Field, column: Column, flags: np.ndarray, values: np.ndarray,
@@ -280,9 +303,16 @@ def _exact_list_integers(report: _Report, f: Field, column: Column, flags: np.nd
         record = int(owners[element])
         literals = json.loads(report.value_text(record, f.name))
         flat = [x for row in literals for x in row] if literals and isinstance(literals[0], list) else literals
-        bad[record] |= any(type(x) is int and float(x) != x for x in flat)
+        bad[record] |= any(type(x) is int and not _exact_in_float64(x) for x in flat)
     report.records(bad, lambda i: f"field {f.name!r} holds an integer that float64 cannot hold exactly: "
                                   f"{echo(report.value_text(i, f.name), quote=False)}")
+
+
+def _exact_in_float64(n: int) -> bool:
+    try:
+        return float(n) == n
+    except OverflowError:  # beyond float64's range
+        return False
 
 
 def _fixed(lists: pa.ChunkedArray, values: np.ndarray, target: pa.DataType, empty_is_null: bool,

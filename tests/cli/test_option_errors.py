@@ -45,7 +45,7 @@ def test_usage_errors_exit_2_with_the_reason(synth_root, synth_out, tmp_path, ca
     (b"\xae\xff\x00", "cannot be read as text"),
     (b"{not json", "is not valid JSON"),
     (b'{"format": "nuparquet", "format_version": "1", "datasets": {"frames": {}}}', "no integer format_version"),
-    (b'{"format": "nuparquet", "format_version": 1, "datasets": {}}', "lists no datasets"),
+    (b'{"format": "nuparquet", "format_version": 2, "datasets": {}}', "lists no datasets"),
 ])
 @pytest.mark.parametrize("command", [["info"], ["stats"], ["sql", "SELECT 1"], ["export-json"]])
 def test_a_damaged_manifest_is_a_clear_error_naming_it(synth_out, tmp_path, capsys, damage, message, command):

@@ -96,7 +96,7 @@ def test_conversion_is_deterministic(synth_root, synth_out, tmp_path):
 
 def test_manifest_records_versions_counts_fingerprints_and_input_files(synth_root, synth_out):
     manifest = json.loads((synth_out / "manifest.json").read_text())
-    assert manifest["format"] == "nuparquet" and manifest["format_version"] == 1
+    assert manifest["format"] == "nuparquet" and manifest["format_version"] == 2
     assert manifest["source"]["version"] == SYNTH_VERSION
     assert Path(manifest["source"]["dataroot"]) == synth_root.resolve()
     sizes = {name: info["bytes"] for name, info in manifest["source"]["files"].items()}

@@ -32,7 +32,8 @@ def build_annotations(tables: dict[str, pl.DataFrame], annotations: pl.DataFrame
         .rename({"sample_timestamp": "timestamp"})
         .join(tables["instance"].lazy().select(pl.col("token").alias("instance_token"), "category_token"),
               on="instance_token", how="left")
-        .join(tables["category"].lazy().select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
+        .join(tables["category"].lazy().select(pl.col("token").alias("category_token"),
+                                               pl.col("name").cast(pl.Categorical).alias("category_name")),
               on="category_token", how="left")
         .join(ego.lazy(), on="sample_token", how="left")
         .join(visibility_levels(tables["visibility"]).lazy(), on="visibility_token", how="left")
