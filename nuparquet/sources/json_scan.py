@@ -49,19 +49,20 @@ E_NUMBER, E_EXTRA_DATA, E_DEPTH, E_TRAILING_COMMA, E_LAYOUTS = range(10, 15)
 MAX_DEPTH = 900  # nesting inside one field's value: Python's json (the devkit, export-json) stops near 1,000
 MAX_LAYOUTS = 65535  # distinct key orders of one table (`_layout` is uint16)
 
-_WS = np.zeros(256, np.bool_)
-for _c in b" \t\n\r":
-    _WS[_c] = True
+# true, false, null, NaN, Infinity, end to end; _WORD_ENDS[start] is the length of the word starting there
+_WORDS = np.frombuffer(b"truefalsenullNaNInfinity", np.uint8).copy()
+_WORD_ENDS = np.zeros(len(_WORDS), np.int64)
+_WORD_ENDS[[0, 4, 9, 13, 16]] = [4, 5, 4, 3, 8]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", _nrt=False)
 def _skip_ws(buf, p, end):
     while p < end and (buf[p] == 32 or buf[p] == 10 or buf[p] == 13 or buf[p] == 9):
         p += 1
     return p
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _hex(b):
     if 48 <= b <= 57:
         return b - 48
@@ -72,7 +73,7 @@ def _hex(b):
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _u4(buf, p):
     v = 0
     for k in range(4):
@@ -83,7 +84,7 @@ def _u4(buf, p):
     return v
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _string(buf, p, end, out, o, cap, limit, io):
     """The string whose opening quote is at p-1, decoded into out[o:] (out None-like when cap < 0: check only).
     Returns (position after the closing quote, bytes written) or (-1, MORE/FULL/ERROR) with io set on ERROR.
@@ -91,6 +92,21 @@ def _string(buf, p, end, out, o, cap, limit, io):
     n = 0
     copy = cap >= 0
     while True:
+        q = p  # plain bytes up to the next quote, backslash, control or non-ASCII byte: one copy
+        while q < end:
+            c = buf[q]
+            if c == 34 or c == 92 or c < 32 or c >= 128:
+                break
+            q += 1
+        if q > p:
+            if copy and n < limit:
+                take = min(q - p, limit - n)
+                if o + n + take > cap:
+                    return -1, FULL
+                for i in range(take):  # a loop: numba copies the source of a slice assignment first
+                    out[o + n + i] = buf[p + i]
+            n += q - p
+            p = q
         if p >= end:
             return -1, MORE
         b = buf[p]
@@ -204,7 +220,7 @@ def _string(buf, p, end, out, o, cap, limit, io):
         p += size
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _number(buf, p, end, io):
     """The number starting at p. Returns (end, kind INT/BIGINT/FLOAT, int value) or (-1, MORE/ERROR, 0)."""
     start = p
@@ -280,31 +296,31 @@ def _number(buf, p, end, io):
     return p, INT, np.int64(mag)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _word(buf, p, end, io):
     """true/false/null/NaN/Infinity at p: (end, kind) or (-1, MORE/ERROR)."""
     b = buf[p]
     if b == 116:
-        word, kind = "true", TRUE
+        start, kind = 0, TRUE
     elif b == 102:
-        word, kind = "false", FALSE
+        start, kind = 4, FALSE
     elif b == 110:
-        word, kind = "null", NULL
+        start, kind = 9, NULL
     elif b == 78:
-        word, kind = "NaN", FLOAT
+        start, kind = 13, FLOAT
     else:
-        word, kind = "Infinity", FLOAT
-    n = len(word)
+        start, kind = 16, FLOAT
+    n = _WORD_ENDS[start]
     for k in range(n):
         if p + k >= end:
             return -1, MORE
-        if buf[p + k] != ord(word[k]):
+        if buf[p + k] != _WORDS[start + k]:
             io[ERR_POS], io[ERR_CODE] = p, E_VALUE
             return -1, ERROR
     return p + n, kind
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _skip(buf, p, end, io, stack):
     """Check and skip one JSON value at p (any nesting up to MAX_DEPTH). Returns (end, JSON kind) or (-1, status)."""
     depth = 0
@@ -409,23 +425,40 @@ def _skip(buf, p, end, io, stack):
             return -1, ERROR
 
 
-@njit(cache=True)
-def _room(arrays, counts, sid, extra, io, which):
-    """Whether stream `sid` has room for `extra` more items; if not, io names it (ARG0, ARG1: 0 bytes, 1 int64)."""
-    if counts[sid] + extra <= arrays[sid].shape[0]:
+@njit(cache=True, inline="always", _nrt=False)
+def _room(st, sid, extra, io, which):
+    """Whether stream `sid` of `st` (array, bases, capacities, counts) has room for `extra` more items; if not, io
+    names it (ARG0, ARG1: 0 bytes, 1 int64)."""
+    if st[3][sid] + extra <= st[2][sid]:
         return True
     io[ARG0], io[ARG1] = sid, which
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _full(io, sid, which):
     io[ARG0], io[ARG1] = sid, which
     return FULL
 
 
-@njit(cache=True)
-def _list(buf, p, end, io, f, spec, u8, n8, i64, n64, matrix, strings, limit, stack):
+@njit(cache=True, inline="always", _nrt=False)
+def _copy(st8, sid, buf, p, n):
+    """buf[p:p+n] appended to byte stream `sid` (room checked by the caller)."""
+    at = st8[1][sid] + st8[3][sid]
+    out = st8[0]
+    for i in range(n):  # a loop: numba copies the source of a slice assignment first
+        out[at + i] = buf[p + i]
+    st8[3][sid] += n
+
+
+@njit(cache=True, inline="always", _nrt=False)
+def _push(st64, sid, value):
+    st64[0][st64[1][sid] + st64[3][sid]] = value
+    st64[3][sid] += 1
+
+
+@njit(cache=True, _nrt=False)
+def _list(buf, p, end, io, f, spec, st8, st64, matrix, strings, limit, stack):
     """The list field value at p (buf[p] == '['): elements into the field's streams. (end, kind) or (-1, status)."""
     data, elements, flags = spec[f, DATA], spec[f, ELEMENTS], spec[f, FLAGS]
     p = _skip_ws(buf, p + 1, end)
@@ -455,7 +488,7 @@ def _list(buf, p, end, io, f, spec, u8, n8, i64, n64, matrix, strings, limit, st
                         return -1, MORE
                     c = buf[q]
                     if c == 45 or 48 <= c <= 57 or c == 78 or c == 73:
-                        r, k = _element_number(buf, q, end, io, data, elements, flags, u8, n8, i64, n64)
+                        r, k = _element_number(buf, q, end, io, data, elements, flags, st8, st64)
                         if r < 0:
                             return -1, k
                         count += 1
@@ -485,22 +518,22 @@ def _list(buf, p, end, io, f, spec, u8, n8, i64, n64, matrix, strings, limit, st
                 kind = LIST_SHAPE
             p = q
         elif (not matrix and not strings) and (b == 45 or 48 <= b <= 57 or b == 78 or b == 73):
-            r, k = _element_number(buf, p, end, io, data, elements, flags, u8, n8, i64, n64)
+            r, k = _element_number(buf, p, end, io, data, elements, flags, st8, st64)
             if r < 0:
                 return -1, k
             p = r
         elif strings and b == 34:
-            q, written = _string(buf, p + 1, end, u8[data], n8[data], u8[data].shape[0], limit, io)
+            base = st8[1][data]
+            q, written = _string(buf, p + 1, end, st8[0], base + st8[3][data], base + st8[2][data], limit, io)
             if q < 0:
                 return -1, _full(io, data, 0) if written == FULL else written
             if written > limit:
                 kind = TOO_LONG
             else:
-                n8[data] += written
-            if not _room(i64, n64, elements, 1, io, 1):
+                st8[3][data] += written
+            if not _room(st64, elements, 1, io, 1):
                 return -1, FULL
-            i64[elements][n64[elements]] = n8[data]
-            n64[elements] += 1
+            _push(st64, elements, st8[3][data])
             p = q
         else:
             r, k = _skip(buf, p, end, io, stack)
@@ -531,8 +564,8 @@ def _list(buf, p, end, io, f, spec, u8, n8, i64, n64, matrix, strings, limit, st
     return p, kind
 
 
-@njit(cache=True)
-def _element_number(buf, p, end, io, data, elements, flags, u8, n8, i64, n64):
+@njit(cache=True, _nrt=False)
+def _element_number(buf, p, end, io, data, elements, flags, st8, st64):
     """One number of a list of numbers: its text into `data`, its end offset into `elements`, 1 into `flags` for an
     integer literal (0 for a float literal). (end, kind) or (-1, status)."""
     b = buf[p]
@@ -543,22 +576,18 @@ def _element_number(buf, p, end, io, data, elements, flags, u8, n8, i64, n64):
     if q < 0:
         return -1, k
     size = q - p
-    if not (_room(u8, n8, data, size, io, 0) and _room(i64, n64, elements, 1, io, 1) and _room(u8, n8, flags, 1, io, 0)):
+    if not (_room(st8, data, size, io, 0) and _room(st64, elements, 1, io, 1) and _room(st8, flags, 1, io, 0)):
         return -1, FULL
-    o = n8[data]
-    for k2 in range(size):
-        u8[data][o + k2] = buf[p + k2]
-    n8[data] = o + size
-    i64[elements][n64[elements]] = n8[data]
-    n64[elements] += 1
-    u8[flags][n8[flags]] = 1 if k != FLOAT else 0
-    n8[flags] += 1
+    _copy(st8, data, buf, p, size)
+    _push(st64, elements, st8[3][data])
+    st8[0][st8[1][flags] + st8[3][flags]] = 1 if k != FLOAT else 0
+    st8[3][flags] += 1
     return q, k
 
 
-@njit(cache=True, nogil=True)
-def scan(buf, end, final, io, spec, names, u8, n8, i64, n64, kinds, records_start, layout_of, layouts, layout_counts,
-         by_hash, dup):
+@njit(cache=True, nogil=True, _nrt=False)
+def scan(buf, end, final, io, spec, names, st8, st64, rec, kinds, records_start, layout_of, layouts, layout_counts,
+         by_hash, dup, work, stack, seen):
     """Scan records from io[POS] to `end` (see the module's docstring). `final`: the window ends at the end of
     the file. Per record r: kinds[r, f], records_start[r] (file offset of the record), layout_of[r] (its key order
     as a row of `layouts`, whose first column counts the keys), dup[r] (field of a repeated key + 1, else 0)."""
@@ -567,11 +596,12 @@ def scan(buf, end, final, io, spec, names, u8, n8, i64, n64, kinds, records_star
     state = io[STATE]
     nf = spec.shape[0]
     limit = io[MAX_STRING]
-    stack = np.empty(MAX_DEPTH, np.uint8)
-    saved8 = n8.copy()
-    saved64 = n64.copy()
-    order = np.empty(nf + 1, np.int64)
-    seen = np.zeros(nf, np.bool_)
+    n8, n64 = st8[3], st64[3]
+    # work: the stream counts at the record's start (to undo it), then the record's key order
+    saved8 = work[:len(n8)]
+    saved64 = work[len(n8):len(n8) + len(n64)]
+    order = work[len(n8) + len(n64):]
+    hint = -1
     while True:
         p = _skip_ws(buf, p, end)
         if p >= end:
@@ -612,8 +642,10 @@ def scan(buf, end, final, io, spec, names, u8, n8, i64, n64, kinds, records_star
             io[POS], io[RECORDS], io[STATE], io[STATUS], io[ARG0] = p, r, state, FULL, -1
             return
         start = p
-        saved8[:] = n8
-        saved64[:] = n64
+        for i in range(len(n8)):  # loops, not slice assignments: those allocate a copy each time
+            saved8[i] = n8[i]
+        for i in range(len(n64)):
+            saved64[i] = n64[i]
         records_start[r] = io[FILE_OFFSET] + p
         dup[r] = 0
         for f in range(nf):
@@ -701,7 +733,7 @@ def scan(buf, end, final, io, spec, names, u8, n8, i64, n64, kinds, records_star
                         seen[f] = True
                         order[1 + nkeys] = f
                         nkeys += 1
-                        q, k = _value(buf, p, end, io, f, r, spec, u8, n8, i64, n64, limit, stack)
+                        q, k = _value(buf, p, end, io, f, r, spec, st8, st64, rec, limit, stack)
                         if q < 0:
                             status = k
                             break
@@ -726,20 +758,23 @@ def scan(buf, end, final, io, spec, names, u8, n8, i64, n64, kinds, records_star
                     break
             if status == DONE:
                 order[0] = nkeys
-                lid = _layout(order, nkeys, layouts, layout_counts, by_hash, io)
+                lid = _layout(order, nkeys, layouts, layout_counts, by_hash, io, hint)
                 if lid < 0:
                     io[ERR_POS], io[ERR_CODE] = start, E_LAYOUTS
                     status = ERROR
                 else:
                     layout_of[r] = lid
+                    hint = lid
         if status == DONE:
-            _close_record(r, spec, n8, n64, i64, kinds)
+            _close_record(r, spec, n8, n64, rec, kinds)
             r += 1
             state = S_AFTER
             continue
         # undo the record: the caller grows a stream, reads more, adds a key or reports the error
-        n8[:] = saved8
-        n64[:] = saved64
+        for i in range(len(n8)):
+            n8[i] = saved8[i]
+        for i in range(len(n64)):
+            n64[i] = saved64[i]
         if status == MORE and final:
             io[ERR_POS], io[ERR_CODE] = end, E_EOF
             status = ERROR
@@ -749,14 +784,24 @@ def scan(buf, end, final, io, spec, names, u8, n8, i64, n64, kinds, records_star
         return
 
 
-@njit(cache=True)
-def _layout(order, nkeys, layouts, counts, by_hash, io):
+@njit(cache=True, _nrt=False)
+def _layout(order, nkeys, layouts, counts, by_hash, io, hint):
     """The id of the key order `order[1:1+nkeys]` among the layouts seen so far (a new one is added); -1 past
-    the table's capacity. `by_hash`: the first layout of each hash (a collision is searched in full)."""
+    the table's capacity. `hint`: the layout to try first (the previous record's); `by_hash`: the first layout of
+    each hash (a collision is searched in full)."""
+    if 0 <= hint < io[LAYOUTS] and layouts[hint, 0] == nkeys:
+        same = True
+        for k in range(nkeys):
+            if layouts[hint, 1 + k] != order[1 + k]:
+                same = False
+                break
+        if same:
+            counts[hint] += 1
+            return hint
     h = np.int64(nkeys)
     for k in range(nkeys):
         h = h * np.int64(1000003) + order[1 + k] + 1
-    first = by_hash.get(h, -1)
+    first = _hash_get(by_hash, h)
     if first >= 0:
         for candidate in range(first, io[LAYOUTS]):
             same = layouts[candidate, 0] == nkeys
@@ -774,14 +819,35 @@ def _layout(order, nkeys, layouts, counts, by_hash, io):
     for k in range(nkeys + 1):
         layouts[count, k] = order[k]
     if first < 0:
-        by_hash[h] = count
+        _hash_put(by_hash, h, count)
     counts[count] = 1
     io[LAYOUTS] = count + 1
     return count
 
 
-@njit(cache=True)
-def _close_record(r, spec, n8, n64, i64, kinds):
+@njit(cache=True, _nrt=False)
+def _hash_get(table, h):
+    """The value of key h in the open-addressing table (rows: key, value + 1; 0 = empty), or -1."""
+    size = table.shape[0]
+    i = h & (size - 1)
+    while table[i, 1] != 0:
+        if table[i, 0] == h:
+            return table[i, 1] - 1
+        i = (i + 1) & (size - 1)
+    return -1
+
+
+@njit(cache=True, _nrt=False)
+def _hash_put(table, h, value):
+    size = table.shape[0]
+    i = h & (size - 1)
+    while table[i, 1] != 0:
+        i = (i + 1) & (size - 1)
+    table[i, 0], table[i, 1] = h, value + 1
+
+
+@njit(cache=True, _nrt=False)
+def _close_record(r, spec, n8, n64, rec, kinds):
     """Per-record offsets of every field (absent fields: an empty value)."""
     for f in range(spec.shape[0]):
         offsets = spec[f, OFFSETS]
@@ -789,26 +855,27 @@ def _close_record(r, spec, n8, n64, i64, kinds):
             continue
         cls = spec[f, CLASS]
         if cls == C_STRING or cls == C_RAW or cls == C_INT:
-            i64[offsets][r] = n8[spec[f, DATA]]
+            rec[r, offsets] = n8[spec[f, DATA]]
         else:  # lists: the end of the record's elements
-            i64[offsets][r] = n64[spec[f, ELEMENTS]]
+            rec[r, offsets] = n64[spec[f, ELEMENTS]]
         if cls == C_INT and kinds[r, f] != INT:
-            i64[spec[f, VALUES]][r] = 0
+            rec[r, spec[f, VALUES]] = 0
 
 
-@njit(cache=True)
-def _value(buf, p, end, io, f, r, spec, u8, n8, i64, n64, limit, stack):
+@njit(cache=True, _nrt=False)
+def _value(buf, p, end, io, f, r, spec, st8, st64, rec, limit, stack):
     """The value of field f in record r at p: (end, kind) or (-1, status)."""
     cls = spec[f, CLASS]
     b = buf[p]
     if cls == C_STRING and b == 34:
         data = spec[f, DATA]
-        q, written = _string(buf, p + 1, end, u8[data], n8[data], u8[data].shape[0], limit, io)
+        base = st8[1][data]
+        q, written = _string(buf, p + 1, end, st8[0], base + st8[3][data], base + st8[2][data], limit, io)
         if q < 0:
             return -1, _full(io, data, 0) if written == FULL else written
         if written > limit:
             return q, TOO_LONG
-        n8[data] += written
+        st8[3][data] += written
         return q, STRING
     if cls == C_INT and (b == 45 or 48 <= b <= 57 or b == 78 or b == 73):
         if b == 78 or b == 73:
@@ -819,17 +886,15 @@ def _value(buf, p, end, io, f, r, spec, u8, n8, i64, n64, limit, stack):
         if q < 0:
             return -1, k
         if k == INT:
-            i64[spec[f, VALUES]][r] = v
+            rec[r, spec[f, VALUES]] = v
         else:  # a float literal or an integer beyond int64: its text
             data = spec[f, DATA]
-            if not _room(u8, n8, data, q - p, io, 0):
+            if not _room(st8, data, q - p, io, 0):
                 return -1, FULL
-            for k2 in range(q - p):
-                u8[data][n8[data] + k2] = buf[p + k2]
-            n8[data] += q - p
+            _copy(st8, data, buf, p, q - p)
         return q, k
     if (cls == C_FLOATS or cls == C_MATRIX or cls == C_STRINGS) and b == 91:
-        return _list(buf, p, end, io, f, spec, u8, n8, i64, n64, cls == C_MATRIX, cls == C_STRINGS, limit, stack)
+        return _list(buf, p, end, io, f, spec, st8, st64, cls == C_MATRIX, cls == C_STRINGS, limit, stack)
     if cls == C_RAW:
         q, k = _skip(buf, p, end, io, stack)
         if q < 0:
@@ -837,11 +902,9 @@ def _value(buf, p, end, io, f, r, spec, u8, n8, i64, n64, limit, stack):
         data = spec[f, DATA]
         if q - p > limit:
             return q, TOO_LONG
-        if not _room(u8, n8, data, q - p, io, 0):
+        if not _room(st8, data, q - p, io, 0):
             return -1, FULL
-        for k2 in range(q - p):
-            u8[data][n8[data] + k2] = buf[p + k2]
-        n8[data] += q - p
+        _copy(st8, data, buf, p, q - p)
         return q, k
     # a value of another JSON type than the field's: classified and skipped
     return _skip(buf, p, end, io, stack)

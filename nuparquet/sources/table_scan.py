@@ -23,8 +23,6 @@ from nuparquet.problems import Problem
 from nuparquet.schemas import Field
 
 try:
-    from numba import typed, types
-
     from nuparquet.sources import json_scan as k
 except ImportError as exc:  # pragma: no cover - numba is a declared dependency
     raise EnvironmentFault(f"the JSON table reader needs numba, which cannot be loaded here: {exc}") from exc
@@ -93,50 +91,72 @@ def _class(f: Field) -> int:
     raise ValueError(f"no JSON reading for schema type {f.type!r}")
 
 
+class _Region:
+    """Streams of one dtype as regions of one array (no list of arrays in the kernel's inner loops): stream s is
+    `array[base[s]:base[s] + cap[s]]`, its first `count[s]` items filled. The kernel gets `as_tuple()`."""
+
+    def __init__(self, dtype):
+        self.array = np.empty(0, dtype)
+        self.base = np.zeros(0, np.int64)
+        self.cap = np.zeros(0, np.int64)
+        self.count = np.zeros(0, np.int64)
+
+    def add(self, size: int) -> int:
+        self.count = np.append(self.count, 0)
+        self._layout(np.append(self.cap, size))
+        return len(self.cap) - 1
+
+    def grow(self, sid: int, need: int) -> None:
+        caps = self.cap.copy()
+        caps[sid] = max(2 * caps[sid], int(self.count[sid]) + need, 1024)
+        self._layout(caps)
+
+    def _layout(self, caps: np.ndarray) -> None:
+        base = np.concatenate([[0], np.cumsum(caps)[:-1]]).astype(np.int64)
+        array = np.empty(int(caps.sum()), self.array.dtype)
+        for sid in range(len(self.base)):  # the filled part of each existing stream
+            n = int(self.count[sid])
+            array[base[sid]:base[sid] + n] = self.array[self.base[sid]:self.base[sid] + n]
+        self.array, self.base, self.cap = array, base, caps.astype(np.int64)
+
+    def view(self, sid: int) -> np.ndarray:
+        return self.array[self.base[sid]:self.base[sid] + self.count[sid]]
+
+    def as_tuple(self):
+        return self.array, self.base, self.cap, self.count
+
+
 class _Streams:
     """The kernel's output arrays: byte streams, int64 streams, per-record arrays; grown on demand."""
 
     def __init__(self, records: int):
-        self.u8 = typed.List.empty_list(types.uint8[::1])
-        self.i64 = typed.List.empty_list(types.int64[::1])
-        self.n8 = np.zeros(0, np.int64)
-        self.n64 = np.zeros(0, np.int64)
-        self.per_record: list[int] = []  # i64 streams indexed by record
+        self.u8 = _Region(np.uint8)
+        self.i64 = _Region(np.int64)
         self.records = records
+        self.rec = np.zeros((records, 0), np.int64)  # per-record slots (offsets, integer values)
         self.kinds = np.zeros((records, 0), np.uint8)
         self.starts = np.zeros(records, np.int64)
         self.layout_of = np.zeros(records, np.int64)
         self.dup = np.zeros(records, np.int64)
 
-    def add8(self, size: int) -> int:
-        self.u8.append(np.empty(size, np.uint8))
-        self.n8 = np.append(self.n8, 0)
-        return len(self.u8) - 1
-
-    def add64(self, size: int | None = None) -> int:
-        self.i64.append(np.zeros(self.records if size is None else size, np.int64))
-        self.n64 = np.append(self.n64, 0)
-        if size is None:
-            self.per_record.append(len(self.i64) - 1)
-        return len(self.i64) - 1
+    def add_slot(self) -> int:
+        self.rec = np.concatenate([self.rec, np.zeros((self.records, 1), np.int64)], axis=1)
+        return self.rec.shape[1] - 1
 
     def add_field(self) -> None:
         self.kinds = np.concatenate([self.kinds, np.zeros((self.records, 1), np.uint8)], axis=1)
 
     def grow(self, sid: int, which: int, need: int) -> None:
-        streams, counts = (self.u8, self.n8) if which == 0 else (self.i64, self.n64)
-        old = streams[sid]
-        size = int(counts[sid]) + need if which == 0 else 0  # bytes: room for the whole record at once
-        new = np.empty(max(2 * len(old), size, 1024), old.dtype)
-        new[:counts[sid]] = old[:counts[sid]]
-        streams[sid] = new
+        if which == 0:  # bytes: room for the whole record at once
+            self.u8.grow(sid, need)
+        else:
+            self.i64.grow(sid, 0)
 
     def grow_records(self) -> None:
         n = 2 * self.records
         self.kinds = np.concatenate([self.kinds, np.zeros_like(self.kinds)])
+        self.rec = np.concatenate([self.rec, np.zeros_like(self.rec)])
         self.starts, self.layout_of, self.dup = (np.resize(a, n) for a in (self.starts, self.layout_of, self.dup))
-        for sid in self.per_record:
-            self.i64[sid] = np.resize(self.i64[sid], n)
         self.records = n
 
 
@@ -158,16 +178,16 @@ class _Fields:
         row[k.CLASS] = cls
         guess = max(1024, self.window // 8)
         if cls in (k.C_STRING, k.C_RAW, k.C_INT):
-            row[k.DATA] = s.add8(guess if cls != k.C_INT else 1024)
-            row[k.OFFSETS] = s.add64()
+            row[k.DATA] = s.u8.add(guess if cls != k.C_INT else 1024)
+            row[k.OFFSETS] = s.add_slot()
         if cls == k.C_INT:
-            row[k.VALUES] = s.add64()
+            row[k.VALUES] = s.add_slot()
         if cls in (k.C_FLOATS, k.C_MATRIX, k.C_STRINGS):
-            row[k.DATA] = s.add8(guess)
-            row[k.ELEMENTS] = s.add64(guess // 4)
-            row[k.OFFSETS] = s.add64()
+            row[k.DATA] = s.u8.add(guess)
+            row[k.ELEMENTS] = s.i64.add(guess // 4)
+            row[k.OFFSETS] = s.add_slot()
             if cls != k.C_STRINGS:
-                row[k.FLAGS] = s.add8(guess // 4)
+                row[k.FLAGS] = s.u8.add(guess // 4)
         self.spec = np.vstack([self.spec, row])
         s.add_field()
         self.columns[name] = Column(f, name, cls)
@@ -197,7 +217,7 @@ def scan_table(path: Path, schema_fields: tuple[Field, ...], start: int) -> tupl
     io[k.STATE] = k.S_FIRST
     layouts = np.zeros((256, len(fields.columns) + 1), np.int64)
     layout_counts = np.zeros(256, np.int64)
-    by_hash = typed.Dict.empty(types.int64, types.int64)
+    by_hash = np.zeros((2 * (k.MAX_LAYOUTS + 1), 2), np.int64)  # open addressing: layout hash -> first layout id
     kinds, starts, layout_of, dups = [], [], [], []
     buf = np.empty(window, np.uint8)
     filled = 0
@@ -212,8 +232,11 @@ def scan_table(path: Path, schema_fields: tuple[Field, ...], start: int) -> tupl
                 final = filled < len(buf)  # a regular file fills the buffer unless it ends
             io[k.POS], io[k.RECORDS], io[k.FILE_OFFSET] = 0, 0, offset
             while True:
-                k.scan(buf, filled, final, io, fields.spec, names, streams.u8, streams.n8, streams.i64, streams.n64,
-                       streams.kinds, streams.starts, streams.layout_of, layouts, layout_counts, by_hash, streams.dup)
+                n_streams = len(streams.u8.count) + len(streams.i64.count)
+                k.scan(buf, filled, final, io, fields.spec, names, streams.u8.as_tuple(), streams.i64.as_tuple(),
+                       streams.rec, streams.kinds, streams.starts, streams.layout_of, layouts, layout_counts, by_hash,
+                       streams.dup, np.empty(n_streams + len(fields.columns) + 1, np.int64),
+                       np.empty(k.MAX_DEPTH, np.uint8), np.zeros(len(fields.columns), np.bool_))
                 status = io[k.STATUS]
                 if status == k.FULL:
                     if io[k.ARG0] < 0:
@@ -287,42 +310,37 @@ def _new_key(buf: np.ndarray, begin: int, end: int, fields: _Fields, file: str, 
 def _emit(fields: _Fields, streams: _Streams, records: int) -> None:
     """The window's values as Arrow arrays (appended to each column), then the streams emptied."""
     kinds = streams.kinds[:records]
+    rec = streams.rec[:records]
     for j, (name, column) in enumerate(fields.columns.items()):
         row = fields.spec[j]
         cls = column.cls
         kind = kinds[:, j]
         if cls in (k.C_STRING, k.C_RAW):
             ok = kind == k.STRING if cls == k.C_STRING else ((kind != k.ABSENT) & (kind != k.TOO_LONG))
-            column.values.append(_strings(streams, row[k.DATA], streams.i64[row[k.OFFSETS]][:records], ok))
+            column.values.append(_strings(streams.u8.view(row[k.DATA]), rec[:, row[k.OFFSETS]], ok))
         elif cls == k.C_INT:
-            values = streams.i64[row[k.VALUES]][:records].copy()
-            column.values.append(pa.array(values, pa.int64(), mask=kind != k.INT))
+            column.values.append(pa.array(rec[:, row[k.VALUES]].copy(), pa.int64(), mask=kind != k.INT))
             literal = (kind == k.FLOAT) | (kind == k.BIGINT)
-            column.texts.append(_strings(streams, row[k.DATA], streams.i64[row[k.OFFSETS]][:records], literal)
+            column.texts.append(_strings(streams.u8.view(row[k.DATA]), rec[:, row[k.OFFSETS]], literal)
                                 if literal.any() else pa.nulls(records, pa.string()))
         elif cls == k.C_BOOL:
             column.values.append(pa.array(kind == k.TRUE, pa.bool_(), mask=(kind != k.TRUE) & (kind != k.FALSE)))
         else:
-            ends = streams.i64[row[k.ELEMENTS]][:streams.n64[row[k.ELEMENTS]]]
-            offsets = _offsets(streams.i64[row[k.OFFSETS]][:records])
-            if cls == k.C_STRINGS:
-                elements = _strings(streams, row[k.DATA], ends, None)
-            else:
-                elements = pc.cast(_strings(streams, row[k.DATA], ends, None), pa.float64())
-                column.flags.append(streams.u8[row[k.FLAGS]][:streams.n8[row[k.FLAGS]]].copy())
+            ends = streams.i64.view(row[k.ELEMENTS])
+            offsets = pa.array(np.concatenate([[0], rec[:, row[k.OFFSETS]]]).astype(np.int32))
+            elements = _strings(streams.u8.view(row[k.DATA]), ends, None)
+            if cls != k.C_STRINGS:
+                elements = pc.cast(elements, pa.float64())
+                column.flags.append(streams.u8.view(row[k.FLAGS]).copy())
             column.values.append(pa.ListArray.from_arrays(offsets, elements, mask=pa.array(kind != k.LIST_OK)))
-    streams.n8[:] = 0
-    streams.n64[:] = 0
+    streams.u8.count[:] = 0
+    streams.i64.count[:] = 0
 
 
-def _offsets(ends: np.ndarray) -> pa.Array:
-    return pa.array(np.concatenate([[0], ends]).astype(np.int32))
-
-
-def _strings(streams: _Streams, data: int, ends: np.ndarray, valid: np.ndarray | None) -> pa.Array:
-    """A string array over byte stream `data` with per-value end offsets `ends` (nulls where not `valid`)."""
+def _strings(data: np.ndarray, ends: np.ndarray, valid: np.ndarray | None) -> pa.Array:
+    """A string array over the bytes `data` with per-value end offsets `ends` (nulls where not `valid`)."""
     size = int(ends[-1]) if len(ends) else 0
-    buffer = pa.py_buffer(streams.u8[data][:size].copy())
+    buffer = pa.py_buffer(data[:size].copy())
     offsets = pa.py_buffer(np.concatenate([[0], ends]).astype(np.int32))
     if valid is None or valid.all():
         return pa.Array.from_buffers(pa.string(), len(ends), [None, offsets, buffer])
