@@ -53,7 +53,7 @@ def build_frames(tables: dict[str, pl.DataFrame], sample_data: pl.DataFrame, sam
 
 
 def build(ctx: BuildContext, batch: SceneBatch) -> pl.DataFrame:
-    return build_frames(ctx.tables, batch.rows["sample_data"], samples(ctx))
+    return build_frames(ctx.tables | {"ego_pose": batch.rows["ego_pose"]}, batch.rows["sample_data"], samples(ctx))
 
 
 BUILDER = Builder("frames", build, schema="frames")
