@@ -100,15 +100,21 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
              on_progress: OnProgress | None) -> dict:
     with Reporter(on_progress, "convert", total=2 * len(table_schemas()) + 2) as reporter, \
             atomic_directory(Path(out), overwrite=opts.overwrite) as tmp:
-        result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"))
+        def finish(source) -> None:  # in the thread that read the table, while the other one still reads
+            size = write_parquet(source.table, tmp / "tables" / source.name)
+            source.finished = {"dataset": {"path": f"tables/{source.name}", "rows": source.table.num_rows,
+                                           "schema_fingerprint": fingerprint(source.table.schema), "bytes": size},
+                               "frame": pl.from_arrow(source.table)}
+            source.table = None  # the polars copy is all we need from here on
+
+        result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"),
+                             finish=finish)
         datasets: dict[str, dict] = {}
         files: list[dict] = []
         tables: dict[str, pl.DataFrame] = {}
         for name, source in result.tables.items():
             reporter.advance(step=f"write tables/{name}")
-            size = write_parquet(source.table, tmp / "tables" / name)
-            datasets[f"tables/{name}"] = {"path": f"tables/{name}", "rows": source.table.num_rows,
-                                          "schema_fingerprint": fingerprint(source.table.schema), "bytes": size}
+            datasets[f"tables/{name}"] = source.finished["dataset"]
             entry = {"path": f"{version}/{source.path.name}", "kind": "table", "dataset": f"tables/{name}"}
             layout = json_layout.detect(source.path)
             if layout is not None:  # export-json writes the file back byte for byte
@@ -116,8 +122,7 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
             if source.inferred is not None:  # an extra table (T4's object_ann, ...): typed by inference
                 entry |= {"kind": "table_inferred", **source.inferred}
             files.append(entry)
-            tables[name] = pl.from_arrow(source.table)
-            source.table = None  # the polars copy is all we need from here on
+            tables[name] = source.finished.pop("frame")
         reporter.advance(step="check integrity")
         problems, warnings = split_warnings(result.problems + check_integrity(tables, references=not opts.allow_dangling))
         if problems:

@@ -40,6 +40,7 @@ class SourceTable:
     json_fields: list[str] = field(default_factory=list)  # fields the schema does not know: raw JSON text
     layouts: list[list[str]] = field(default_factory=list)  # key lists of records (table_typing), when several
     inferred: dict | None = None  # a table the schemas do not describe: what json_records needs to write it back
+    finished: dict = field(default_factory=dict)  # what `read_tables(finish=...)` made of it (the conversion's)
 
 
 @dataclass
@@ -64,10 +65,13 @@ def version_dir(dataroot: Path | str, version: str) -> Path:
 
 
 def read_tables(
-    dataroot: Path | str, version: str, *, on_table: Callable[[str], None] | None = None
+    dataroot: Path | str, version: str, *, on_table: Callable[[str], None] | None = None,
+    finish: Callable[[SourceTable], None] | None = None,
 ) -> ReadResult:
     """Parse every table of `dataroot/version`: the core tables (a missing one is a problem) and the
-    optional extensions (lidarseg, panoptic) when present. Problems are collected, not raised."""
+    optional extensions (lidarseg, panoptic) when present. Problems are collected, not raised. `finish(table)`
+    runs on each table read without problems, in the thread that read it (the conversion writes tables/ there,
+    while the other thread still reads)."""
     folder = version_dir(dataroot, version)
     tables: dict[str, SourceTable] = {}
     problems: list[Problem] = []
@@ -77,7 +81,7 @@ def read_tables(
     # Two tables are scanned at once (largest first, so the big three spread over both cores). Results are taken
     # in schema order: the same problems, same order.
     with ThreadPoolExecutor(READ_THREADS) as pool:
-        reading = {name: pool.submit(read_table, path, table_schemas()[name])
+        reading = {name: pool.submit(_read_and_finish, path, table_schemas()[name], finish)
                    for name, path in sorted(present.items(), key=lambda item: -item[1].stat().st_size)}
         for name, schema in table_schemas().items():
             if on_table:
@@ -101,8 +105,17 @@ def read_tables(
         table, table_problems = read_extra_table(path)
         problems += table_problems
         if table is not None:
+            if finish is not None:
+                finish(table)
             tables[table.name] = table
     return ReadResult(tables, problems, files)
+
+
+def _read_and_finish(path: Path, schema: Schema, finish: Callable[[SourceTable], None] | None):
+    table, problems = read_table(path, schema)
+    if table is not None and finish is not None:
+        finish(table)
+    return table, problems
 
 
 def read_extra_table(path: Path) -> tuple[SourceTable | None, list[Problem]]:
