@@ -3,6 +3,9 @@ every record as Arrow arrays (strings, integers, number texts and their literal 
 every value, the records' key orders and where each record starts. Typing and checking them against the schema is
 `sources/tables.py`'s work.
 
+Longer than our ~300-line norm on purpose: the window loop, the growth of the kernel's streams and the Arrow arrays
+made of them share one file's state and the kernel's conventions (`json_scan`'s stream layout).
+
 Memory stays bounded whatever the file: the file is read `WINDOW_BYTES` at a time (a record longer than a window
 grows it, up to `MAX_RECORD_BYTES`), the kernel's streams hold one window's values, and a string value over
 `MAX_STRING_BYTES` is refused without being copied.

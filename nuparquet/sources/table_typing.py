@@ -2,11 +2,15 @@
 that does not fit named (index, token, the value quoted), and the hidden columns of `sources/table_layouts.py`
 (key orders, JSON literal kinds) added where a table needs them. No pass over the file: numpy over the kinds the
 scanner recorded; a record's text is read again only to quote it in a problem.
+
+Longer than our ~300-line norm on purpose: one check per kind of field (strings, integers, lists), each with the
+problems it names, read together against the schema's field types; splitting them would split one rule table.
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +23,17 @@ from nuparquet.sources import json_scan as k
 from nuparquet.sources import table_layouts as layouts_
 from nuparquet.sources import table_scan
 from nuparquet.sources.table_scan import Column, Scanned
+
+@dataclass
+class Typed:
+    """A table typed by its schema, and what export-json needs beside it (see `tables.SourceTable`)."""
+
+    table: pa.Table
+    key_order: list[str]
+    float_fields: list[str]
+    json_fields: list[str]
+    layouts: list[list[str]]
+
 
 LIMIT = 50  # records named per field and check
 EXACT = 2**53  # integers up to this size are exact in float64
@@ -68,10 +83,8 @@ class _Report:
                                          omitted=len(indices) - LIMIT))
 
 
-def typed_table(path: Path, schema: Schema, scanned: Scanned):
-    """(SourceTable, []) or (None, problems)."""
-    from nuparquet.sources.tables import SourceTable
-
+def typed_table(path: Path, schema: Schema, scanned: Scanned) -> tuple[Typed | None, list[Problem]]:
+    """(Typed, []) or (None, problems)."""
     file = path.name
     report = _Report(path, scanned)
     n = len(scanned.starts)
@@ -152,7 +165,7 @@ def typed_table(path: Path, schema: Schema, scanned: Scanned):
         arrays.append(pa.chunked_array([_mark_lists(marks, n)]))
         fields.append(pa.field(layouts_.JSON_TYPES, pa.list_(pa.field("l", pa.string()))))
     table = pa.Table.from_arrays(arrays, schema=pa.schema(fields))
-    return SourceTable(schema.name, path, table, key_order, float_fields, extras, layouts if several else []), []
+    return Typed(table, key_order, float_fields, extras, layouts if several else []), []
 
 
 def _key_order(scanned: Scanned) -> tuple[list[str], list[list[str]], np.ndarray]:
@@ -286,9 +299,12 @@ def _too_long(report: _Report, f: Field, strings, owners) -> None:
         longest = {int(parents[i]): int(lengths[i]) for i in np.flatnonzero(over)[::-1]}
     else:
         mask, longest = over, None
+    def quoted(i: int) -> str:
+        return echo(report.value_text(i, f.name), quote=False) if longest else echo(strings[i].as_py())
+
     report.records(mask, lambda i: f"field {f.name!r} holds a string of "
                                    f"{(longest[i] if longest else int(lengths[i])):,} bytes, over its limit of "
-                                   f"{f.max_bytes:,}: {echo(report.value_text(i, f.name), quote=False)}")
+                                   f"{f.max_bytes:,}: {quoted(i)}")
 
 
 def _exact_list_integers(report: _Report, f: Field, column: Column, flags: np.ndarray, values: np.ndarray,

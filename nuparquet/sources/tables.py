@@ -176,4 +176,8 @@ def read_table(path: Path, schema: Schema) -> tuple[SourceTable | None, list[Pro
     scanned, problems = scan_table(path, schema.fields, after)
     if scanned is None:
         return None, problems
-    return typed_table(path, schema, scanned)
+    typed, problems = typed_table(path, schema, scanned)
+    if typed is None:
+        return None, problems
+    return SourceTable(schema.name, path, typed.table, typed.key_order, typed.float_fields, typed.json_fields,
+                       typed.layouts), []
