@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import polars as pl
+import pyarrow as pa
 
 from nuparquet import __version__
 from nuparquet.atomic import atomic_directory, check_apart, check_target
@@ -123,6 +124,7 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
                 entry |= {"kind": "table_inferred", **source.inferred}
             files.append(entry)
             tables[name] = source.finished.pop("frame")
+        pa.default_memory_pool().release_unused()  # the reader's Arrow tables are gone: give their pages back
         reporter.advance(step="check integrity")
         problems, warnings = split_warnings(result.problems + check_integrity(tables, references=not opts.allow_dangling))
         if problems:
