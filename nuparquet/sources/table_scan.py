@@ -1,7 +1,7 @@
 """One JSON table file through the compiled kernel (`sources/json_scan.py`), window by window: the raw columns of
 every record as Arrow arrays (strings, integers, number texts and their literal kinds, lists), the JSON kind of
 every value, the records' key orders and where each record starts. Typing and checking them against the schema is
-`sources/tables.py`'s work.
+`sources/table_typing.py`'s work.
 
 Longer than our ~300-line norm on purpose: the window loop, the growth of the kernel's streams and the Arrow arrays
 made of them share one file's state and the kernel's conventions (`json_scan`'s stream layout).
@@ -31,7 +31,7 @@ except ImportError as exc:  # pragma: no cover - numba is a declared dependency
     raise EnvironmentFault(f"the JSON table reader needs numba, which cannot be loaded here: {exc}") from exc
 
 WINDOW_BYTES = 16 * 2**20
-MAX_STRING_BYTES = 64 * 2**20  # the longest string value a table may hold (documented in README, "Limits")
+MAX_STRING_BYTES = 64 * 2**20  # the longest string value a table may hold (docs/CONTRACTS.md lists the limits)
 MAX_RECORD_BYTES = 256 * 2**20  # the longest record
 MAX_KEY_BYTES = 4096  # the longest field name
 MAX_FIELDS = 1000  # distinct field names of one table
