@@ -2,7 +2,8 @@
 as Python's json does and writes every field straight into typed column streams.
 
 Longer than our ~300-line norm on purpose: it is one state machine (the grammar, strings, numbers, the records'
-fields) that only makes sense read together; the Python side (`sources/tables.py`) does everything else.
+fields) that only makes sense read together; the Python side (`sources/table_scan.py`, `table_typing.py`) does
+everything else.
 
 What it does, per record of the window (`scan`):
 - the grammar of Python's json (`json.loads`): whitespace, strings (escapes decoded, raw control characters
@@ -19,6 +20,11 @@ What it does, per record of the window (`scan`):
 The caller owns every output array; a stream that is full, or a record cut by the end of the window, makes the scan
 stop at the start of that record with everything it wrote for it undone (`FULL`, `MORE`): the caller grows the
 stream or reads more and calls again from there.
+
+Every function is compiled with `_nrt=False`: nothing here allocates (work arrays, the layout hash table and the
+streams come from the caller), and without it half the time went to the atomic reference counts numba keeps on every
+array handed to a helper (perf). Streams of one dtype are regions of one array (`st8`, `st64`: array, bases,
+capacities, counts), and copies are loops: numba copies the source of a slice assignment first.
 """
 
 from __future__ import annotations
