@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 DEVKIT_STAMP := $(VENV)/.devkit
 
-.PHONY: demo test bench clean venv docs mutation
+.PHONY: demo test test-capped bench clean venv docs mutation
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,11 @@ demo: $(STAMP)
 # Where ../shared is present, a skipped parity/devkit test fails the run (tests/conftest.py, pytest_sessionfinish).
 test: $(DEVKIT_STAMP)
 	$(BIN)/python -m pytest -q -n auto --maxprocesses=4 --dist loadgroup
+
+# Issue 27: the fuzz, fault and reader suites in an 8 GB address space (`ulimit -v 8000000`): every hostile input ends
+# as a conversion or a clean refusal, never a traceback, a panic or a hang.
+test-capped: $(DEVKIT_STAMP)
+	bash -c 'ulimit -v 8000000 && $(BIN)/python -m pytest -q -n 2 tests/fuzz tests/conversion tests/sources'
 
 # Mutation testing of the core modules (mutmut 3), group by group within a time budget each; see MUTATION.md.
 # Not part of `make test`. MUTATION_ARGS, e.g. "geometry mosaic --budget-s 300", picks groups and the budget.

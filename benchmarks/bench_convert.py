@@ -66,7 +66,7 @@ def run(repeats: int = 3, devkit_repeats: int = 0) -> dict:
         Row(id="1m", benchmark=f"the same with the map expansion ({map_bytes / 1e9:.2f} GB more JSON -> map/ "
             "GeoParquet)", ours=f"{seconds(with_map['wall_s'])} ({seconds(with_map['cpu_s'])} CPU), "
             f"{megabytes(with_map['max_rss_mb'])} peak", reference="the same floor (reads no map JSON)",
-            ratio=f"{map_ratio:.2f}x", target="report", met=None),
+            ratio=f"{map_ratio:.2f}x", target="report (the map part's target is row 1m')", met=None),
     ]
     result = {"name": "convert", "command": " ".join(map(str, cmd)), "nuparquet": ours, "with_map": with_map,
               "floor": {"command": " ".join(map(str, floor_cmd)), **floor}, "ratio": ratio, "json_bytes": json_bytes,
@@ -80,7 +80,7 @@ def run(repeats: int = 3, devkit_repeats: int = 0) -> dict:
         speedup = devkit["load_wall_s"] / ours["wall_s"]
         rows.append(Row(id="1d", benchmark="the same vs the devkit's bare load", ours=seconds(ours["wall_s"]),
                         reference=f"devkit load {seconds(devkit['load_wall_s'])}, {megabytes(devkit['max_rss_mb'])} peak",
-                        ratio=f"speed {times(speedup)}", target="≥ 1.6x", met=speedup >= 1.6))
+                        ratio=f"speed {times(speedup)}", target="≥ 2x", met=speedup >= 2))
         result["devkit"] = {k: devkit[k] for k in ("command", "repeats", "load_wall_s", "max_rss_mb")}
     return result
 

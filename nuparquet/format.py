@@ -4,5 +4,6 @@ Kept free of heavy imports: `nuparquet.open` checks these before anything else i
 """
 
 FORMAT_NAME = "nuparquet"
-FORMAT_VERSION = 2  # bump when a column of schemas/ changes name, type or meaning (2: flat [9] intrinsics, file_index)
+FORMAT_VERSION = 2  # bump when a column of schemas/ changes name, type or meaning (2: flat [9] intrinsics,
+# file_index, dimension strings as dictionaries)
 MANIFEST = "manifest.json"

@@ -48,6 +48,9 @@ class Field:
     # A derived column filled by a join: null where the join has no partner, which only `convert --allow-dangling`
     # lets through (a trimmed extract); the strict default keeps the column non-null (`Schema.allowing_dangling`).
     null_if_dangling: bool = False
+    # The longest UTF-8 string a source field may hold: tokens (`key`, `ref`) and names that reach every row of a
+    # derived dataset have one (a 40 MB scene name on a million rows is not data); None: the reader's general limit.
+    max_bytes: int | None = None
 
     @property
     def arrow_type(self) -> pa.DataType:

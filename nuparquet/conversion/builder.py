@@ -59,7 +59,8 @@ BuildResult = Union[Frame, Mapping[str, Frame]]
 @dataclass
 class SceneBatch:
     """A batch of whole scenes (scenes in name order): `index` from 0, and for each per-sample source table
-    (sample, sample_data, sample_annotation) the rows that belong to these scenes."""
+    (sample, sample_data, sample_annotation) the rows that belong to these scenes, and the ego_pose rows their
+    sample_data names (`ctx.tables` holds neither sample_data nor ego_pose while batches run)."""
 
     index: int
     scene_tokens: list[str]

@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 
+import numpy as np
 import polars as pl
 import pyarrow as pa
 
@@ -20,7 +21,8 @@ from nuparquet.conversion.builder import BuildContext, Builder, BuildResult, Sce
 from nuparquet.conversion.write import DatasetWriter
 from nuparquet.schemas import Schema, dataset_schemas, fingerprint
 
-# Source tables split by scene batch for the "scenes" builders (their rows belong to one sample).
+# Source tables split by scene batch for the "scenes" builders (their rows belong to one sample); each batch also
+# gets the ego_pose rows its sample_data names.
 PER_SAMPLE_TABLES = ("sample", "sample_data", "sample_annotation")
 
 
@@ -65,6 +67,8 @@ def count_steps(ctx: BuildContext, builders: tuple[Builder, ...]) -> int:
 
 def _has_orphans(ctx: BuildContext) -> bool:
     """Rows of the per-sample tables that belong to no scene (`_batches` gives them a last batch of their own)."""
+    if not ctx.options.allow_dangling:  # the integrity check refused every sample or scene reference that dangles
+        return False
     batch_of = lookups.scene_batches(ctx.tables, samples(ctx), ctx.options.scenes_per_batch)
     for table in PER_SAMPLE_TABLES:
         key = "token" if table == "sample" else "sample_token"
@@ -89,28 +93,52 @@ def _select(ctx: BuildContext, builders: tuple[Builder, ...]) -> tuple[list[Buil
 
 
 def _batches(ctx: BuildContext):
-    """`SceneBatch`es in scene-name order; the per-sample tables are split once and released as they go."""
+    """`SceneBatch`es in scene-name order. Each batch gathers its rows of the per-sample tables (and the ego poses
+    its sample_data names) from the whole tables: one copy of a batch at a time, never a second copy of a table
+    (a join or `partition_by` would hold one: ~1 GB of sample_data at trainval scale)."""
     batch_of = lookups.scene_batches(ctx.tables, samples(ctx), ctx.options.scenes_per_batch)
     reference_poses(ctx)  # reads the whole sample_data: computed before that table is released below
-    empty = {table: ctx.tables[table].clear() for table in PER_SAMPLE_TABLES}
-    parts = {}
+    positions = {}
     for table in PER_SAMPLE_TABLES:
         key = "token" if table == "sample" else "sample_token"
-        rows = ctx.tables[table].join(batch_of.rename({"sample_token": key}), on=key, how="left")
-        parts[table] = rows.partition_by("_batch", as_dict=True, include_key=False)
-    ctx.tables.pop("sample_data")  # only its batches are needed from here on (trainval: GBs of rows)
+        ids = (ctx.tables[table].select(pl.col(key).alias("sample_token"))
+               .join(batch_of, on="sample_token", how="left", maintain_order="left")["_batch"])
+        positions[table] = _rows_by_batch(ids.fill_null(-1).to_numpy())
+    poses = ctx.tables["ego_pose"]
+    pose_of = (ctx.tables["sample_data"].select(pl.col("ego_pose_token").alias("token"))
+               .join(poses.select("token").with_row_index("_row"), on="token", how="left", maintain_order="left")
+               ["_row"].fill_null(-1).to_numpy().astype(np.int64))
+    tables = {table: ctx.tables.pop(table) if table in ("sample_data",) else ctx.tables[table]
+              for table in PER_SAMPLE_TABLES}
+    ctx.tables.pop("ego_pose")  # only batches of both are needed from here on (trainval: GBs of rows)
+
+    def batch_rows(batch: int) -> dict[str, pl.DataFrame]:
+        rows = {table: tables[table][positions[table].get(batch, _NONE)] for table in PER_SAMPLE_TABLES}
+        named = pose_of[positions["sample_data"].get(batch, _NONE)]
+        rows["ego_pose"] = poses[np.unique(named[named >= 0])]
+        return rows
+
     scene_batch = (ctx.tables["scene"].select(pl.col("token").alias("scene_token"), "name").sort("name", "scene_token")
                    .with_columns(_batch=pl.int_range(pl.len()) // ctx.options.scenes_per_batch))
     n_batches = -(-scene_batch.height // ctx.options.scenes_per_batch)
     for index in range(n_batches):
         scenes = scene_batch.filter(pl.col("_batch") == index)["scene_token"].to_list()
-        rows = {table: parts[table].pop((index,), None) for table in PER_SAMPLE_TABLES}
-        yield SceneBatch(index, scenes, {t: empty[t] if r is None else r for t, r in rows.items()})
+        yield SceneBatch(index, scenes, batch_rows(index))
     # Rows of no scene (their sample or its scene is absent: only `--allow-dangling` lets such input through) are
     # kept, as a last batch of their own, after every scene.
-    orphans = {table: parts[table].pop((None,), None) for table in PER_SAMPLE_TABLES}
-    if any(rows is not None for rows in orphans.values()):  # counted by `count_steps` (`_has_orphans`)
-        yield SceneBatch(n_batches, [], {t: empty[t] if r is None else r for t, r in orphans.items()})
+    if any(-1 in positions[table] for table in PER_SAMPLE_TABLES):  # counted by `count_steps` (`_has_orphans`)
+        yield SceneBatch(n_batches, [], batch_rows(-1))
+
+
+_NONE = np.zeros(0, np.int64)
+
+
+def _rows_by_batch(batch_ids: np.ndarray) -> dict[int, np.ndarray]:
+    """{batch id: positions of its rows, in row order} (-1: rows of no batch)."""
+    order = np.argsort(batch_ids, kind="stable")
+    values, starts = np.unique(batch_ids[order], return_index=True)
+    bounds = [*starts.tolist(), len(order)]
+    return {int(v): order[bounds[i]:bounds[i + 1]] for i, v in enumerate(values)}
 
 
 def _named(builder: Builder, result: BuildResult) -> list[tuple[str, pl.DataFrame | pa.Table]]:
@@ -177,6 +205,11 @@ def _to_arrow(frame: pl.DataFrame | pa.Table) -> pa.Table:
 def to_schema(frame: pl.DataFrame | pa.Table, schema: Schema) -> pa.Table:
     """Exactly the columns and Arrow types of `schema` (the single definition in schemas/); a schema with `extra`
     columns keeps the frame's other columns where they stand, typed as built."""
+    if isinstance(frame, pl.DataFrame):  # dictionary columns leave polars as one dictionary, never a copy per row
+        categorical = [f.name for f in schema.fields if pa.types.is_dictionary(f.arrow_type) and f.name in frame.columns
+                       and frame.schema[f.name] == pl.String]
+        if categorical:
+            frame = frame.with_columns(pl.col(categorical).cast(pl.Categorical))
     table = _to_arrow(frame)
     if not schema.extra:
         table = table.select(schema.names)

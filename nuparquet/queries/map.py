@@ -87,7 +87,7 @@ def annotation_surfaces(ds: Dataset, *, scene: Scene = None) -> pl.LazyFrame:
 def _annotation_surfaces(ds: Dataset, scene: Scene, *, tokens: bool = True) -> pl.DataFrame:
     """`annotation_surfaces` unsorted; without `tokens`, only category_name, location, x_m, y_m and surface."""
     boxes = (for_scene(ds.scan("annotations"), scene)
-             .select(*(["token", "scene_name"] if tokens else []), pl.col("log_location").alias("location"),
+             .select(*(["token", "scene_name"] if tokens else []), pl.col("log_location").cast(pl.String).alias("location"),
                      pl.col("category_name").cast(pl.String), pl.col("translation").arr.get(0).alias("x_m"),
                      pl.col("translation").arr.get(1).alias("y_m"))
              .collect())

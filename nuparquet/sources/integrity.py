@@ -44,8 +44,8 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED, 
 
     for name, df in frames.items():
         schema = table_schemas()[name]
-        dups = df.filter(pl.col("token").is_duplicated())
-        report(name, dups, lambda r: "duplicate token")
+        if df["token"].n_unique() < df.height:  # (counting is ~3x faster than marking every row: mark only then)
+            report(name, df.filter(pl.col("token").is_duplicated()), lambda r: "duplicate token")
         for f in schema.fields:
             if f.ref is None or f.ref not in frames or f.name not in df.columns or not references:
                 continue

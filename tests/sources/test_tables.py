@@ -1,25 +1,23 @@
 """The table reader's contract on single files: an empty array, leading whitespace longer than a read, bytes
-that are not UTF-8, records that are not objects, and a dataroot whose path holds a quote (DuckDB reads it from
-SQL text). Expectations are written out by hand."""
+that are not UTF-8, records that are not objects, and a dataroot whose path holds a quote (the reader before
+this one read it from SQL text). Expectations are written out by hand."""
 
 from __future__ import annotations
 
 import json
 import shutil
 
-import duckdb
 import pyarrow as pa
 
 from nuparquet.problems import Problem
 from nuparquet.schemas import table_schemas
-from nuparquet.sources.tables import _read_one, read_tables
+from nuparquet.sources.tables import read_table, read_tables
 
 from conftest import SYNTH_VERSION
 
 
 def read(path, table: str = "attribute"):
-    with duckdb.connect() as con:
-        return _read_one(con, path, table_schemas()[table])
+    return read_table(path, table_schemas()[table])
 
 
 def test_an_empty_array_after_more_whitespace_than_one_read_is_an_empty_table_of_the_schema_s_types(tmp_path):
@@ -47,7 +45,7 @@ def test_records_that_are_not_objects_are_named_by_index(tmp_path):
     path = tmp_path / "attribute.json"
     path.write_text(json.dumps([{"token": "a", "name": "n", "description": "d"}, [1, 2], "x"]))
     assert read(path) == (None, [Problem("attribute.json", "record is a JSON array, not an object", 1),
-                                 Problem("attribute.json", "record is a JSON varchar, not an object", 2)])
+                                 Problem("attribute.json", "record is a JSON string, not an object", 2)])
 
 
 def test_a_dataroot_whose_path_holds_a_quote_reads_like_any_other(synth_root, tmp_path):

@@ -34,7 +34,8 @@ def build_annotations(tables: dict[str, pl.DataFrame], annotations: pl.DataFrame
         .rename({"sample_timestamp": "timestamp"})
         .join(tables["instance"].lazy().select(pl.col("token").alias("instance_token"), "category_token"),
               on="instance_token", how="left")
-        .join(tables["category"].lazy().select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
+        .join(tables["category"].lazy().select(pl.col("token").alias("category_token"),
+                                               pl.col("name").cast(pl.Categorical).alias("category_name")),
               on="category_token", how="left")
         .join(ego.lazy(), on="sample_token", how="left")
         .join(visibility_levels(tables["visibility"]).lazy(), on="visibility_token", how="left")
@@ -64,8 +65,8 @@ def visibility_levels(visibility: pl.DataFrame) -> pl.DataFrame:
     ranked = bounds.rank("dense").cast(pl.Int8) if bounds.null_count() == 0 and len(bounds) else pl.repeat(
         None, len(visibility), dtype=pl.Int8, eager=True)
     return visibility.select(pl.col("token").alias("visibility_token"),
-                             ranked.alias("visibility_level"), pl.col("level").alias("visibility_name"),
-                             pl.col("description").alias("visibility_description"))
+                             ranked.alias("visibility_level"), pl.col("level").cast(pl.Categorical).alias("visibility_name"),
+                             pl.col("description").cast(pl.Categorical).alias("visibility_description"))
 
 
 def _xy_distance(translation: np.ndarray, ego: pl.Series) -> np.ndarray:

@@ -25,8 +25,9 @@ def build_frames(tables: dict[str, pl.DataFrame], sample_data: pl.DataFrame, sam
             pl.col("token").alias("calibrated_sensor_token"), "sensor_token",
             pl.col("translation").alias("sensor_translation"), pl.col("rotation").alias("sensor_rotation"),
             "camera_intrinsic"), on="calibrated_sensor_token", how="left")
-        .join(tables["sensor"].lazy().select(pl.col("token").alias("sensor_token"), "channel", "modality"),
-              on="sensor_token", how="left")
+        # categorical: a sensor's words are held once, however many rows reach them (they sort as strings do)
+        .join(tables["sensor"].lazy().select(pl.col("token").alias("sensor_token"), pl.col("channel", "modality")
+                                             .cast(pl.Categorical)), on="sensor_token", how="left")
         .join(samples.lazy().drop("sample_timestamp"), on="sample_token", how="left")
         .with_columns(time_utc=pl.from_epoch("timestamp", time_unit="us").dt.replace_time_zone("UTC"))
         .sort("scene_name", "channel", "timestamp", "token")
@@ -52,7 +53,7 @@ def build_frames(tables: dict[str, pl.DataFrame], sample_data: pl.DataFrame, sam
 
 
 def build(ctx: BuildContext, batch: SceneBatch) -> pl.DataFrame:
-    return build_frames(ctx.tables, batch.rows["sample_data"], samples(ctx))
+    return build_frames(ctx.tables | {"ego_pose": batch.rows["ego_pose"]}, batch.rows["sample_data"], samples(ctx))
 
 
 BUILDER = Builder("frames", build, schema="frames")

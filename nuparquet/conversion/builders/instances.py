@@ -15,7 +15,8 @@ def build_instances(tables: dict[str, pl.DataFrame], annotation_times: pl.DataFr
     by_token = annotation_times.select("token", "scene_token", "scene_name", "timestamp")
     return (
         declared_fields(tables["instance"], "instance").with_row_index("file_index")
-        .join(tables["category"].select(pl.col("token").alias("category_token"), pl.col("name").alias("category_name")),
+        .join(tables["category"].select(pl.col("token").alias("category_token"),
+                                        pl.col("name").cast(pl.Categorical).alias("category_name")),
               on="category_token", how="left")
         .join(by_token.rename({"token": "first_annotation_token", "timestamp": "first_timestamp"}),
               on="first_annotation_token", how="left")
