@@ -3,10 +3,11 @@
     .venv/bin/python benchmarks/run_all.py [--repeats 3] [--devkit-repeats 3] [--only convert,render ...]
 
 Builds the cached datasets first if needed (`bench_data.py`; NUPARQUET_BENCH_CACHE=DIR keeps them in DIR), then
-runs every row: 1-6, 7 (index), 8 (CAN bus), 9 (map), 10 (points), 11 (scale-out), and the map conversion's floor
-(1m); the devkit reference (`devkit_reference.py`, ~40 s and ~8 GB per fresh process at trainval scale) is
-measured once per repeat and shared by rows 1-3. Prints the machine and one Markdown table, and writes benchmarks/results/<UTC time>.json
-(every figure and command) and .md (what BENCHMARKS.md records).
+runs every row: 1-6, 7 (index), 8 (CAN bus), 9 (map), 10 (points), 11 (scale-out), the map conversion's floor
+(1m'), 12 (the devkit's clients on nuparquet.devkit.NuScenes), 13 (evaluation) and the start-up (s1, s2). The
+devkit reference (`devkit_reference.py`, ~40 s and ~8 GB per fresh process at trainval scale) is measured once
+per repeat and shared by rows 1-3. Prints the machine and one Markdown table, and writes
+benchmarks/results/<UTC time>.json (every figure and command) and .md (what BENCHMARKS.md records).
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ import bench_analytics  # noqa: E402
 import bench_can_bus  # noqa: E402
 import bench_convert  # noqa: E402
 import bench_data  # noqa: E402
+import bench_devkit_compat  # noqa: E402
+import bench_eval  # noqa: E402
 import bench_first_query  # noqa: E402
 import bench_index  # noqa: E402
 import bench_map  # noqa: E402
@@ -32,6 +35,7 @@ import bench_project_scene  # noqa: E402
 import bench_render  # noqa: E402
 import map_floor  # noqa: E402
 import bench_scale_out  # noqa: E402
+import bench_startup  # noqa: E402
 from harness import REPO, load_average, log, machine, markdown_table, write_results  # noqa: E402
 
 BENCHMARKS = {
@@ -47,6 +51,10 @@ BENCHMARKS = {
     "map": lambda a: bench_map.run(a.repeats, devkit_repeats=a.devkit_repeats),
     "points": lambda a: bench_points.run(a.repeats),
     "scale_out": lambda a: bench_scale_out.run(1),
+    # the devkit's object is built once per measurement (~1 min and ~8 GB each at trainval scale)
+    "devkit_compat": lambda a: bench_devkit_compat.run(850, a.repeats, min(a.devkit_repeats, 1)),
+    "eval": lambda a: bench_eval.run(a.repeats, min(a.devkit_repeats, 1)),
+    "startup": lambda a: bench_startup.run(max(a.repeats, 20)),
 }
 
 
