@@ -43,10 +43,10 @@ def make_data(scenes: int) -> Path:
     shutil.rmtree(CACHE, ignore_errors=True)
     CACHE.mkdir(parents=True)
     log(f"writing the CAN bus files of {scenes} synthetic scenes into {CACHE}")
-    from nuparquet.can_bus.bevformer import DEVKIT_CAN_BLACKLIST
+    from nuparquet.can_bus.blacklists import CAN_BLACKLIST
 
     for i in range(scenes):
-        if i + 1 in DEVKIT_CAN_BLACKLIST:  # like the real expansion: no files for the scenes the devkit refuses
+        if i + 1 in CAN_BLACKLIST:  # like the real expansion: no files for the scenes the devkit refuses
             continue
         rng = np.random.default_rng([7, i])
         start = 1_530_000_000_000_000 + i * 100_000_000
