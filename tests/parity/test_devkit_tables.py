@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import io
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -171,11 +172,12 @@ def test_start_up_reads_the_manifest_only_and_each_table_on_first_use(extract_ou
 
 def test_parquet_may_be_omitted_when_the_dataroot_is_the_output(extract_out, extract_root):
     nusc = NuScenes("v1.0-mini-extract", dataroot=str(extract_out), verbose=False)
-    assert nusc.dataroot == str(extract_root) and nusc.parquet == str(extract_out)
+    root = Path(extract_root).resolve()  # the manifest records the dataroot resolved (../shared may be a link)
+    assert nusc.dataroot == str(root) and nusc.parquet == str(extract_out)
     token = nusc.sample_data[0]["token"]
-    assert nusc.get_sample_data_path(token) == f"{extract_root}/{nusc.sample_data[0]['filename']}"
+    assert nusc.get_sample_data_path(token) == f"{root}/{nusc.sample_data[0]['filename']}"
     default = NuScenes("v1.0-mini-extract", parquet=extract_out, verbose=False)
-    assert default.dataroot == str(extract_root)
+    assert default.dataroot == str(root)
 
 
 def test_a_version_that_was_not_converted_is_an_error_naming_both(extract_out):
