@@ -58,6 +58,8 @@ class Group:
         reused by every mutant (`NUPARQUET_TEST_CACHE_CONVERSIONS`, tests/conftest.py): only for groups whose
         modules no conversion runs (checked by tests/test_mutation_groups.py against the import graph).
     cache_data: the generated dataroots are made once (`NUPARQUET_TEST_CACHE`); off for the generator's own group.
+    serial_engine: the process-pool engine runs its units in the test's process (`NUPARQUET_TEST_SERIAL_ENGINE`,
+        tests/conftest.py): mutmut sees only what runs in that process. Off for the engine's own group.
     """
 
     modules: tuple[str, ...]
@@ -66,6 +68,7 @@ class Group:
     keyword: str | None = None
     cache_conversions: bool = False
     cache_data: bool = True
+    serial_engine: bool = True
 
     def pytest_args(self) -> list[str]:
         return [*self.tests, "-m", self.marks, *(["-k", self.keyword] if self.keyword else [])]
@@ -129,7 +132,8 @@ GROUPS: dict[str, Group] = {
          "tests/parity/test_dataset_boxes.py", "tests/test_architecture.py")),
     "engine": Group(
         ("nuparquet/engine/*.py", "nuparquet/atomic.py"),
-        ("tests/engine/test_engine.py", "tests/test_atomic.py", "tests/rendering/test_faults.py")),
+        ("tests/engine/test_engine.py", "tests/test_atomic.py", "tests/rendering/test_faults.py"),
+        serial_engine=False),
     "can_bus": Group(
         ("nuparquet/can_bus/*.py", "nuparquet/sources/can_bus.py", "nuparquet/conversion/builders/can_bus.py",
          "nuparquet/conversion/builders/sample_can_bus.py"),
@@ -289,6 +293,8 @@ def group_env(group: str, where: Path) -> dict:
     staging: `where/conversions`)."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     env.update(MPLBACKEND="Agg")
+    if GROUPS[group].serial_engine:
+        env["NUPARQUET_TEST_SERIAL_ENGINE"] = "1"
     if GROUPS[group].cache_data:
         env["NUPARQUET_TEST_CACHE"] = str(STAGING / "cache")
         if GROUPS[group].cache_conversions:

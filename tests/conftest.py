@@ -81,6 +81,19 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
             terminalreporter.write_line(line, red=True)
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _serial_engine_for_mutation_runs():
+    """NUPARQUET_TEST_SERIAL_ENGINE (set by mutation/run.py for every group but the engine's own): the process-pool
+    engine runs its units in this process. mutmut maps a function to the tests during which it ran in the test's
+    own process, and it runs a mutant against those tests only: code a worker process ran (a conversion's scene
+    points) would have no test and its mutants none either."""
+    if os.environ.get("NUPARQUET_TEST_SERIAL_ENGINE"):
+        from nuparquet.engine import backends
+
+        backends.BACKENDS["process"] = backends.serial
+    yield
+
+
 @pytest.fixture(scope="session")
 def chromium() -> Path:
     """Debian's Chromium for the browser tests (Playwright drives it; no browser is ever downloaded). Absent: the
