@@ -71,7 +71,8 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
         if state in DETECTED:
             killed_since += 1
             continue
-        verdict = judgements.get(name)
+        # keys: the full name (quoted in TOML: it holds dots) or, in the first runs' judgements, the name after the module
+        verdict = judgements.get(name) or judgements.get(name.rsplit(".", 1)[-1])
         if verdict and verdict.startswith("equivalent"):
             equivalent += 1
         elif verdict and verdict.startswith("killed"):
