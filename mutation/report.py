@@ -27,7 +27,7 @@ from collections import Counter
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from run import GROUPS  # noqa: E402
+from run import GROUPS, mutant_change  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 STAGING = REPO / ".mutation"
@@ -44,9 +44,7 @@ def statuses(where: Path) -> dict[str, str]:
 
 
 def change(where: Path, name: str) -> str:
-    shown = subprocess.run(MUTMUT + ["show", name], cwd=where, capture_output=True, text=True).stdout
-    old = [d[1:].strip() for d in shown.splitlines() if d.startswith("-") and not d.startswith("---")]
-    new = [d[1:].strip() for d in shown.splitlines() if d.startswith("+") and not d.startswith("+++")]
+    old, new = mutant_change(where, name)
     return f"`{' / '.join(old)}` -> `{' / '.join(new)}`" if old or new else "(no diff)"
 
 

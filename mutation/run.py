@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import ast
+import difflib
 import json
 import os
 import random
@@ -342,13 +343,44 @@ def recheck_stage(group: str, env: dict) -> Path:
     return where
 
 
+_FUNCTIONS: dict[Path, tuple[list[str], dict[str, tuple[int, int]]]] = {}
+
+
+def mutant_change(where: Path, name: str) -> tuple[list[str], list[str]]:
+    """The lines a mutant changes (old, new), read from mutmut's mutated module in `where/mutants/`: the mutant's
+    function against the `__mutmut_orig` one. (`mutmut show` parses the whole module once per mutant: minutes for a
+    module of thousands of mutants.)"""
+    module, function = name.rsplit(".", 1)
+    path = where / "mutants" / (module.replace(".", "/") + ".py")
+    if path not in _FUNCTIONS:
+        source = path.read_text()
+        spans = {node.name: (node.lineno, node.end_lineno) for node in ast.walk(ast.parse(source))
+                 if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))}
+        _FUNCTIONS[path] = (source.splitlines(), spans)
+    lines, spans = _FUNCTIONS[path]
+    original = function.rsplit("__mutmut_", 1)[0] + "__mutmut_orig"
+    if function not in spans or original not in spans:
+        return [], []
+    body = {n: lines[spans[n][0]:spans[n][1]] for n in (original, function)}  # without the def line (its name)
+    old, new = [], []
+    for line in difflib.unified_diff(body[original], body[function], lineterm="", n=0):
+        if line[:1] in "+-" and not line.startswith(("+++", "---")):
+            (old if line[0] == "-" else new).append(line[1:].strip())
+    return old, new
+
+
 def run_group(group: str, budget_s: float, max_children: int, mutants: list[str] | None = None,
               sample: int | None = None, seed: int = 0, recheck: bool = False) -> dict:
     env = group_env(group, STAGING / (f"{group}-recheck" if recheck else group))
-    where = recheck_stage(group, env) if recheck else stage(group, keep_results=bool(mutants))
+    # a sampled run of a group whose staging holds the same sample goes on where it stopped (its results kept)
+    resume = bool(sample) and (STAGING / group / "sample.txt").is_file() and not recheck
+    where = recheck_stage(group, env) if recheck else stage(group, keep_results=bool(mutants) or resume)
     if sample:  # a uniform random sample of the group's mutants, the same for the same seed and code
         names = sorted(all_mutants(where, env))
         mutants = sorted(random.Random(seed).sample(names, min(sample, len(names))))
+        if resume and (where / "sample.txt").read_text().split() != mutants:
+            raise SystemExit(f"{group}: the staged sample is not the sample of --sample {sample} --seed {seed} of "
+                             "this code; remove .mutation/" + group + " to start again")
         (where / "sample.txt").write_text("\n".join(mutants) + "\n")
     started = time.monotonic()
     log = open(where / "mutmut.log", "w")  # noqa: SIM115 - closed below; mutmut's progress is one long line
@@ -376,10 +408,8 @@ def run_group(group: str, budget_s: float, max_children: int, mutants: list[str]
         for line in survivors.splitlines():
             name = line.split(":")[0].strip()
             if line.strip().endswith("survived"):
-                shown = subprocess.run(MUTMUT + ["show", name], cwd=where, env=env, capture_output=True, text=True)
-                changed = [d for d in shown.stdout.splitlines()
-                           if d[:1] in "+-" and not d.startswith(("+++", "---"))]
-                diffs.write(f"## {name}\n" + "\n".join(changed) + "\n")
+                old, new = mutant_change(where, name)
+                diffs.write(f"## {name}\n" + "\n".join([*(f"-{o}" for o in old), *(f"+{n}" for n in new)]) + "\n")
     result = {"group": group, "finished": finished, "elapsed_s": round(elapsed), "stats": stats,
               "sample": {"size": len(mutants), "seed": seed} if sample else None,
               "again": [] if sample else (mutants or []), "survivors": [line.strip() for line in survivors.splitlines()

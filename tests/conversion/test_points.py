@@ -241,3 +241,50 @@ def test_bad_sensor_options_are_usage_errors(labelled_root, tmp_path, capsys):
         code = main(["convert", str(labelled_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "o"), *flags])
         assert code == 2 and message in capsys.readouterr().err
         assert not (tmp_path / "o").exists()
+
+
+def test_select_points_of_a_scene_and_one_channel_with_every_column_by_default(labelled_root, labelled_out):
+    """`select_points(index, scene=..., channel=...)`: every point of that channel's frames in the scene, in dataset
+    (time) order, each frame as the .pcd file holds it; without `columns` every column of the dataset; an unknown
+    column is refused by name."""
+    import nuparquet
+    from nuparquet.errors import UsageError
+    from nuparquet.frames.points import select_points
+    from nuparquet.sources.points import read_radar_pcd
+
+    ds = nuparquet.open(labelled_out)
+    index = ds._points_index("radar_points")
+    frames = (pl.read_parquet(labelled_out / "frames").filter(pl.col("modality") == "radar")
+              .sort("scene_name", "channel", "timestamp"))
+    scene = frames["scene_name"][0]
+    channels = sorted(set(frames.filter(pl.col("scene_name") == scene)["channel"]))
+    assert len(channels) > 1  # the filter has other channels' points to leave out
+    for channel in channels[:2]:
+        mine = frames.filter((pl.col("scene_name") == scene) & (pl.col("channel") == channel))
+        expected = np.concatenate([read_radar_pcd(labelled_root / f)["x"] for f in mine["filename"]])
+        got = select_points(index, scene=scene, channel=channel)
+        assert got.column_names == list(index.fields) == pq.read_schema(next((labelled_out / "radar_points")
+                                                                              .glob("*.parquet"))).names
+        assert set(got.column("channel").to_pylist()) == {channel}
+        assert np.array_equal(got.column("x").to_numpy(), expected)
+        assert got.column("sample_data_token").to_pylist() == [t for t, f in zip(mine["token"], mine["filename"])
+                                                               for _ in range(len(read_radar_pcd(labelled_root / f)))]
+    whole = select_points(index, scene=scene, columns=["channel"])
+    assert sorted(set(whole.column("channel").to_pylist())) == channels
+    with pytest.raises(UsageError, match=r"^no column 'nope', 'z2' \(columns: sample_data_token, "):
+        select_points(index, scene=scene, columns=["x", "nope", "z2"])
+
+
+def test_pcd_headers_with_an_unknown_line_or_lines_missing_are_refused_naming_both():
+    from nuparquet.sources.points import PointFileError, read_pcd_header
+
+    good = ("VERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n"
+            "POINTS 1\nDATA binary\n")
+    assert read_pcd_header("radar.pcd", good.encode()).data_offset == len(good)  # the well-formed header reads
+    for header, reason in (
+            (good.replace("VIEWPOINT", "COLOR"), "unexpected PCD header line 'COLOR' (expected one of VERSION, FIELDS, "
+                                                 "SIZE, TYPE, COUNT, WIDTH, HEIGHT, VIEWPOINT, POINTS, DATA)"),
+            (good.replace("SIZE 4 4\nTYPE F F\n", ""), "PCD header lacks SIZE, TYPE")):
+        with pytest.raises(PointFileError) as error:
+            read_pcd_header("radar.pcd", header.encode())
+        assert (error.value.path, error.value.reason) == ("radar.pcd", reason)
