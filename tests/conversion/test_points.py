@@ -288,3 +288,36 @@ def test_pcd_headers_with_an_unknown_line_or_lines_missing_are_refused_naming_bo
         with pytest.raises(PointFileError) as error:
             read_pcd_header("radar.pcd", header.encode())
         assert (error.value.path, error.value.reason) == ("radar.pcd", reason)
+
+
+def test_a_radar_pcd_whose_first_point_has_a_nan_passes_no_filter_as_the_devkit_reads_it_empty(tmp_path):
+    """The devkit's `RadarPointCloud.from_file` returns an empty cloud when the first point holds a NaN (its sign of
+    an empty file), whatever the states; a NaN in a later point does not empty it."""
+    from nuscenes.utils.data_classes import RadarPointCloud
+
+    from nuparquet.sources.points import passes_default_filters, read_radar_pcd
+    from nuparquet.synth.sensors import _RADAR_DTYPE, _RADAR_HEADER
+
+    for nan_at in (0, 1):
+        points = np.zeros(3, dtype=_RADAR_DTYPE)
+        points["x"] = [1.0, 2.0, 3.0]
+        points["ambig_state"], points["invalid_state"], points["dyn_prop"] = 3, 0, 1  # every filter passes
+        points["vx"][nan_at] = np.nan
+        path = tmp_path / f"nan-{nan_at}.pcd"
+        path.write_bytes(_RADAR_HEADER.format(n=3).encode("ascii") + points.tobytes() + b"\n")
+        expected = RadarPointCloud.from_file(str(path)).points.shape[1]
+        assert int(passes_default_filters(read_radar_pcd(path)).sum()) == expected == (0 if nan_at == 0 else 3)
+
+
+@pytest.mark.parametrize("data, shape", [(np.zeros((3, 1), np.uint16), "uint16 of shape (3, 1)"),
+                                         (np.zeros(3, np.float32), "float32 of shape (3,)")])
+def test_panoptic_labels_not_one_integer_per_point_are_refused(tmp_path, data, shape):
+    from nuparquet.sources.points import PointFileError, read_panoptic_npz
+
+    path = tmp_path / "labels.npz"
+    np.savez_compressed(path, data=data)
+    with pytest.raises(PointFileError) as error:
+        read_panoptic_npz(path)
+    assert error.value.reason == f"panoptic 'data' is {shape}, not one integer per point"
+    np.savez_compressed(path, data=np.array([0, 1001, 65535], np.int64))
+    assert read_panoptic_npz(path).tolist() == [0, 1001, 65535]

@@ -50,6 +50,8 @@ def test_closest_lane_for_many_points(maps):
         mine = ours.closest_lane(points[:, 0], points[:, 1], radius_m=5.0)
         expected = [nusc_map.get_closest_lane(x, y, radius=5.0) for x, y in points]
         assert mine.tolist() == expected
+        # in blocks of 64 points (the default block holds 4096): each block's answers go to its own points
+        assert ours.closest_lane(points[:, 0], points[:, 1], radius_m=5.0, chunk=64).tolist() == expected
         hits += sum(e != "" for e in expected)
         wide = ours.closest_lane(points[:50, 0], points[:50, 1], radius_m=12.5)
         assert wide.tolist() == [nusc_map.get_closest_lane(x, y, radius=12.5) for x, y in points[:50]]
