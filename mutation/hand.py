@@ -71,6 +71,11 @@ def run(mutants: list[dict]) -> dict[str, dict]:
     """Apply each mutant alone in `.mutation/hand/`, run its group's tests, restore; the results by name."""
     copy_tree(WHERE)
     shutil.rmtree(WHERE / "groups", ignore_errors=True)  # cached conversions: made again by each baseline
+    # tests find the real data at REPO/../shared: beside the staging copy too (else a mutant's `tests` naming a real
+    # extract case would skip, and pass)
+    shared = WHERE.parent / "shared"
+    if (REPO.parent / "shared").is_dir() and not shared.exists():
+        shared.symlink_to(REPO.parent / "shared")
     results = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
     baseline: dict[str, tuple[str, str]] = {}
     for m in mutants:
