@@ -148,3 +148,25 @@ def test_bev_points_take_their_lidarseg_class_colour(labelled_images, tmp_path):
         k, sample_token = k + 1, sample["next"]
     assert checked > 500
     assert equal / checked > 0.9, (equal, checked)  # the rest: under boxes and the ego, drawn on top
+
+
+def test_panoptic_colours_are_the_devkits_table_per_instance_label():
+    """Thing instances of one class get their own colours (the devkit's `generate_panoptic_colors` table indexed by
+    the whole label), stuff its class colour, 0 the noise colour."""
+    from nuscenes.panoptic.panoptic_utils import generate_panoptic_colors
+    from nuscenes.utils.color_map import get_colormap
+
+    from nuparquet.rendering.point_colors import label_rgb
+
+    name2idx = {name: index for index, name in enumerate(get_colormap())}  # the lidarseg classes, noise = 0
+    names = {index: name for name, index in name2idx.items()}
+    assert names[17] == "vehicle.car" and names[24] == "flat.driveable_surface"
+    state = np.random.get_state()
+    table = generate_panoptic_colors(get_colormap(), name2idx)
+    np.random.set_state(state)
+    labels = np.array([17001, 17002, 24000, 0, 17001])
+    got = label_rgb(labels, "panoptic", names)
+    expected = np.rint(table[[17001, 17002]] * 255.0).astype(np.uint8)
+    assert got[:2].tolist() == expected.tolist() and got[0].tolist() != got[1].tolist()
+    assert got[2].tolist() == list(get_colormap()["flat.driveable_surface"])
+    assert got[3].tolist() == list(get_colormap()["noise"]) and got[4].tolist() == got[0].tolist()
