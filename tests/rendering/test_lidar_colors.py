@@ -170,3 +170,16 @@ def test_panoptic_colours_are_the_devkits_table_per_instance_label():
     assert got[:2].tolist() == expected.tolist() and got[0].tolist() != got[1].tolist()
     assert got[2].tolist() == list(get_colormap()["flat.driveable_surface"])
     assert got[3].tolist() == list(get_colormap()["noise"]) and got[4].tolist() == got[0].tolist()
+
+
+def test_intensity_levels_are_the_devkits_and_floored_at_zero():
+    """`map_pointcloud_to_image(render_intensity=True)`: min-max scaled, to the power 0.1, minus 0.5, floored at 0:
+    an intensity below 0.5**10 of the span (~0.1 %) is level 0, not negative."""
+    from nuparquet.rendering.point_colors import intensity_levels
+
+    intensity = np.array([2.0, 2.0005, 3.0, 4.0])  # scaled: 0, 0.00025, 0.5, 1
+    scaled = (intensity - 2.0) / 2.0
+    expected = np.maximum(0.0, scaled ** 0.1 - 0.5)  # the devkit's lines, in order
+    assert expected[1] == 0.0 and scaled[1] ** 0.1 - 0.5 < 0  # the floor is reached
+    np.testing.assert_array_equal(intensity_levels(intensity), expected)
+    assert intensity_levels(np.full(3, 7.0)).tolist() == [0.0, 0.0, 0.0]  # no span: every level 0
