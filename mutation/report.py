@@ -1,17 +1,20 @@
-"""The figures and surviving mutants of the last `mutation/run.py` runs, as the Markdown of MUTATION.md.
+"""The figures and surviving mutants of the last `mutation/run.py` runs, and the hand-made mutants' verdicts, as the
+Markdown of MUTATION.md.
 
     python mutation/report.py [GROUP ...]
 
-For each group staged under `.mutation/<group>/`, mutmut's own status of every mutant (`mutmut results --all
-true`), restricted to the group's sample when the run sampled (`sample.txt`), and mutmut's `export-cicd-stats`
-figures. A first-run survivor that a re-check (`run.py GROUP --recheck NAMES`, `.mutation/<group>-recheck/`) kills
-counts as killed since; each remaining survivor is shown with its change and the judgement recorded in
-`mutation/judgements.toml` (equivalent, with why; or killed by a named test, checked by hand; or left). The score is
+For each group staged under `.mutation/<group>/` (in `run.GROUPS` order), mutmut's own status of every mutant
+(`mutmut results --all true`), restricted to the group's sample when the run sampled (`sample.txt`, its seed in
+`result.json`). A first-run survivor that a re-check (`run.py GROUP --recheck NAMES`, `.mutation/<group>-recheck/`)
+kills counts as killed since; each remaining survivor is shown with its change and the judgement recorded under the
+group in `mutation/judgements.toml` (equivalent, with why; or killed by a named test, checked by hand; or left). The
+score is
 
     (killed + timeout + segfault + killed since) / (checked - equivalent)
 
 where a timeout (an endless loop) and a segfault (the test process crashed) are detections, and "checked" counts
-every mutant the run reached.
+every mutant the run reached. The hand-made mutants (`mutation/hand_mutants.toml`, run by `mutation/hand.py`) follow,
+with their verdicts from `.mutation/hand/results.json`.
 """
 
 from __future__ import annotations
@@ -23,9 +26,14 @@ import tomllib
 from collections import Counter
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from run import GROUPS, mutant_change  # noqa: E402
+
 REPO = Path(__file__).resolve().parent.parent
 STAGING = REPO / ".mutation"
 JUDGEMENTS = Path(__file__).resolve().parent / "judgements.toml"
+HAND_MUTANTS = Path(__file__).resolve().parent / "hand_mutants.toml"
+HAND_RESULTS = STAGING / "hand" / "results.json"
 MUTMUT = [sys.executable, "-m", "mutmut"]
 DETECTED = ("killed", "timeout", "segfault")
 
@@ -36,17 +44,15 @@ def statuses(where: Path) -> dict[str, str]:
 
 
 def change(where: Path, name: str) -> str:
-    shown = subprocess.run(MUTMUT + ["show", name], cwd=where, capture_output=True, text=True).stdout
-    lines = [d[1:].strip() for d in shown.splitlines() if d[:1] in "+-" and not d.startswith(("+++", "---"))]
-    old = [d[1:].strip() for d in shown.splitlines() if d.startswith("-") and not d.startswith("---")]
-    new = [d[1:].strip() for d in shown.splitlines() if d.startswith("+") and not d.startswith("+++")]
-    return f"`{' / '.join(old)}` -> `{' / '.join(new)}`" if lines else "(no diff)"
+    old, new = mutant_change(where, name)
+    return f"`{' / '.join(old)}` -> `{' / '.join(new)}`" if old or new else "(no diff)"
 
 
 def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
     where = STAGING / group
     status = statuses(where)
     sample = (where / "sample.txt").read_text().split() if (where / "sample.txt").is_file() else None
+    result = json.loads((where / "result.json").read_text()) if (where / "result.json").is_file() else {}
     considered = {n: s for n, s in status.items() if sample is None or n in sample}
     counts = Counter(considered.values())
     checked = sum(v for k, v in counts.items() if k != "not checked")
@@ -63,7 +69,8 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
         if state in DETECTED:
             killed_since += 1
             continue
-        verdict = judgements.get(name) or judgements.get(name.split(".")[-1])  # a full name wins (short ones repeat across modules)
+        # keys: the full name (quoted in TOML: it holds dots) or, in the first runs' judgements, the name after the module
+        verdict = judgements.get(name) or judgements.get(name.rsplit(".", 1)[-1])
         if verdict and verdict.startswith("equivalent"):
             equivalent += 1
         elif verdict and verdict.startswith("killed"):
@@ -71,11 +78,12 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
         else:
             left += 1
         state = f"{first}, re-checked: {state}" if name in rechecked else state
-        lines.append(f"- `{name.split('.')[-1]}` ({state}): {change(where, name)}  \n  "
+        lines.append(f"- `{name}` ({state}): {change(where, name)}  \n  "
                      + (f"**{verdict.split(':')[0]}**:{verdict.split(':', 1)[1]}" if verdict and ":" in verdict
                         else "**not equivalent, left**"))
     denominator = checked - equivalent
-    figures = {"group": group, "mutants": len(status), "sample": len(sample) if sample else None,
+    seed = (result.get("sample") or {}).get("seed")
+    figures = {"group": group, "mutants": len(status), "sample": len(sample) if sample else None, "seed": seed,
                "checked": checked, "not_checked": counts["not checked"], "killed": counts["killed"],
                "timeout": counts["timeout"], "segfault": counts["segfault"], "survived": counts["survived"],
                "no_tests": counts["no tests"], "equivalent": equivalent, "killed_since": killed_since, "left": left,
@@ -84,21 +92,41 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
     return "\n".join(lines), figures
 
 
+def hand_report() -> tuple[str, dict[str, Counter]]:
+    """The hand-made mutants' table (one row each) and the verdicts counted per group."""
+    mutants = tomllib.loads(HAND_MUTANTS.read_text())["mutant"]
+    results = json.loads(HAND_RESULTS.read_text()) if HAND_RESULTS.is_file() else {}
+    per_group: dict[str, Counter] = {}
+    rows = ["| group | hand mutant | kind | module | verdict | killed by / judgement |", "|---|---|---|---|---|---|"]
+    for m in sorted(mutants, key=lambda m: (list(GROUPS).index(m["group"]), m["name"])):
+        found = results.get(m["name"], {})
+        verdict = found.get("verdict", "not run")
+        judgement = m.get("judgement", "")
+        if verdict == "survived" and judgement.startswith("equivalent"):
+            verdict = "survived (equivalent)"
+        per_group.setdefault(m["group"], Counter())[verdict] += 1
+        detail = (f"`{found.get('detail', '').split('::')[-1]}`" if verdict == "killed" and found.get("detail")
+                  else judgement or ("" if verdict != "survived" else "**not equivalent, left**"))
+        rows.append(f"| {m['group']} | {m['name']} | {m['kind']} | `{m['file'].removeprefix('nuparquet/')}` | "
+                    f"{verdict} | {detail} |")
+    return "\n".join(rows), per_group
+
+
 def main(groups: list[str]) -> int:
     judgements = tomllib.loads(JUDGEMENTS.read_text()) if JUDGEMENTS.is_file() else {}
-    flat = {name: verdict for table in judgements.values() for name, verdict in table.items()}
-    groups = groups or [p.name for p in sorted(STAGING.iterdir()) if (p / "mutants").is_dir() and not p.name.endswith("-recheck")]
+    groups = groups or [g for g in GROUPS if (STAGING / g / "mutants").is_dir()]
     rows, sections = [], []
     for group in groups:
-        text, figures = group_report(group, flat)
+        text, figures = group_report(group, judgements.get(group, {}))
         rows.append(figures)
         sections.append(f"### {group}\n\n{text or '(none)'}\n")
-    print("| group | mutants | sample | checked | killed | timeout | segfault | survived | no tests | equivalent "
-          "| killed since | left | score (tool run) | score now |")
+    print("| group | mutants | sample (seed) | checked | killed | timeout | segfault | survived | no tests | "
+          "equivalent | killed since | left | score (tool run) | score now |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for f in rows:
         score = lambda v: f"**{v:.1%}**" if v is not None else "—"  # noqa: E731
-        print(f"| {f['group']} | {f['mutants']} | {f['sample'] or 'all'} | {f['checked']} | {f['killed']} | "
+        sample = f"{f['sample']} ({f['seed']})" if f["sample"] else "all"
+        print(f"| {f['group']} | {f['mutants']} | {sample} | {f['checked']} | {f['killed']} | "
               f"{f['timeout']} | {f['segfault']} | {f['survived']} | {f['no_tests']} | {f['equivalent']} | "
               f"{f['killed_since']} | {f['left']} | {score(f['score_tool'])} | {score(f['score_now'])} |")
     total = {k: sum(f[k] for f in rows) for k in ("checked", "killed", "timeout", "segfault", "equivalent",
@@ -109,8 +137,14 @@ def main(groups: list[str]) -> int:
         print(f"\nAll groups: {detected} detected by the tool run of {denominator} non-equivalent checked mutants "
               f"= **{detected / denominator:.1%}**; with the {total['killed_since']} killed since: "
               f"**{(detected + total['killed_since']) / denominator:.1%}**.\n")
+    table, per_group = hand_report()
+    print("\n## Hand-made mutants\n")
+    print(", ".join(f"{g}: {c['killed']}/{sum(c.values())} killed" for g, c in per_group.items()) + "\n")
+    print(table + "\n")
+    print("\n## Surviving mutants\n")
     print("\n".join(sections))
-    (STAGING / "report.json").write_text(json.dumps(rows, indent=1))
+    (STAGING / "report.json").write_text(json.dumps({"groups": rows, "hand": {g: dict(c) for g, c in per_group.items()}},
+                                                    indent=1))
     return 0
 
 

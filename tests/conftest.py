@@ -81,6 +81,19 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
             terminalreporter.write_line(line, red=True)
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _serial_engine_for_mutation_runs():
+    """NUPARQUET_TEST_SERIAL_ENGINE (set by mutation/run.py for every group but the engine's own): the process-pool
+    engine runs its units in this process. mutmut maps a function to the tests during which it ran in the test's
+    own process, and it runs a mutant against those tests only: code a worker process ran (a conversion's scene
+    points) would have no test and its mutants none either."""
+    if os.environ.get("NUPARQUET_TEST_SERIAL_ENGINE"):
+        from nuparquet.engine import backends
+
+        backends.BACKENDS["process"] = backends.serial
+    yield
+
+
 @pytest.fixture(scope="session")
 def chromium() -> Path:
     """Debian's Chromium for the browser tests (Playwright drives it; no browser is ever downloaded). Absent: the
@@ -103,15 +116,16 @@ def extract_out(extract_root, tmp_path_factory) -> Path:
     return converted(tmp_path_factory, "extract", extract_root, EXTRACT_VERSION)
 
 
-def generated_root(tmp_path_factory, name: str, make) -> Path:
+def generated_root(tmp_path_factory, name: str, make, cache: str | None = None) -> Path:
     """A dataroot written by `make(root)` (the generator): in a fresh temporary directory, or, when
-    NUPARQUET_TEST_CACHE names a directory (the mutation runs, which start pytest once per mutant), made once
-    there and reused. The generator is deterministic and never mutated, so the cache cannot go stale within a run.
+    NUPARQUET_TEST_CACHE (or `cache`) names a directory (the mutation runs, which start pytest once per mutant),
+    made once there and reused. The generator is deterministic, and the mutation group that mutates it runs
+    without the cache, so the cache cannot go stale within a run.
 
     Several pytest-xdist workers may ask for the same cached dataset at once: the first takes an exclusive lock on
     `<cache>/<name>.lock` and builds; the others wait on the lock, then find it complete. The build writes into a
     private folder renamed into place, so a reader never sees half a dataset (and a killed build leaves none)."""
-    cache = os.environ.get("NUPARQUET_TEST_CACHE")
+    cache = cache or os.environ.get("NUPARQUET_TEST_CACHE")
     if not cache:
         root = tmp_path_factory.mktemp(name) / "data"
         make(root)
@@ -135,9 +149,24 @@ def generated_root(tmp_path_factory, name: str, make) -> Path:
 
 
 def converted(tmp_path_factory, name: str, root: Path, version: str, **options) -> Path:
-    """`nuparquet convert` of `root`/`version` into a fresh temporary OUT (the session's converted fixtures)."""
+    """`nuparquet convert` of `root`/`version` into a fresh temporary OUT (the session's converted fixtures).
+
+    When NUPARQUET_TEST_CACHE_CONVERSIONS names a directory (a mutation group none of whose modules a conversion
+    runs: mutation/run.py), a conversion of a dataroot that outlives the session (a cached generated one, the real
+    extract) is made once there, by the group's first, unmutated test run, and reused by every mutant's;
+    `generated_root`'s lock makes it safe under concurrency."""
     from nuparquet.conversion import convert
 
+    cache = os.environ.get("NUPARQUET_TEST_CACHE_CONVERSIONS")
+    # a root made in this session's temporary folder is made afresh (at another path) by every run: not cached
+    if cache and not Path(root).resolve().is_relative_to(tmp_path_factory.getbasetemp().resolve()):
+        import hashlib
+        import json
+
+        key = hashlib.sha256(json.dumps([str(root), version, options], sort_keys=True, default=str).encode())
+        made = generated_root(tmp_path_factory, f"{name}-{key.hexdigest()[:12]}",
+                              lambda out: convert(root, version, out, **options), cache=cache)
+        return made
     out = tmp_path_factory.mktemp(name) / "out"
     convert(root, version, out, **options)
     return out
@@ -155,8 +184,8 @@ def labelled_root(tmp_path_factory) -> Path:
     """2 scenes x 3 samples with lidar/radar keyframes and sweeps and lidarseg/panoptic labels, no CAN bus."""
     from nuparquet.synth import synthesize
 
-    return synthesize(tmp_path_factory.mktemp("labelled") / "data", scenes=2, samples_per_scene=3, with_lidar=True,
-                      seed=11, version=SYNTH_VERSION, with_can_bus=False)
+    return generated_root(tmp_path_factory, "labelled", lambda root: synthesize(
+        root, scenes=2, samples_per_scene=3, with_lidar=True, seed=11, version=SYNTH_VERSION, with_can_bus=False))
 
 
 @pytest.fixture(scope="session")
@@ -281,9 +310,8 @@ def map_root(tmp_path_factory) -> Path:
     """6 scenes x 4 samples, tables only: four locations, two of them with two roads."""
     from nuparquet.synth import synthesize
 
-    root = tmp_path_factory.mktemp("map-synth") / "data"
-    synthesize(root, scenes=6, samples_per_scene=4, seed=5, version=SYNTH_VERSION, with_can_bus=False)
-    return root
+    return generated_root(tmp_path_factory, "map-synth", lambda root: synthesize(
+        root, scenes=6, samples_per_scene=4, seed=5, version=SYNTH_VERSION, with_can_bus=False))
 
 
 @pytest.fixture(scope="session")

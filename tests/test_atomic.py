@@ -7,9 +7,12 @@ import os
 import subprocess
 import sys
 
-from nuparquet.cli.main import main
-from nuparquet.atomic import remove_stale
+import pytest
+
 from conftest import SYNTH_VERSION
+from nuparquet.atomic import check_target, remove_stale
+from nuparquet.cli.main import main
+from nuparquet.errors import UsageError
 
 
 def _dead_pid() -> int:
@@ -70,3 +73,15 @@ def test_atomic_file_replaces_the_target_whole_or_leaves_it_as_it_was(tmp_path):
     with atomic_file(target) as partial:
         partial.write_text("new")
     assert target.read_text() == "new" and sorted(p.name for p in tmp_path.iterdir()) == ["infos.pkl"]
+
+
+def test_check_target_refuses_an_existing_output_unless_told_to_replace_it(tmp_path):
+    out = tmp_path / "out"
+    assert check_target(out, overwrite=False) == out  # not there yet: fine either way
+    out.mkdir()
+    with pytest.raises(UsageError, match=r"out already exists; pass --overwrite to replace it"):
+        check_target(out, overwrite=False)
+    assert check_target(out, overwrite=True) == out
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(UsageError, match="exists and is not a directory"):
+        check_target(tmp_path / "file", overwrite=True)

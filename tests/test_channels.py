@@ -105,3 +105,10 @@ def test_a_rig_with_one_camera_name_that_says_neither_front_nor_back_is_laid_out
     assert channels.camera_layout(cameras, yaws) == (("CAM_FRONT_LEFT", "CAM_FRONT", "CAM_SIDE_X"), ("CAM_BACK",))
     # without yaws the names alone decide: the unknown name is neither BACK nor LEFT/RIGHT, so front, middle
     assert channels.camera_layout(cameras) == (("CAM_FRONT_LEFT", "CAM_FRONT", "CAM_SIDE_X"), ("CAM_BACK",))
+
+
+def test_default_camera_without_cam_front_or_a_layout_is_the_first_camera_named():
+    assert channels.default_camera(["CAM_X", "CAM_Y"]) == "CAM_X"
+    assert channels.default_camera(["CAM_X", "CAM_FRONT"]) == "CAM_FRONT"
+    assert channels.default_camera(["CAM_X", "CAM_Y"], (("CAM_Y",), ("CAM_X",))) == "CAM_Y"
+    assert channels.default_camera([]) is None

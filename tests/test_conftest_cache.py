@@ -36,3 +36,30 @@ def test_concurrent_workers_build_a_cached_dataset_once_and_all_see_it_whole(tmp
     assert outputs == ["['first.json', 'last.json']"] * 4  # every worker saw the whole dataset
     assert len((tmp_path / "builds.log").read_text().split()) == 1  # built once
     assert sorted(p.name for p in cache.iterdir()) == ["synth", "synth.lock"]  # no building folder left
+
+
+def test_conversions_are_cached_only_for_dataroots_that_outlive_the_session(tmp_path, tmp_path_factory, monkeypatch):
+    """NUPARQUET_TEST_CACHE_CONVERSIONS (mutation groups no conversion runs): a conversion of a dataroot outside the
+    session's temporary folder is made once and reused; one of a root made in the session is made every time."""
+    import nuparquet.conversion
+    from conftest import converted
+
+    made = []
+
+    def fake_convert(root, version, out, **options):
+        Path(out).mkdir(parents=True)
+        (Path(out) / "manifest.json").write_text(f"{root} {version} {options}")
+        made.append(Path(out))
+
+    monkeypatch.setattr(nuparquet.conversion, "convert", fake_convert)
+    monkeypatch.setenv("NUPARQUET_TEST_CACHE_CONVERSIONS", str(tmp_path / "conversions"))
+    lasting = REPO / "schemas"  # any folder outside the session's temporary folder
+    first = converted(tmp_path_factory, "lasting", lasting, "v1", sensors=("lidar",))
+    again = converted(tmp_path_factory, "lasting", lasting, "v1", sensors=("lidar",))
+    other = converted(tmp_path_factory, "lasting", lasting, "v1")
+    assert first == again and len(made) == 2 and other != first  # options are part of the key
+    assert first.is_relative_to(tmp_path / "conversions") and (first / "manifest.json").is_file()
+    session_root = tmp_path / "data"
+    assert converted(tmp_path_factory, "fresh", session_root, "v1") != converted(tmp_path_factory, "fresh",
+                                                                                   session_root, "v1")
+    assert len(made) == 4

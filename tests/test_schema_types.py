@@ -63,3 +63,11 @@ def test_fingerprint_covers_types_and_metadata():
         fingerprint(_schema({"geo": {"version": "1.0.0"}}).arrow_schema())
     widened = pa.schema([f if f.name != "label" else pa.field("label", pa.uint16(), nullable=False) for f in base])
     assert fingerprint(base) != fingerprint(widened)
+
+
+def test_an_unknown_type_name_is_refused_naming_it_and_the_spelling():
+    from nuparquet.schemas import parse_type
+
+    with pytest.raises(ValueError) as error:
+        parse_type("list<float65>")
+    assert str(error.value) == "unknown type in schema file: 'list<float65>' (no type 'float65')"

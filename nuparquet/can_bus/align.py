@@ -57,17 +57,20 @@ def aligned(samples: pl.DataFrame, message: str, messages: pl.DataFrame) -> pl.D
     prev_row, next_row = neighbours(samples, messages)
     has_prev = prev_row >= 0
     fields = [c for c in messages.columns if c != "scene_name"]
-    taken = messages.select(fields)[np.where(has_prev, prev_row, 0)]
+    if messages.is_empty():  # every file of this message type is an empty array: no sample has a message
+        taken = messages.select(fields).clear(samples.height)
+    else:
+        taken = messages.select(fields)[np.where(has_prev, prev_row, 0)]
     asof = taken.select(pl.struct(fields).alias(message))
     asof = asof.with_columns(pl.when(pl.Series(has_prev)).then(pl.col(message)).alias(message))
     t = samples["timestamp"].to_numpy()
-    u = messages["utime"].to_numpy()
+    u = messages["utime"].to_numpy() if messages.height else np.zeros(1, np.int64)  # read where has_prev only
     u_prev = np.where(has_prev, u[np.maximum(prev_row, 0)], 0)
     age = pl.Series(f"{message}_age_us", t - u_prev).to_frame().select(
         pl.when(pl.Series(has_prev)).then(pl.col(f"{message}_age_us")).alias(f"{message}_age_us"))
     columns = [asof, age]
     continuous = continuous_fields(messages)
-    if continuous:
+    if continuous and messages.height:
         columns.append(_interpolated(message, messages, continuous, t, u, prev_row, next_row))
     return pl.concat(columns, how="horizontal")
 

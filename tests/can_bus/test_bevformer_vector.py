@@ -72,3 +72,14 @@ def test_a_scene_without_pose_messages_gives_zeros_and_no_corrected_vector():
     exact, corrected = can_bus_vectors(samples, _poses("scene-0001", [_message(1_000, 0.0)]), KEYS)
     assert exact[0].tolist() == [0.0] * 18 and np.isnan(corrected[0]).all()
     assert exact[1].tolist() == bevformer_can_bus([_message(1_000, 0.0)], 1_500, False)
+
+
+def test_pose_messages_of_another_width_are_refused_naming_the_count_and_the_keys():
+    """The converters' vector holds 16 pose values (pos 3, orientation 4, accel, rotation_rate, vel 3 each): pose
+    files without `vel` give 13, which must be refused, not silently padded."""
+    keys = KEYS[:-1]
+    poses = _poses("scene-0001", [_message(1_000, 0.0)]).drop("vel")
+    samples = pl.DataFrame({"scene_name": ["scene-0001"], "timestamp": [1_500]})
+    with pytest.raises(ValueError, match=r"^pose messages give 13 values \(utime, pos, orientation, accel, "
+                                         r"rotation_rate\), not the 16 the converters' vector holds$"):
+        can_bus_vectors(samples, poses, keys)

@@ -65,6 +65,11 @@ def _drop(records, index, key):
     ("ms_imu", lambda r: r[:3] + [7] + r[4:], "[3]: message is a int, not an object"),
     ("meta", lambda r: [r], "must be a JSON object of one object per message type"),
     ("route", lambda r: _set_point(r, 4, [1.0]), "[4]: point is not [x, y]"),
+    ("route", lambda r: _set_point(r, 2, [2**53 + 1, r[2][1]]),
+     "[2]: point coordinate is an integer beyond 2**53 (would not convert exactly)"),
+    # a field of the second message type's object of another type: the record index is counted within the file
+    ("meta", lambda r: {k: ({**v, "message_count": "many"} if i == 1 else v) for i, (k, v) in enumerate(r.items())},
+     "[1]: message type field 'message_count' is a str where the others hold int values"),
 ])
 def test_bad_files_are_problems_naming_file_and_message(root, tmp_path, capsys, message, change, expected):
     _edit(root, message, change)
@@ -122,3 +127,21 @@ def test_a_dataroot_without_can_bus_converts_as_before(root, tmp_path):
                                    "radar_points": "not requested (--sensors radar)"}
     assert not any(name.startswith(("can_bus", "sample_can_bus")) for name in manifest["datasets"])
     assert not (tmp_path / "out" / "sample_can_bus").exists()
+
+
+def test_message_and_route_files_that_are_empty_arrays_convert_typed_and_come_back(root, tmp_path):
+    """Every file of a message type (and the route) holding `[]`: the datasets are empty but typed as when they hold
+    messages (utime Int64, x and y Float64), no sample has that message, and export-json writes `[]` back."""
+    for message in ("route", "steeranglefeedback"):
+        _path(root, message).write_text("[]")
+    convert(root, V, tmp_path / "out")
+    route = pl.read_parquet(tmp_path / "out" / "can_bus" / "route")
+    steering = pl.read_parquet(tmp_path / "out" / "can_bus" / "steeranglefeedback")
+    assert route.height == 0 and route.schema["x"] == pl.Float64 and route.schema["y"] == pl.Float64
+    assert steering.height == 0 and steering.schema["utime"] == pl.Int64
+    aligned = pl.read_parquet(tmp_path / "out" / "sample_can_bus")
+    assert aligned.height == 4 and aligned["steeranglefeedback"].is_null().all()
+    assert aligned["steeranglefeedback_age_us"].is_null().all() and aligned["pose"].is_not_null().any()
+    export_json(tmp_path / "out", tmp_path / "back")
+    for message in ("route", "steeranglefeedback"):
+        assert json.loads(_path(tmp_path / "back", message).read_text()) == []

@@ -241,3 +241,83 @@ def test_bad_sensor_options_are_usage_errors(labelled_root, tmp_path, capsys):
         code = main(["convert", str(labelled_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "o"), *flags])
         assert code == 2 and message in capsys.readouterr().err
         assert not (tmp_path / "o").exists()
+
+
+def test_select_points_of_a_scene_and_one_channel_with_every_column_by_default(labelled_root, labelled_out):
+    """`select_points(index, scene=..., channel=...)`: every point of that channel's frames in the scene, in dataset
+    (time) order, each frame as the .pcd file holds it; without `columns` every column of the dataset; an unknown
+    column is refused by name."""
+    import nuparquet
+    from nuparquet.errors import UsageError
+    from nuparquet.frames.points import select_points
+    from nuparquet.sources.points import read_radar_pcd
+
+    ds = nuparquet.open(labelled_out)
+    index = ds._points_index("radar_points")
+    frames = (pl.read_parquet(labelled_out / "frames").filter(pl.col("modality") == "radar")
+              .sort("scene_name", "channel", "timestamp"))
+    scene = frames["scene_name"][0]
+    channels = sorted(set(frames.filter(pl.col("scene_name") == scene)["channel"]))
+    assert len(channels) > 1  # the filter has other channels' points to leave out
+    for channel in channels[:2]:
+        mine = frames.filter((pl.col("scene_name") == scene) & (pl.col("channel") == channel))
+        expected = np.concatenate([read_radar_pcd(labelled_root / f)["x"] for f in mine["filename"]])
+        got = select_points(index, scene=scene, channel=channel)
+        assert got.column_names == list(index.fields) == pq.read_schema(next((labelled_out / "radar_points")
+                                                                              .glob("*.parquet"))).names
+        assert set(got.column("channel").to_pylist()) == {channel}
+        assert np.array_equal(got.column("x").to_numpy(), expected)
+        assert got.column("sample_data_token").to_pylist() == [t for t, f in zip(mine["token"], mine["filename"])
+                                                               for _ in range(len(read_radar_pcd(labelled_root / f)))]
+    whole = select_points(index, scene=scene, columns=["channel"])
+    assert sorted(set(whole.column("channel").to_pylist())) == channels
+    with pytest.raises(UsageError, match=r"^no column 'nope', 'z2' \(columns: sample_data_token, "):
+        select_points(index, scene=scene, columns=["x", "nope", "z2"])
+
+
+def test_pcd_headers_with_an_unknown_line_or_lines_missing_are_refused_naming_both():
+    from nuparquet.sources.points import PointFileError, read_pcd_header
+
+    good = ("VERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 1\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n"
+            "POINTS 1\nDATA binary\n")
+    assert read_pcd_header("radar.pcd", good.encode()).data_offset == len(good)  # the well-formed header reads
+    for header, reason in (
+            (good.replace("VIEWPOINT", "COLOR"), "unexpected PCD header line 'COLOR' (expected one of VERSION, FIELDS, "
+                                                 "SIZE, TYPE, COUNT, WIDTH, HEIGHT, VIEWPOINT, POINTS, DATA)"),
+            (good.replace("SIZE 4 4\nTYPE F F\n", ""), "PCD header lacks SIZE, TYPE")):
+        with pytest.raises(PointFileError) as error:
+            read_pcd_header("radar.pcd", header.encode())
+        assert (error.value.path, error.value.reason) == ("radar.pcd", reason)
+
+
+def test_a_radar_pcd_whose_first_point_has_a_nan_passes_no_filter_as_the_devkit_reads_it_empty(tmp_path):
+    """The devkit's `RadarPointCloud.from_file` returns an empty cloud when the first point holds a NaN (its sign of
+    an empty file), whatever the states; a NaN in a later point does not empty it."""
+    from nuscenes.utils.data_classes import RadarPointCloud
+
+    from nuparquet.sources.points import passes_default_filters, read_radar_pcd
+    from nuparquet.synth.sensors import _RADAR_DTYPE, _RADAR_HEADER
+
+    for nan_at in (0, 1):
+        points = np.zeros(3, dtype=_RADAR_DTYPE)
+        points["x"] = [1.0, 2.0, 3.0]
+        points["ambig_state"], points["invalid_state"], points["dyn_prop"] = 3, 0, 1  # every filter passes
+        points["vx"][nan_at] = np.nan
+        path = tmp_path / f"nan-{nan_at}.pcd"
+        path.write_bytes(_RADAR_HEADER.format(n=3).encode("ascii") + points.tobytes() + b"\n")
+        expected = RadarPointCloud.from_file(str(path)).points.shape[1]
+        assert int(passes_default_filters(read_radar_pcd(path)).sum()) == expected == (0 if nan_at == 0 else 3)
+
+
+@pytest.mark.parametrize("data, shape", [(np.zeros((3, 1), np.uint16), "uint16 of shape (3, 1)"),
+                                         (np.zeros(3, np.float32), "float32 of shape (3,)")])
+def test_panoptic_labels_not_one_integer_per_point_are_refused(tmp_path, data, shape):
+    from nuparquet.sources.points import PointFileError, read_panoptic_npz
+
+    path = tmp_path / "labels.npz"
+    np.savez_compressed(path, data=data)
+    with pytest.raises(PointFileError) as error:
+        read_panoptic_npz(path)
+    assert error.value.reason == f"panoptic 'data' is {shape}, not one integer per point"
+    np.savez_compressed(path, data=np.array([0, 1001, 65535], np.int64))
+    assert read_panoptic_npz(path).tolist() == [0, 1001, 65535]

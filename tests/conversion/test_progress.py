@@ -62,3 +62,20 @@ def test_a_total_is_set_once():
     reporter.set_total(5)
     with pytest.raises(RuntimeError, match="already 5"):
         reporter.set_total(6)
+
+
+def test_a_total_below_what_is_already_done_is_raised_to_it():
+    """Units counted before the total was known (a total computed from an estimate, or late): the bar must not read
+    past 100 %, so the total is at least what is done."""
+    events = []
+    reporter = Reporter(events.append, "task")
+    reporter.advance(4)
+    reporter.set_total(3)
+    assert reporter.total == 4 and (events[-1].done, events[-1].total) == (4, 4)
+
+
+def test_every_event_names_its_task():
+    events = []
+    with Reporter(events.append, "render scene-0001 CAM_FRONT", total=2, unit="frame") as reporter:
+        reporter.advance()
+    assert {(e.task, e.unit) for e in events} == {("render scene-0001 CAM_FRONT", "frame")} and events[-1].finished

@@ -13,3 +13,11 @@ def square_into_part(unit: WorkUnit, part: Path) -> int:
         raise ValueError(f"negative input {unit.args}")
     (part / "value.txt").write_text(str(unit.args ** 2))
     return unit.args ** 2
+
+
+STATE: dict = {}  # set by a test in its own process: a worker that sees it was forked from that process
+
+
+def parent_state_seen(unit: WorkUnit, part: Path) -> bool:
+    """Whether this worker sees what the test process put in STATE."""
+    return bool(STATE.get("in_parent_only"))

@@ -133,5 +133,38 @@ def test_a_failed_unit_leaves_no_part_in_the_commit(tmp_path):
                          options=EngineOptions(engine="serial", keep_going=True))
     committed = move_parts(outcomes, tmp_path / "parts", tmp_path / "dataset")
     assert [(p.name, p.read_text()) for p in committed] == [("00000-value.txt", "4"), ("00002-value.txt", "9")]
-    with pytest.raises(UnitsFailed, match="bad: ValueError"):
+    with pytest.raises(UnitsFailed, match="bad: ValueError") as failed:
         raise_failures(outcomes)
+    # after --keep-going the others did finish and were committed: the message must not say otherwise
+    assert "1 unit(s) failed; the other units finished:" in str(failed.value)
+    assert "nothing was committed" not in str(failed.value)
+
+
+def test_parts_and_output_folders_are_made_with_their_parents_and_an_existing_output_folder_is_kept(tmp_path):
+    parts, dest = tmp_path / "deep" / "parts", tmp_path / "out" / "nested" / "dataset"
+    outcomes = run_units(square_into_part, [WorkUnit("a", 2)], parts_dir=parts, options=EngineOptions(engine="serial"))
+    assert [p.read_text() for p in move_parts(outcomes, parts, dest)] == ["4"]
+    again = run_units(square_into_part, [WorkUnit("b", 3)], parts_dir=parts, options=EngineOptions(engine="serial"))
+    assert [p.name for p in move_parts(again, parts, dest)] == ["00000-value.txt"]  # into the existing folder
+    assert (dest / "00000-value.txt").read_text() == "9"
+
+
+def test_peak_memory_is_reported_in_mb_to_one_decimal(tmp_path):
+    outcome, = run_units(square_into_part, [WorkUnit("a", 2)], parts_dir=tmp_path, options=EngineOptions(engine="serial"))
+    assert type(outcome.peak_rss_mb) is float and outcome.peak_rss_mb == round(outcome.peak_rss_mb, 1) > 1.0
+
+
+@pytest.mark.parametrize("preload", [(), ("tasks",)])
+def test_process_pool_workers_start_fresh_without_the_parents_state(tmp_path, preload):
+    """Workers are spawned (or forked from a forkserver that only imported `preload`), never forked from the
+    parent, whose thread pools may hold a lock: a module global the parent changed is back to its initial value
+    in the workers."""
+    import tasks
+
+    tasks.STATE["in_parent_only"] = True
+    try:
+        outcomes = run_units(tasks.parent_state_seen, [WorkUnit("a", 0), WorkUnit("b", 0)], parts_dir=tmp_path,
+                             options=EngineOptions(engine="process", workers=2), preload=preload)
+    finally:
+        tasks.STATE.clear()
+    assert [(o.ok, o.value) for o in outcomes] == [(True, False), (True, False)]

@@ -83,3 +83,29 @@ def test_the_edge_submission_reaches_the_exact_boundaries(submissions, eval_nusc
     assert 0 < flipped < len(eval_edits["duplicates"])
     assert edge_placement["on_duplicates"] and edge_placement["in_rack"]
     assert len(eval_edits["in_rack"]) >= 2 and len(eval_edits["outside_rack"]) == 3
+
+
+def test_tp_errors_above_one_score_zero_and_nds_follows_the_devkit():
+    """A mean TP error above 1 (a 1.7 m translation error is common for a weak detector) scores 0, not -0.7: the
+    devkit clips each TP score to [0, 1] before NDS. Our DetectionMetrics against the devkit's on the same table."""
+    from nuscenes.eval.detection.config import config_factory
+    from nuscenes.eval.detection.data_classes import DetectionMetrics as DevkitMetrics
+
+    from nuparquet.evaluation.config import named_config
+    from nuparquet.evaluation.metrics import TP_METRICS, DetectionMetrics
+
+    config = named_config("detection_cvpr_2019")
+    theirs = DevkitMetrics(config_factory("detection_cvpr_2019"))
+    label_aps, label_tp_errors = {}, {}
+    for i, name in enumerate(config.class_names):
+        label_aps[name] = {th: 0.1 * (i % 7) + 0.01 * k for k, th in enumerate(config.dist_ths)}
+        label_tp_errors[name] = {metric: 1.7 if metric == "trans_err" else 0.2 + 0.05 * j
+                                 for j, metric in enumerate(TP_METRICS)}
+        for th, ap in label_aps[name].items():
+            theirs.add_label_ap(name, th, ap)
+        for metric, error in label_tp_errors[name].items():
+            theirs.add_label_tp(name, metric, error)
+    ours = DetectionMetrics(config, label_aps, label_tp_errors)
+    assert ours.tp_scores["trans_err"] == theirs.tp_scores["trans_err"] == 0.0
+    assert ours.tp_scores == pytest.approx(theirs.tp_scores, abs=1e-12)
+    assert ours.nd_score == pytest.approx(theirs.nd_score, abs=1e-12)

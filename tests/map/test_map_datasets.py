@@ -101,6 +101,15 @@ def test_geoparquet_files_read_by_geopandas_with_types_and_bounds(map_out, devki
         assert column["encoding"] == "WKB" and column["geometry_types"] == [geom_type] and column["crs"] is None
         assert column["covering"]["bbox"]["xmin"] == ["bbox", "xmin"]
         assert column["bbox"] == pytest.approx(list(frame.total_bounds), abs=0)
+    # every map layer (the centerlines too) says where its coordinates come from: each map's canvas and version
+    # as its JSON holds them; the centerlines their resolution (the devkit's get_closest_lane: 0.5 m)
+    for layer, resolution in (("node", None), ("lane", None), ("lane_centerlines", 0.5)):
+        path = next((map_out / "map" / layer).glob("*.parquet"))
+        facts = json.loads(pq.read_schema(path).metadata[b"nuparquet.map"])
+        assert facts.get("resolution_m") == resolution and set(facts["maps"]) == set(devkit_maps), layer
+        for location, nusc_map in devkit_maps.items():
+            assert facts["maps"][location]["canvas_edge_m"] == list(nusc_map.canvas_edge), (layer, location)
+            assert facts["maps"][location]["version"] == nusc_map.version, (layer, location)
     lanes = geopandas.read_parquet(next((map_out / "map" / "lane").glob("*.parquet")))
     for location, nusc_map in devkit_maps.items():
         ours = lanes[lanes.location == location].total_bounds
@@ -178,6 +187,21 @@ def test_bad_map_files_are_problems_naming_file_and_token(small_root, tmp_path, 
     if token:
         assert f"token={token}" in err
     assert not out.exists()
+
+
+def test_problems_in_two_map_files_are_all_reported(small_root, tmp_path, capsys):
+    first = _first_map(small_root)
+    second = first.with_name("singapore-onenorth.json" if first.stem != "singapore-onenorth" else "boston-seaport.json")
+    shutil.copy(first, second)  # a second map file, read after or before the first
+    paths = sorted([first, second])
+    for path, version in zip(paths, ("1.1", "1.2")):
+        data = json.loads(path.read_text())
+        data["version"] = version
+        path.write_text(json.dumps(data))
+    assert main(["convert", str(small_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "out"), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    for path, version in zip(paths, ("1.1", "1.2")):
+        assert f"maps/expansion/{path.name}" in err and f"map version '{version}' is older than 1.3" in err, err
 
 
 def test_truncated_map_file_is_a_problem(small_root, tmp_path, capsys):

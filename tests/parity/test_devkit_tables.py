@@ -321,3 +321,25 @@ def test_without_kept_records_every_access_builds_an_equal_new_dict(extract_out,
     import pickle
 
     assert pickle.loads(pickle.dumps(lean))._keep_records is False
+
+
+def test_a_log_listed_by_two_maps_takes_the_last_maps_token_as_the_devkit_does(synth_root, tmp_path, devkit):
+    """The devkit builds log['map_token'] from a dict filled map by map: a log listed by two maps gets the later
+    map's token."""
+    import json
+
+    from nuparquet.conversion import convert
+
+    root = tmp_path / "data"
+    for part in synth_root.iterdir():  # the tables, maps and label folders the devkit opens; not the sensor files
+        if part.is_dir() and part.name not in ("samples", "sweeps"):
+            shutil.copytree(part, root / part.name)
+    maps = json.loads((root / SYNTH_VERSION / "map.json").read_text())
+    assert len(maps) >= 2
+    shared = maps[0]["log_tokens"][0]
+    maps[-1]["log_tokens"].append(shared)
+    (root / SYNTH_VERSION / "map.json").write_text(json.dumps(maps))
+    convert(root, SYNTH_VERSION, tmp_path / "out")
+    ours = NuScenes(SYNTH_VERSION, dataroot=str(root), parquet=tmp_path / "out", verbose=False)
+    theirs = devkit.NuScenes(SYNTH_VERSION, dataroot=str(root), verbose=False)
+    assert ours.get("log", shared)["map_token"] == theirs.get("log", shared)["map_token"] == maps[-1]["token"]

@@ -146,6 +146,16 @@ def test_splits_color_map_and_label_files_are_the_devkits(dk_utils, extract_trai
         data_io.load_bin_file(str(lidarseg), type="other")
 
 
+def test_an_empty_label_file_fails_with_the_devkits_assertion_word_for_word(dk_utils, tmp_path):
+    empty = tmp_path / "empty-labels.bin"
+    empty.write_bytes(b"")
+    with pytest.raises(AssertionError) as theirs:
+        dk_utils["data_io"].load_bin_file(str(empty))
+    with pytest.raises(AssertionError) as ours:
+        data_io.load_bin_file(str(empty))
+    assert str(ours.value) == str(theirs.value) == f"Error: {empty} is empty."
+
+
 def test_point_cloud_files_and_their_methods_give_the_devkits_numbers(dk_utils, labelled_root, extract_root):
     D = dk_utils["data_classes"]
     lidar = str(next((labelled_root / "samples" / "LIDAR_TOP").glob("*.pcd.bin")))

@@ -50,6 +50,8 @@ def test_closest_lane_for_many_points(maps):
         mine = ours.closest_lane(points[:, 0], points[:, 1], radius_m=5.0)
         expected = [nusc_map.get_closest_lane(x, y, radius=5.0) for x, y in points]
         assert mine.tolist() == expected
+        # in blocks of 64 points (the default block holds 4096): each block's answers go to its own points
+        assert ours.closest_lane(points[:, 0], points[:, 1], radius_m=5.0, chunk=64).tolist() == expected
         hits += sum(e != "" for e in expected)
         wide = ours.closest_lane(points[:50, 0], points[:50, 1], radius_m=12.5)
         assert wide.tolist() == [nusc_map.get_closest_lane(x, y, radius=12.5) for x, y in points[:50]]
@@ -76,6 +78,18 @@ def test_discretize_lanes_equals_the_devkit(maps):
         tokens = [r["token"] for r in nusc_map.lane[:30] + nusc_map.lane_connector[:10]]
         for resolution in (0.5, 1.3):
             assert ours.discretize_lanes(tokens, resolution) == nusc_map.discretize_lanes(tokens, resolution)
+
+
+def test_discretize_lanes_names_the_unknown_tokens_the_first_five_then_dots(maps):
+    from nuparquet.errors import UsageError
+
+    for location, (_, ours) in maps.items():
+        with pytest.raises(UsageError, match=rf"^no lane or lane connector 'nope' in the map of {location}$"):
+            ours.discretize_lanes(["nope"], 1.0)
+        six = [f"t{i}" for i in range(6)]
+        with pytest.raises(UsageError, match=rf"^no lane or lane connector 't0', 't1', 't2', 't3', 't4' \.\.\. in "
+                                             rf"the map of {location}$"):
+            ours.discretize_lanes(six, 1.0)
 
 
 def test_map_mask_is_pixel_equal(maps):
@@ -131,7 +145,7 @@ def test_closest_lane_ties_go_to_the_later_candidate_as_the_devkit_does(maps):
 
 def test_a_line_node_exactly_on_the_patch_edge_is_not_inside_the_patch(maps):
     """get_records_in_patch keeps a line layer record when one of its nodes lies strictly inside the patch: a node
-    exactly on an edge does not count. Tiny patches (1e-6 m) with the node on their left, right or bottom edge
+    exactly on an edge does not count. Tiny patches (1e-6 m) with the node on their left, right, bottom or top edge
     hold no other node, so the edge rule alone decides; a patch around the node holds it."""
     checked = 0
     e = 1e-6
@@ -140,7 +154,8 @@ def test_a_line_node_exactly_on_the_patch_edge_is_not_inside_the_patch(maps):
             node = nusc_map.get("node", nusc_map.get("line", record["line_token"])["node_tokens"][0])
             x, y = node["x"], node["y"]
             for box, holds in (((x, y - e, x + e, y + e), False), ((x - e, y - e, x, y + e), False),
-                               ((x - e, y, x + e, y + e), False), ((x - e, y - e, x + e, y + e), True)):
+                               ((x - e, y, x + e, y + e), False), ((x - e, y - e, x + e, y), False),
+                               ((x - e, y - e, x + e, y + e), True)):
                 for mode in ("intersect", "within"):
                     expected = nusc_map.get_records_in_patch(box, ["lane_divider", "road_segment"], mode=mode)
                     assert ours.records_in_patch(box, ["lane_divider", "road_segment"], mode=mode) == expected

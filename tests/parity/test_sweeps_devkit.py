@@ -71,3 +71,49 @@ def test_a_channel_without_a_keyframe_in_the_sample_is_named(synth_out):
         multisweep(ds, sample, "CAM_NOPE")
     with pytest.raises(nuparquet.UsageError, match="nsweeps must be at least 1"):
         multisweep(ds, sample, "LIDAR_TOP", nsweeps=0)
+
+
+def test_radar_default_filters_drop_the_returns_the_devkit_drops(synth_root, synth_out, devkit, tmp_path):
+    """The generator's radar returns all pass the devkit's default filters; here a copy of the dataroot's tables,
+    maps and RADAR_FRONT files marks some returns invalid, ambiguous or of an unknown dynamic property: multisweep's
+    default (filters on) drops exactly those the devkit's `RadarPointCloud.from_file_multisweep` drops."""
+    import shutil
+
+    from nuscenes.utils.data_classes import RadarPointCloud
+
+    root = tmp_path / "data"
+    for part in synth_root.iterdir():  # the tables, maps and label folders the devkit opens; not the sensor files
+        if part.is_dir() and part.name not in ("samples", "sweeps"):
+            shutil.copytree(part, root / part.name)
+    files = sorted({p for folder in ("samples", "sweeps") for p in (synth_root / folder / "RADAR_FRONT").glob("*.pcd")})
+    marked = 0
+    for path in files:
+        data = path.read_bytes()
+        head = data.index(b"DATA binary\n") + len(b"DATA binary\n")
+        points = np.frombuffer(data[head:-1], dtype=_radar_dtype(data[:head])).copy()
+        states = np.arange(len(points)) % 4
+        points["invalid_state"][states == 1] = 4  # only 0 is kept
+        points["ambig_state"][states == 2] = 1  # only 3 is kept
+        points["dyn_prop"][states == 3] = 7  # 0..6 are kept
+        marked += int((states > 0).sum())
+        target = root / path.relative_to(synth_root)
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_bytes(data[:head] + points.tobytes() + data[-1:])
+    nusc = devkit.NuScenes(SYNTH_VERSION, str(root), verbose=False)
+    ds = nuparquet.open(synth_out)
+    kept = 0
+    for sample in nusc.sample[2:5]:
+        pc, times = RadarPointCloud.from_file_multisweep(nusc, sample, "RADAR_FRONT", "LIDAR_TOP", nsweeps=3)
+        ours = multisweep(ds, sample["token"], "RADAR_FRONT", "LIDAR_TOP", 3, dataroot=root)
+        np.testing.assert_allclose(ours.points, pc.points.T, rtol=0, atol=1e-9)
+        assert np.array_equal(ours.times_s, times[0])
+        everything = multisweep(ds, sample["token"], "RADAR_FRONT", "LIDAR_TOP", 3, dataroot=root, radar_filters=False)
+        assert len(everything.points) > len(ours.points) > 0
+        kept += len(ours.points)
+    assert marked > 0 and kept > 0
+
+
+def _radar_dtype(header: bytes) -> np.dtype:
+    lines = dict(line.split(" ", 1) for line in header.decode("ascii").splitlines() if " " in line)
+    names, sizes, kinds = lines["FIELDS"].split(), lines["SIZE"].split(), lines["TYPE"].split()
+    return np.dtype([(n, f"<{k.lower()}{s}") for n, s, k in zip(names, sizes, kinds)])

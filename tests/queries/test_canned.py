@@ -206,7 +206,7 @@ def test_scene_summary_equals_python_walk_of_each_scene(case):
 
 
 def _python_ego_motion(source: JsonSource) -> dict[str, list[tuple]]:
-    """scene -> [(timestamp, speed, accel)] from the LIDAR_TOP keyframe poses, in sample order."""
+    """scene -> [(timestamp, speed, accel, (x, y, z))] from the LIDAR_TOP keyframe poses, in sample order."""
     out = {}
     for scene in source.t["scene"]:
         poses = [source.lidar_pose[s["token"]] for s in source.scene_samples(scene) if s["token"] in source.lidar_pose]
@@ -219,7 +219,7 @@ def _python_ego_motion(source: JsonSource) -> dict[str, list[tuple]]:
                 if i >= 2:
                     accel = (speed - speeds[-1]) / ((t - poses[i - 2][0]) / 2e6)
             speeds.append(speed)
-            rows.append((t, speed, accel))
+            rows.append((t, speed, accel, tuple(pose["translation"])))
         out[scene["name"]] = rows
     return out
 
@@ -231,7 +231,8 @@ def test_ego_motion_equals_python_finite_differences_of_lidar_keyframe_poses(cas
     for scene_name, rows in expected.items():
         got = ours.filter(pl.col("scene_name") == scene_name)
         assert got["timestamp"].to_list() == [r[0] for r in rows]
-        for (_, speed, accel), got_speed, got_accel in zip(rows, got["speed_mps"], got["accel_mps2"]):
+        assert list(zip(got["x_m"], got["y_m"], got["z_m"])) == [r[3] for r in rows]  # the ego position, z too
+        for (_, speed, accel, _), got_speed, got_accel in zip(rows, got["speed_mps"], got["accel_mps2"]):
             assert (got_speed is None) == (speed is None) and (got_accel is None) == (accel is None)
             if speed is not None:
                 assert got_speed == pytest.approx(speed, rel=1e-9)

@@ -148,3 +148,38 @@ def test_bev_points_take_their_lidarseg_class_colour(labelled_images, tmp_path):
         k, sample_token = k + 1, sample["next"]
     assert checked > 500
     assert equal / checked > 0.9, (equal, checked)  # the rest: under boxes and the ego, drawn on top
+
+
+def test_panoptic_colours_are_the_devkits_table_per_instance_label():
+    """Thing instances of one class get their own colours (the devkit's `generate_panoptic_colors` table indexed by
+    the whole label), stuff its class colour, 0 the noise colour."""
+    from nuscenes.panoptic.panoptic_utils import generate_panoptic_colors
+    from nuscenes.utils.color_map import get_colormap
+
+    from nuparquet.rendering.point_colors import label_rgb
+
+    name2idx = {name: index for index, name in enumerate(get_colormap())}  # the lidarseg classes, noise = 0
+    names = {index: name for name, index in name2idx.items()}
+    assert names[17] == "vehicle.car" and names[24] == "flat.driveable_surface"
+    state = np.random.get_state()
+    table = generate_panoptic_colors(get_colormap(), name2idx)
+    np.random.set_state(state)
+    labels = np.array([17001, 17002, 24000, 0, 17001])
+    got = label_rgb(labels, "panoptic", names)
+    expected = np.rint(table[[17001, 17002]] * 255.0).astype(np.uint8)
+    assert got[:2].tolist() == expected.tolist() and got[0].tolist() != got[1].tolist()
+    assert got[2].tolist() == list(get_colormap()["flat.driveable_surface"])
+    assert got[3].tolist() == list(get_colormap()["noise"]) and got[4].tolist() == got[0].tolist()
+
+
+def test_intensity_levels_are_the_devkits_and_floored_at_zero():
+    """`map_pointcloud_to_image(render_intensity=True)`: min-max scaled, to the power 0.1, minus 0.5, floored at 0:
+    an intensity below 0.5**10 of the span (~0.1 %) is level 0, not negative."""
+    from nuparquet.rendering.point_colors import intensity_levels
+
+    intensity = np.array([2.0, 2.0005, 3.0, 4.0])  # scaled: 0, 0.00025, 0.5, 1
+    scaled = (intensity - 2.0) / 2.0
+    expected = np.maximum(0.0, scaled ** 0.1 - 0.5)  # the devkit's lines, in order
+    assert expected[1] == 0.0 and scaled[1] ** 0.1 - 0.5 < 0  # the floor is reached
+    np.testing.assert_array_equal(intensity_levels(intensity), expected)
+    assert intensity_levels(np.full(3, 7.0)).tolist() == [0.0, 0.0, 0.0]  # no span: every level 0

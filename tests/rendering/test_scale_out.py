@@ -232,3 +232,25 @@ def test_points_convert_to_the_same_bytes_on_ray_the_process_pool_and_one_proces
         expected = np.fromfile(points_root / record["filename"], dtype=np.float32).reshape(-1, 5)
         ours = table[table["sample_data_token"] == record["token"]].sort_values("point_index")
         assert np.array_equal(ours[["x", "y", "z", "intensity"]].to_numpy(np.float32), expected[:, :4])
+
+
+def test_a_second_run_keeps_the_summary_entries_of_scenes_it_did_not_render_and_ignores_a_broken_summary(
+        scenes_out, tmp_path, capsys):
+    """The summary lists every video in the folder: rendering one more scene keeps the entries of the scenes an
+    earlier run rendered there (their files are present); a summary that is not a summary (a JSON list, `scenes`
+    not an object) is read as none, not a crash."""
+    from nuparquet.rendering.options import SUMMARY_NAME
+
+    out_dir = tmp_path / "videos"
+    assert main(["render", str(scenes_out), "--scenes", "scene-0001", "--out-dir", str(out_dir), "--engine", "serial",
+                 *SMALL]) == 0
+    assert main(["render", str(scenes_out), "--scenes", "scene-0002", "--out-dir", str(out_dir), "--engine", "serial",
+                 *SMALL]) == 0
+    summary = json.loads((out_dir / SUMMARY_NAME).read_text())
+    assert sorted(summary["scenes"]) == ["scene-0001", "scene-0002"]
+    assert summary["scenes"]["scene-0001"]["video"] == "scene-0001.mp4"
+    for broken in ("[]", '{"scenes": []}'):
+        (out_dir / SUMMARY_NAME).write_text(broken)
+        assert main(["render", str(scenes_out), "--scenes", "scene-0002", "--out-dir", str(out_dir), "--engine",
+                     "serial", "--resume", *SMALL]) == 0
+        assert sorted(json.loads((out_dir / SUMMARY_NAME).read_text())["scenes"]) == ["scene-0002"]

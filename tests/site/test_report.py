@@ -303,3 +303,13 @@ def test_real_scenes_local_times_can_bus_and_videos(real_report):
         assert sorted(p.name for p in (real_report.out / "scenes" / scene).iterdir()) == [
             "can_speed.png", "steering.png", "still-0.jpg", "still-1.jpg"]
     assert real_report.problems == {}
+
+
+def test_table_cells_are_escaped_as_text():
+    import polars as pl
+
+    from nuparquet.site.html import table
+
+    html = table(pl.DataFrame({"description": ["night, <rain> & fog"], "n": [3]}))
+    assert '">night, &lt;rain&gt; &amp; fog</td>' in html and "<rain>" not in html
+    assert '<td class="num" data-sort="3">3</td>' in html

@@ -104,3 +104,17 @@ def test_an_extra_table_names_a_record_by_its_0_based_index_and_keeps_each_recor
     table, problems = read_extra_table(path)
     assert problems == [] and table.name == "vehicle_state"
     assert table.inferred["key_orders"] == {"1": ["speed", "token"]} and table.inferred["keys"] == ["token", "speed"]
+
+
+def test_range_facts_renumber_a_later_files_records_from_its_first():
+    """Records of several files typed together (one CAN bus message type over scenes): the facts of file 2
+    (records 3..5) name its records 0..2, an integer inside a list by (record, element)."""
+    import pyarrow as pa
+
+    from nuparquet.sources.json_records import Columns, range_facts
+
+    columns = Columns(pa.table({"v": [0.0] * 6}), ["v"], int_values={"v": [1, 4], "pos": [[0, 2], [5, 1]]},
+                      key_orders={2: ["b", "a"], 3: ["v", "utime"]})
+    assert range_facts(columns, 0, 3) == {"int_values": {"v": [1], "pos": [[0, 2]]}, "key_orders": {"2": ["b", "a"]}}
+    assert range_facts(columns, 3, 6) == {"int_values": {"v": [1], "pos": [[2, 1]]}, "key_orders": {"0": ["v", "utime"]}}
+    assert range_facts(columns, 6, 6) == {}

@@ -1,0 +1,30 @@
+"""The CLI's plain-text tables (numbers right-aligned, text left-aligned) and `options_from` (what a command sets
+itself wins over a parsed flag of the same name)."""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+
+import polars as pl
+
+from nuparquet.cli.arguments import options_from
+from nuparquet.cli.output import format_table
+
+
+def test_numbers_are_right_aligned_and_text_left_aligned():
+    table = format_table(pl.DataFrame({"name": ["a", "bbbbbb"], "count": [7, 12345]}))
+    assert table.splitlines() == ["name    count", "------  -----", "a           7", "bbbbbb  12345"]
+
+
+@dataclass(frozen=True)
+class _Options:
+    scale: float = 1.0
+    quiet: bool = False
+
+
+def test_what_the_command_sets_wins_over_the_parsed_flag_of_the_same_name():
+    parsed = argparse.Namespace(scale=0.5, quiet=False, unrelated=3)
+    assert options_from(parsed, _Options) == _Options(scale=0.5, quiet=False)
+    assert options_from(parsed, _Options, quiet=True) == _Options(scale=0.5, quiet=True)
+    assert options_from(argparse.Namespace(), _Options, scale=2.0) == _Options(scale=2.0)
