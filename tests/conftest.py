@@ -4,6 +4,7 @@ datasets, and their conversions. Conversions are session-scoped: every test read
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import pytest
@@ -303,6 +304,29 @@ def lyft_rig_root(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def lyft_rig_out(lyft_rig_root, tmp_path_factory) -> Path:
     return converted(tmp_path_factory, "lyft-rig-out", lyft_rig_root, LYFT_RIG_VERSION)
+
+
+@pytest.fixture(scope="session")
+def tiny_map_root(tmp_path_factory) -> Path:
+    """One scene, two samples, one map: the input the bad-map tests damage, each in its own copy (`small_map_root`;
+    a conversion takes a fraction of a second)."""
+    from nuparquet.synth import synthesize
+
+    return synthesize(tmp_path_factory.mktemp("tiny-map") / "data", scenes=1, samples_per_scene=2, seed=9,
+                      version=SYNTH_VERSION, with_can_bus=False)
+
+
+@pytest.fixture
+def small_map_root(tiny_map_root, tmp_path) -> Path:
+    """A fresh copy of `tiny_map_root` for a test to damage."""
+    copy = tmp_path / "data"
+    shutil.copytree(tiny_map_root, copy)
+    return copy
+
+
+def first_map(root: Path) -> Path:
+    """The first map expansion file of a dataroot."""
+    return sorted((root / "maps" / "expansion").glob("*.json"))[0]
 
 
 @pytest.fixture(scope="session")

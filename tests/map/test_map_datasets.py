@@ -13,7 +13,7 @@ import pytest
 import shapely
 from shapely.geometry import MultiPolygon
 
-from conftest import SYNTH_VERSION
+from conftest import SYNTH_VERSION, first_map
 from nuparquet.cli.main import main
 from nuparquet.conversion import convert
 from nuparquet.export.json_files import export_json
@@ -128,28 +128,8 @@ def test_export_json_writes_every_map_file_back_exactly(map_root, map_out, tmp_p
         assert json.dumps(a) == json.dumps(b)  # key order everywhere, ints stay ints (1 vs 1.0)
 
 
-@pytest.fixture(scope="module")
-def tiny_root(tmp_path_factory):
-    """One scene, two samples, one map: the input the bad-map tests damage (a conversion takes a fraction of a s)."""
-    from nuparquet.synth import synthesize
-
-    return synthesize(tmp_path_factory.mktemp("tiny-map") / "data", scenes=1, samples_per_scene=2, seed=9,
-                      version=SYNTH_VERSION, with_can_bus=False)
-
-
-@pytest.fixture
-def small_root(tiny_root, tmp_path):
-    copy = tmp_path / "data"
-    shutil.copytree(tiny_root, copy)
-    return copy
-
-
-def _first_map(root):
-    return sorted((root / "maps" / "expansion").glob("*.json"))[0]
-
-
-def test_unusual_values_come_back_exactly(small_root, tmp_path):
-    path = _first_map(small_root)
+def test_unusual_values_come_back_exactly(small_map_root, tmp_path):
+    path = first_map(small_map_root)
     data = json.loads(path.read_text())
     data["node"][3]["x"] = 512  # an integer coordinate among floats
     data["lane"][0] = dict(reversed(list(data["lane"][0].items())))  # another key order
@@ -158,7 +138,7 @@ def test_unusual_values_come_back_exactly(small_root, tmp_path):
     nodes = [n["token"] for n in data["node"][:2]]
     data["polygon"].append({"token": "degenerate", "exterior_node_tokens": nodes, "holes": []})  # no polygon: null
     path.write_text(json.dumps(data))
-    convert(small_root, SYNTH_VERSION, tmp_path / "out")
+    convert(small_map_root, SYNTH_VERSION, tmp_path / "out")
     degenerate = [r for r in _layer(tmp_path / "out", "polygon") if r["token"] == "degenerate"]
     assert degenerate[0]["geometry"] is None and degenerate[0]["bbox"] is None
     export_json(tmp_path / "out", tmp_path / "back")
@@ -174,14 +154,14 @@ def test_unusual_values_come_back_exactly(small_root, tmp_path):
     (lambda d: d["lane"][2].__setitem__("polygon_token", "nope"), "lane field polygon_token names polygon 'nope'"),
     (lambda d: d.pop("lane_connector"), "lacks the layer(s) lane_connector"),
 ])
-def test_bad_map_files_are_problems_naming_file_and_token(small_root, tmp_path, capsys, change, expected):
-    path = _first_map(small_root)
+def test_bad_map_files_are_problems_naming_file_and_token(small_map_root, tmp_path, capsys, change, expected):
+    path = first_map(small_map_root)
     data = json.loads(path.read_text())
     token = data["polygon"][5]["token"] if "exterior" in expected else data["lane"][2]["token"] if "nope" in expected else None
     change(data)
     path.write_text(json.dumps(data))
     out = tmp_path / "out"
-    assert main(["convert", str(small_root), "--version", SYNTH_VERSION, "--out", str(out), "--quiet"]) == 1
+    assert main(["convert", str(small_map_root), "--version", SYNTH_VERSION, "--out", str(out), "--quiet"]) == 1
     err = capsys.readouterr().err
     assert f"maps/expansion/{path.name}" in err and expected in err, err
     if token:
@@ -189,8 +169,8 @@ def test_bad_map_files_are_problems_naming_file_and_token(small_root, tmp_path, 
     assert not out.exists()
 
 
-def test_problems_in_two_map_files_are_all_reported(small_root, tmp_path, capsys):
-    first = _first_map(small_root)
+def test_problems_in_two_map_files_are_all_reported(small_map_root, tmp_path, capsys):
+    first = first_map(small_map_root)
     second = first.with_name("singapore-onenorth.json" if first.stem != "singapore-onenorth" else "boston-seaport.json")
     shutil.copy(first, second)  # a second map file, read after or before the first
     paths = sorted([first, second])
@@ -198,24 +178,24 @@ def test_problems_in_two_map_files_are_all_reported(small_root, tmp_path, capsys
         data = json.loads(path.read_text())
         data["version"] = version
         path.write_text(json.dumps(data))
-    assert main(["convert", str(small_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "out"), "--quiet"]) == 1
+    assert main(["convert", str(small_map_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "out"), "--quiet"]) == 1
     err = capsys.readouterr().err
     for path, version in zip(paths, ("1.1", "1.2")):
         assert f"maps/expansion/{path.name}" in err and f"map version '{version}' is older than 1.3" in err, err
 
 
-def test_truncated_map_file_is_a_problem(small_root, tmp_path, capsys):
-    path = _first_map(small_root)
+def test_truncated_map_file_is_a_problem(small_map_root, tmp_path, capsys):
+    path = first_map(small_map_root)
     path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
-    assert main(["convert", str(small_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "out"), "--quiet"]) == 1
+    assert main(["convert", str(small_map_root), "--version", SYNTH_VERSION, "--out", str(tmp_path / "out"), "--quiet"]) == 1
     assert f"maps/expansion/{path.name}: not valid JSON" in capsys.readouterr().err
 
 
-def test_no_map_flag_and_missing_folder_skip_with_a_reason(small_root, tmp_path):
-    manifest = convert(small_root, SYNTH_VERSION, tmp_path / "a", no_map=True)
+def test_no_map_flag_and_missing_folder_skip_with_a_reason(small_map_root, tmp_path):
+    manifest = convert(small_map_root, SYNTH_VERSION, tmp_path / "a", no_map=True)
     assert manifest["skipped"]["map"] == "not requested (--no-map)"
     assert not (tmp_path / "a" / "map").exists()
-    shutil.rmtree(small_root / "maps" / "expansion")
-    manifest = convert(small_root, SYNTH_VERSION, tmp_path / "b")
+    shutil.rmtree(small_map_root / "maps" / "expansion")
+    manifest = convert(small_map_root, SYNTH_VERSION, tmp_path / "b")
     assert manifest["skipped"]["map"] == "no maps/expansion/ folder in the dataroot"
     assert not any(name.startswith("map/") for name in manifest["datasets"])

@@ -5,33 +5,13 @@ values that Arrow would change (an int among floats, another key order) must com
 from __future__ import annotations
 
 import json
-import shutil
 
 import pytest
 
-from conftest import SYNTH_VERSION
+from conftest import SYNTH_VERSION, first_map
 from nuparquet.cli.main import main
 from nuparquet.conversion import convert
 from nuparquet.export.json_files import export_json
-
-
-@pytest.fixture(scope="module")
-def tiny_root(tmp_path_factory):
-    from nuparquet.synth import synthesize
-
-    return synthesize(tmp_path_factory.mktemp("tiny-map-edges") / "data", scenes=1, samples_per_scene=2, seed=9,
-                      version=SYNTH_VERSION, with_can_bus=False)
-
-
-@pytest.fixture
-def small_root(tiny_root, tmp_path):
-    copy = tmp_path / "data"
-    shutil.copytree(tiny_root, copy)
-    return copy
-
-
-def _first_map(root):
-    return sorted((root / "maps" / "expansion").glob("*.json"))[0]
 
 
 def _with_hole(d):
@@ -53,14 +33,14 @@ def _with_hole(d):
      "walkway must be a list of objects with a token", lambda d: None),
     (lambda d: d["node"][4].__setitem__("token", 7), "node must be a list of objects with a token", lambda d: None),
 ])
-def test_damage_the_fast_checks_must_still_find(small_root, tmp_path, capsys, change, expected, token_of):
-    path = _first_map(small_root)
+def test_damage_the_fast_checks_must_still_find(small_map_root, tmp_path, capsys, change, expected, token_of):
+    path = first_map(small_map_root)
     data = json.loads(path.read_text())
     change(data)
     token = token_of(data)
     path.write_text(json.dumps(data))
     out = tmp_path / "out"
-    assert main(["convert", str(small_root), "--version", SYNTH_VERSION, "--out", str(out), "--quiet"]) == 1
+    assert main(["convert", str(small_map_root), "--version", SYNTH_VERSION, "--out", str(out), "--quiet"]) == 1
     err = capsys.readouterr().err
     assert f"maps/expansion/{path.name}" in err and expected in err, err
     if token:
@@ -68,15 +48,15 @@ def test_damage_the_fast_checks_must_still_find(small_root, tmp_path, capsys, ch
     assert not out.exists()
 
 
-def test_nested_values_arrow_would_change_come_back_exactly(small_root, tmp_path):
-    path = _first_map(small_root)
+def test_nested_values_arrow_would_change_come_back_exactly(small_map_root, tmp_path):
+    path = first_map(small_map_root)
     data = json.loads(path.read_text())
     lanes = [lane for lane in data["lane"] if lane["left_lane_divider_segments"]]
     segment = lanes[0]["left_lane_divider_segments"][0]
     lanes[0]["left_lane_divider_segments"][0] = dict(reversed(list(segment.items())))  # another key order inside
     data["traffic_light"][0]["pose"]["tx"] = 3  # an int where the other lights have floats
     path.write_text(json.dumps(data))
-    convert(small_root, SYNTH_VERSION, tmp_path / "out")
+    convert(small_map_root, SYNTH_VERSION, tmp_path / "out")
     export_json(tmp_path / "out", tmp_path / "back")
     again = json.loads((tmp_path / "back" / "maps" / "expansion" / path.name).read_text())
     assert json.dumps(again) == json.dumps(data)
