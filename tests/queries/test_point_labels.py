@@ -6,7 +6,7 @@ queries are in tests/parity/test_points_queries_devkit.py (on a conversion of th
 from __future__ import annotations
 
 import json
-from collections import Counter, defaultdict
+from collections import Counter
 
 import numpy as np
 import pytest
