@@ -130,7 +130,7 @@ GROUPS: dict[str, Group] = {
         ("nuparquet/*.py", "!nuparquet/atomic.py"),
         ("tests/test_channels.py", "tests/test_columns.py", "tests/test_schemas.py", "tests/test_schema_types.py",
          "tests/conversion/test_progress.py", "tests/cli/test_option_errors.py", "tests/dataset/test_dataset_api.py",
-         "tests/parity/test_dataset_boxes.py", "tests/test_architecture.py"),
+         "tests/parity/test_dataset_boxes.py", "tests/test_architecture.py", "tests/test_problems.py"),
         keyword="not 300_lines"),  # mutmut's trampolines make every module longer
     "engine": Group(
         ("nuparquet/engine/*.py", "nuparquet/atomic.py"),
@@ -190,7 +190,8 @@ GROUPS: dict[str, Group] = {
          "!nuparquet/rendering/topview.py", "!nuparquet/rendering/clouds.py", "!nuparquet/rendering/charts.py"),
         ("tests/rendering/test_render.py", "tests/rendering/test_bev.py", "tests/rendering/test_frame_index.py",
          "tests/rendering/test_lidar_colors.py", "tests/rendering/test_predictions.py",
-         "tests/rendering/test_pipeline.py", "tests/rendering/test_rigs.py", "tests/rendering/test_video.py"),
+         "tests/rendering/test_pipeline.py", "tests/rendering/test_rigs.py", "tests/rendering/test_video.py",
+         "tests/rendering/test_decode.py", "tests/rendering/test_legend.py"),
         keyword="not extract", cache_conversions=True),
     "pictures": Group(  # one picture of one thing: the devkit's render_* and their drawing
         ("nuparquet/rendering/single.py", "nuparquet/rendering/sample_data.py", "nuparquet/rendering/sample_grid.py",

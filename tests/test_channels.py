@@ -112,3 +112,41 @@ def test_default_camera_without_cam_front_or_a_layout_is_the_first_camera_named(
     assert channels.default_camera(["CAM_X", "CAM_FRONT"]) == "CAM_FRONT"
     assert channels.default_camera(["CAM_X", "CAM_Y"], (("CAM_Y",), ("CAM_X",))) == "CAM_Y"
     assert channels.default_camera([]) is None
+
+
+def test_an_output_without_channels_whose_camera_names_are_partly_unknown_lays_them_out_by_calibrated_yaw(
+        synth_root, synth_out, tmp_path):
+    """channels_of_dataset (an output written before the manifest recorded channels): CAM_BACK_LEFT renamed
+    CAM_SIDE_X in tables/sensor, so the names no longer decide; its calibration looks back-left, so the layout must
+    put it in the back row, left of CAM_BACK (its yaw from calibrated_sensor, read here with pyquaternion)."""
+    import polars as pl
+    from pyquaternion import Quaternion
+
+    copy = tmp_path / "out"
+    shutil.copytree(synth_out, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    manifest.pop("channels", None)
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    sensor_file = next((copy / "tables" / "sensor").glob("*.parquet"))
+    sensors = pl.read_parquet(sensor_file)
+    sensors.with_columns(pl.col("channel").replace("CAM_BACK_LEFT", "CAM_SIDE_X")).write_parquet(sensor_file)
+
+    # The expectation from the source JSON: each camera's optical axis (camera z) in the ego frame, as a heading.
+    sensor = {s["token"]: s for s in json.loads((synth_root / SYNTH_VERSION / "sensor.json").read_text())}
+    axes: dict[str, list[np.ndarray]] = {}  # one per calibration (a rig per log, a little apart)
+    for cs in json.loads((synth_root / SYNTH_VERSION / "calibrated_sensor.json").read_text()):
+        if sensor[cs["sensor_token"]]["modality"] == "camera":
+            name = sensor[cs["sensor_token"]]["channel"].replace("CAM_BACK_LEFT", "CAM_SIDE_X")
+            axes.setdefault(name, []).append(np.asarray(Quaternion(cs["rotation"]).rotate([0.0, 0.0, 1.0])))
+    assert all(min(a @ b for a in v for b in v) > np.cos(np.deg2rad(10)) for v in axes.values())
+    mean_axis = {name: np.mean(v, axis=0) for name, v in axes.items()}
+    heading = {name: float(np.degrees(np.arctan2(a[1], a[0]))) for name, a in mean_axis.items()}
+    assert 90 < heading["CAM_SIDE_X"] < 180  # looking back-left
+    front = sorted((c for c in heading if abs(heading[c]) <= 90), key=lambda c: -heading[c])  # left to right
+    back = sorted((c for c in heading if abs(heading[c]) > 90), key=lambda c: heading[c] % 360)
+    assert [front, back] == [["CAM_FRONT_LEFT", "CAM_FRONT", "CAM_FRONT_RIGHT"],
+                             ["CAM_SIDE_X", "CAM_BACK", "CAM_BACK_RIGHT"]]
+
+    computed = nuparquet.open(copy).channels
+    assert computed["cameras"] == sorted(heading)
+    assert computed["camera_layout"] == [front, back]

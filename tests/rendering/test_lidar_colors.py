@@ -183,3 +183,25 @@ def test_intensity_levels_are_the_devkits_and_floored_at_zero():
     assert expected[1] == 0.0 and scaled[1] ** 0.1 - 0.5 < 0  # the floor is reached
     np.testing.assert_array_equal(intensity_levels(intensity), expected)
     assert intensity_levels(np.full(3, 7.0)).tolist() == [0.0, 0.0, 0.0]  # no span: every level 0
+
+
+def test_scalar_colours_are_matplotlibs_viridis_and_a_constant_the_lowest_colour_of_every_point():
+    """`scatter(c=values)` colours through viridis scaled from the smallest value to the largest; with no span
+    (every value the same, or vmin == vmax) matplotlib's Normalize maps every point to 0: the lowest colour."""
+    from matplotlib import colormaps
+    from matplotlib.colors import Normalize
+
+    from nuparquet.rendering.point_colors import scalar_rgb
+
+    def matplotlib_rgb(values, vmin=None, vmax=None):
+        scaled = Normalize(vmin, vmax, clip=True)(np.asarray(values, dtype=np.float64))
+        return np.rint(colormaps["viridis"](np.ma.getdata(scaled))[:, :3] * 255.0)
+
+    for values, limits in (([0.5, 3.0, -1.0, 2.0, 1.0], {}), ([0.5, 3.0, -1.0], {"vmin": 0.0, "vmax": 2.0}),
+                           (np.full(5, 1.5), {}), ([1.0, 2.0, 3.0], {"vmin": 2.0, "vmax": 2.0})):
+        got = scalar_rgb(values, **limits)
+        expected = matplotlib_rgb(values, **limits)
+        assert got.shape == (len(values), 3) and got.dtype == np.uint8, (values, limits)
+        assert np.abs(got.astype(np.int64) - expected).max() <= 2, (values, limits)  # OpenCV's table vs matplotlib's
+    assert len({tuple(c) for c in scalar_rgb(np.full(5, 1.5)).tolist()}) == 1
+    assert len({tuple(c) for c in scalar_rgb([0.5, 3.0, -1.0, 2.0, 1.0]).tolist()}) == 5
