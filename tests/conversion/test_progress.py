@@ -56,6 +56,48 @@ def test_the_total_counts_the_batch_of_rows_of_no_scene(tmp_path):
     assert sum(e.step.startswith("scene batch") for e in events if e.step) == 2  # scene-0001's and the orphans'
 
 
+def test_the_steps_name_every_table_read_then_the_integrity_check_and_end_with_the_manifest(synth_root, tmp_path):
+    """What a progress bar shows: each table of the version folder read (by its name), the integrity check after the
+    last one, and the manifest written last."""
+    tables = sorted(path.stem for path in (synth_root / SYNTH_VERSION).glob("*.json"))
+    steps = [e.step for e in _events(synth_root, SYNTH_VERSION, tmp_path / "out") if e.step]
+    reads = [s for s in steps if s.startswith("read ")]
+    assert sorted(s.removeprefix("read ") for s in reads) == tables
+    assert steps[len(reads)] == "check integrity" and steps[:len(reads)] == reads
+    assert steps[-1] == "write manifest" and steps.count("write manifest") == 1
+
+
+def test_allow_dangling_on_a_dataset_with_nothing_dangling_counts_no_batch_of_rows_of_no_scene(tmp_path):
+    """`--allow-dangling` looks for per-sample rows of no scene in every per-sample table (samples by their token,
+    the others by sample_token): a clean dataset has none, so its total is the same as without the option."""
+    from nuparquet.synth import synthesize
+
+    root = synthesize(tmp_path / "data", scenes=2, samples_per_scene=2, seed=1, version=SYNTH_VERSION,
+                      with_can_bus=False)
+    plain = _check(_events(root, SYNTH_VERSION, tmp_path / "plain", scenes_per_batch=1))
+    allowing = _events(root, SYNTH_VERSION, tmp_path / "allowing", allow_dangling=True, scenes_per_batch=1)
+    assert _check(allowing) == plain
+    assert sum(e.step.startswith("scene batch") for e in allowing if e.step) == 2  # one per scene, no orphans'
+
+
+def test_annotations_of_an_absent_sample_form_the_batch_of_rows_of_no_scene(tmp_path):
+    """An annotation whose sample is absent (every sample still in a scene): found through sample_token, so the
+    rows of no scene get their own batch, counted before the run."""
+    import json
+
+    from nuparquet.synth import synthesize
+
+    root = synthesize(tmp_path / "data", scenes=2, samples_per_scene=2, seed=1, version=SYNTH_VERSION,
+                      with_can_bus=False)
+    path = root / SYNTH_VERSION / "sample_annotation.json"
+    annotations = json.loads(path.read_text())
+    annotations[0]["sample_token"] = "f" * 32  # no such sample
+    path.write_text(json.dumps(annotations))
+    events = _events(root, SYNTH_VERSION, tmp_path / "out", allow_dangling=True, scenes_per_batch=1)
+    _check(events)
+    assert sum(e.step.startswith("scene batch") for e in events if e.step) == 3  # two scenes' and the orphans'
+
+
 def test_a_total_is_set_once():
     reporter = Reporter(None, "task")
     reporter.advance()
