@@ -29,8 +29,11 @@ def draw_legend(image_bgr: np.ndarray, entries: Sequence[tuple[str, Sequence[int
     font = font_scale or _font_scale(image_bgr)
     thickness = max(1, round(font * 1.5))
     names = [name[:MAX_NAME_CHARS] for name, _ in entries]
-    (text_w, text_h), baseline = max((cv2.getTextSize(n, TEXT_FONT, font, thickness) for n in names),
-                                     key=lambda size: size[0][0])
+    # every row as tall as the tallest name and as deep as the deepest descender (g, j, p, q, y), so no name
+    # reaches into the next row whichever name is the widest
+    sizes = [cv2.getTextSize(n, TEXT_FONT, font, thickness) for n in names]
+    text_w, text_h = max(w for (w, _), _ in sizes), max(h for (_, h), _ in sizes)
+    baseline = max(b for _, b in sizes)
     step = text_h + baseline + 6
     panel_w, panel_h = step + 8 + text_w + 8, step * len(entries) + 8
     height, width = image_bgr.shape[:2]

@@ -61,3 +61,23 @@ def test_legend_swatches_follow_the_entries_order_with_white_names_and_names_are
     cut = [(name[:25], rgb) for name, rgb in entries]
     assert np.array_equal(image, draw_legend(_picture(width=600), cut, corner="top-right", font_scale=0.5))
     assert np.array_equal(draw_legend(_picture(), []), _picture())
+
+
+def test_a_name_with_descenders_stays_in_its_row_when_a_wider_name_has_none():
+    """Rows are as deep as the deepest name: 'gjpqy' under a wider 'wwww...' (no descender) must not reach the top
+    margin of the next row, which holds no ink of any name."""
+    entries = [("wwwwwwwwwww", (255, 0, 0)), ("gjpqy", (0, 255, 0)), ("wwwwwwwwwww", (0, 0, 255))]
+    image = draw_legend(_picture(), entries, font_scale=0.5)
+    swatch_tops = [np.nonzero((image == np.array(rgb[::-1], np.uint8)).all(axis=2))[0].min() for _, rgb in entries]
+    step = swatch_tops[1] - swatch_tops[0]
+    assert swatch_tops[2] - swatch_tops[1] == step
+    darkened = (image == (np.array(GREY_BGR) * PANEL_DARKEN).astype(np.uint8)).all(axis=2)
+    rows, cols = np.nonzero(darkened)
+    panel = np.zeros(darkened.shape, bool)
+    panel[rows.min():rows.max() + 1, cols.min():cols.max() + 1] = True
+    ink = panel & ((image > np.array(GREY_BGR) * PANEL_DARKEN + 40).all(axis=2))  # white and anti-aliased text
+    for top in swatch_tops[1:]:  # a swatch starts 2 px below its row's top: those rows hold no name's ink
+        assert not ink[top - 2:top].any(), top
+    # and the descenders of the middle name are drawn within its own row
+    rows = np.nonzero(ink[swatch_tops[1] - 2:swatch_tops[2] - 2].any(axis=1))[0]
+    assert rows.max() > step * 0.75  # the descenders reach low into the row
