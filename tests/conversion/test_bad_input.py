@@ -195,6 +195,61 @@ def test_count_field_on_a_record_nothing_refers_to(root, capsys):
     assert f"scene.json[0] token={scenes[0]['token']}: nbr_samples is {scenes[0]['nbr_samples']} but" in message
 
 
+def test_allow_dangling_warns_of_each_dangling_reference_and_count_by_file_record_and_token(root):
+    """`validate(allow_dangling=True)` in the test's process (the CLI's subprocess runs are invisible to mutmut):
+    a scalar reference to nothing, a list of tokens with one absent, "" where it is a reference (sample_data's
+    ego_pose_token) and where it means none (visibility_token, the first sample's prev), a count left wrong by
+    the move, and an extra table no schema describes (`<table>_token`, `<table>_tokens`, and a field naming a
+    table that is absent, which is not a reference). Each warning is compared with the walk of the JSON in plain
+    Python (`trimmed_shapes.expected_findings`) and the edits made here."""
+    import nuparquet
+    from trimmed_shapes import expected_findings
+
+    absent = "f" * 32
+    annotations = load(root, "sample_annotation")
+    moved, listed, none = 5, next(i for i, a in enumerate(annotations) if a["attribute_tokens"] and i > 5), 7
+    lost_instance = annotations[moved]["instance_token"]
+    annotations[moved]["instance_token"] = absent
+    annotations[listed]["attribute_tokens"] = annotations[listed]["attribute_tokens"] + [absent]
+    annotations[none]["visibility_token"] = ""
+    save(root, "sample_annotation", annotations)
+    sample_data = load(root, "sample_data")
+    sample_data[3]["ego_pose_token"] = ""
+    save(root, "sample_data", sample_data)
+    attributes = [a["token"] for a in load(root, "attribute")]
+    category = load(root, "category")[0]["token"]
+    objects = [{"token": "a" * 32, "category_token": category, "sample_data_token": sample_data[0]["token"], "attribute_tokens": [attributes[0]],
+                "surface_ann_token": absent},
+               {"token": "b" * 32, "category_token": category, "sample_data_token": absent, "attribute_tokens": [], "surface_ann_token": absent},
+               {"token": "c" * 32, "category_token": category, "sample_data_token": sample_data[1]["token"],
+                "attribute_tokens": [attributes[1], absent, attributes[2]], "surface_ann_token": absent}]
+    save(root, "object_ann", objects)
+
+    references, counts = expected_findings(root / V)
+    instances = load(root, "instance")
+    lost = next(i for i, r in enumerate(instances) if r["token"] == lost_instance)
+    assert sorted(references) == sorted([
+        ("sample_annotation", "instance_token", "instance", moved, annotations[moved]["token"], absent, None),
+        ("sample_annotation", "attribute_tokens", "attribute", listed, annotations[listed]["token"], absent,
+         len(annotations[listed]["attribute_tokens"]) - 1),
+        ("sample_data", "ego_pose_token", "ego_pose", 3, sample_data[3]["token"], "", None),
+        ("object_ann", "sample_data_token", "sample_data", 1, "b" * 32, absent, None),
+        ("object_ann", "attribute_tokens", "attribute", 2, "c" * 32, absent, 1)])
+    stated = instances[lost]["nbr_annotations"]
+    assert counts == [("instance", "nbr_annotations", "sample_annotation", lost, lost_instance, stated, stated - 1)]
+
+    found = nuparquet.validate(root, V, allow_dangling=True)
+    assert found.ok and all(w.warning and not w.omitted for w in found.warnings)
+    expected = [(f"{t}.json", i, token, f"{field} '{reference}' does not resolve to a {target} record")
+                for t, field, target, i, token, reference, _ in references]
+    expected += [(f"{t}.json", i, token, f"{field} is {n} but {actual} {referring} records refer to it")
+                 for t, field, referring, i, token, n, actual in counts]
+    assert sorted((w.file, w.index, w.token, w.message) for w in found.warnings) == sorted(expected)
+    strict = nuparquet.validate(root, V)  # the same data refused without the option (the extra table unchecked)
+    assert sorted((p.file, p.index) for p in strict.problems) == sorted(
+        (f, i) for f, i, *_ in expected if f != "object_ann.json")
+
+
 def test_problems_are_listed_all_at_once_with_a_bound(root, capsys):
     records = load(root, "sample_data")
     for r in records:

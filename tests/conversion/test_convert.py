@@ -111,6 +111,76 @@ def test_export_json_cli_refuses_existing_directory(synth_out, tmp_path):
     assert main(["export-json", str(synth_out), "--out", str(target)]) == 2
 
 
+def _rewrite(path: Path, change, indent: int | None) -> None:
+    """Edit a JSON file, writing it back in its own layout (checked: the unedited text re-dumps to the same bytes)."""
+    text = path.read_text()
+    data = json.loads(text)
+    assert json.dumps(data, indent=indent) == text, path.name
+    change(data)
+    path.write_text(json.dumps(data, indent=indent))
+
+
+def test_every_input_file_comes_back_byte_for_byte_whatever_its_shape(tmp_path):
+    """One small dataroot holding what each writer of export-json has to give back and the generator's own files
+    lack: integers where a CAN bus message or meta field otherwise holds floats, a record in another key order, a
+    field no schema knows (JSON text) that is null in one record and absent from another, an extra table no schema describes (inferred)
+    with a record in another key order, beside the map expansion file. Every JSON file of the dataroot comes back
+    byte for byte, and parsed, with the same JSON types (1 is not 1.0)."""
+    from nuparquet.conversion import convert
+    from nuparquet.synth import synthesize
+
+    root = synthesize(tmp_path / "data", scenes=1, samples_per_scene=4, seed=5, version=SYNTH_VERSION)
+    can, tables = root / "can_bus", root / SYNTH_VERSION
+
+    def steering(records):
+        records[0]["value"] = 0  # an int among floats
+        records[1] = {"value": records[1]["value"], "utime": records[1]["utime"]}  # another key order
+
+    def pose(records):
+        records[2]["pos"] = [1, records[2]["pos"][1], 0]  # ints inside a float list
+
+    def meta(messages):
+        messages["POSE"]["timespan"] = 20  # an int where the other messages' timespans are floats
+        assert type(messages["MS_IMU"]["timespan"]) is float
+
+    def weather(records):  # a field no schema knows: objects, null in one record, absent from the last
+        for i, record in enumerate(records[:-1]):
+            record["weather"] = None if i == 2 else {"rain": i % 2 == 1, "lux": [i, 0.5]}
+
+    _rewrite(can / "scene-0001_steeranglefeedback.json", steering, None)
+    _rewrite(can / "scene-0001_pose.json", pose, None)
+    _rewrite(can / "scene-0001_meta.json", meta, 0)
+    _rewrite(tables / "sample.json", weather, 0)
+    frames = json.loads((tables / "sample_data.json").read_text())
+    objects = [{"token": f"{i:032x}", "sample_data_token": frames[i]["token"], "bbox": [10 + i, 20, 30.5, 40],
+                "attribute_tokens": []} for i in range(3)]
+    objects[1] = dict(reversed(list(objects[1].items())))
+    (tables / "object_ann.json").write_text(json.dumps(objects, indent=0))
+
+    manifest = convert(root, SYNTH_VERSION, tmp_path / "out")
+    kinds = {f["path"]: f["kind"] for f in manifest["files"]}
+    assert kinds[f"{SYNTH_VERSION}/object_ann.json"] == "table_inferred"
+    assert kinds["maps/expansion/boston-seaport.json"] == "map_expansion"
+    assert kinds["can_bus/scene-0001_meta.json"] == "can_bus_meta"
+    export_json(tmp_path / "out", tmp_path / "back")
+    originals = sorted(p.relative_to(root) for p in root.rglob("*.json"))
+    assert sorted(p.relative_to(tmp_path / "back") for p in (tmp_path / "back").rglob("*.json")) == originals
+    for path in originals:
+        source, again = (root / path).read_bytes(), (tmp_path / "back" / path).read_bytes()
+        assert json.dumps(json.loads(again)) == json.dumps(json.loads(source)), path  # types and key order
+        assert again == source, path
+
+
+def test_export_json_into_the_converted_dataset_is_refused_naming_it(synth_out):
+    from nuparquet.errors import UsageError
+
+    for out, relation in ((synth_out, "is"), (synth_out / "json", "is inside")):
+        with pytest.raises(UsageError) as refused:
+            export_json(synth_out, out)
+        assert str(refused.value) == f"{out} {relation} the converted dataset {synth_out}; write the output somewhere else"
+    assert not (synth_out / "json").exists()
+
+
 @pytest.mark.parametrize("argv", [["convert", "/nonexistent/dataroot", "--version", "v1.0-mini", "--out", "/tmp/never"]])
 def test_missing_dataroot_is_a_usage_error(argv, capsys):
     assert main(argv) == 2

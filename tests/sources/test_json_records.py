@@ -69,6 +69,16 @@ def test_values_that_cannot_convert_are_problems(records, message, index):
     assert problems[0].file == "can_bus/x.json" and message in problems[0].message and problems[0].index == index
 
 
+def test_integers_and_floats_count_as_one_kind_against_the_others():
+    """2 integers and 1 float outnumber 2 strings (numbers are one kind): the strings are the odd ones, named as such;
+    counted apart (2 strings against 2 integers), the numbers would be reported instead."""
+    records = [{"a": 1}, {"a": "x"}, {"a": 2}, {"a": "y"}, {"a": 0.5}]
+    _, problems = to_columns(records, Located(["can_bus/x.json"], [0]), "message")
+    assert [(p.index, p.message) for p in problems] == [
+        (1, "message field 'a' is a str where the others hold float values"),
+        (3, "message field 'a' is a str where the others hold float values")]
+
+
 def test_integers_beyond_float64_precision_among_floats_are_refused():
     _, problems = to_columns([{"a": 0.5}, {"a": 2**53 + 1}], Located(["f.json"], [0]), "message")
     assert problems and "beyond 2**53" in problems[0].message
