@@ -45,6 +45,7 @@ bench: $(DEVKIT_STAMP)
 
 docs: $(STAMP)
 	$(BIN)/python -m nuparquet.schemas --docs docs/schemas.md
+	$(BIN)/python -m nuparquet.cli.reference --docs docs/cli.md
 
 clean:
 	rm -rf $(VENV) demo-out .mutation

@@ -300,3 +300,82 @@ def test_stats_on_a_dataset_without_annotations_prints_empty_sections(run, extra
         assert printed[section] == [], section
     assert all(r["num_annotations_list_scenes"] == 0 for r in printed["scenes"])
     assert printed["channel_rates"] and len(list((tmp_path / "plots").glob("*.png"))) == 6  # 2 from the CAN bus
+
+
+def table_sections(text: str) -> dict[str, list[dict[str, str]]]:
+    """`stats` table output: each '== Title' line, then a header, a dashes line and the rows; the columns' spans
+    are read from the dashes line (headers such as 'lidar mean' hold a space)."""
+    sections, lines = {}, text.splitlines()
+    for i, line in enumerate(lines):
+        if not line.startswith("== "):
+            continue
+        header, dashes = lines[i + 1], lines[i + 2]
+        spans, start = [], 0
+        for width in (len(d) for d in dashes.split("  ")):
+            spans.append((start, start + width))
+            start += width + 2
+        names = [header[a:b].strip() for a, b in spans]
+        rows = []
+        for row in lines[i + 3:]:
+            if not row or row.startswith(("== ", "…")):
+                break
+            rows.append({name: row[a:b].strip() for name, (a, b) in zip(names, spans)})
+        sections[line[3:]] = rows
+    return sections
+
+
+def section(sections: dict, title: str) -> list[dict[str, str]]:
+    return next(rows for name, rows in sections.items() if name.startswith(title))
+
+
+def close_to_printed(cell: str, expected: float) -> bool:
+    """A table cell (rounded to the decimals it shows) equals `expected`."""
+    decimals = len(cell.split(".")[1]) if "." in cell else 0
+    return abs(float(cell) - expected) <= 0.5 * 10 ** -decimals + 1e-9
+
+
+def test_stats_table_shows_scenes_visibility_and_lidar_points_per_box_as_counted_from_the_json(run, synth_root,
+                                                                                                synth_out):
+    """The terminal tables (`display`): the scenes' sample and annotation counts, visibility as one column per
+    level, and the points-per-box statistics (numpy.percentile's linear rule), against the JSON."""
+    import numpy as np
+
+    folder = synth_root / SYNTH_VERSION
+    code, stdout, _ = run("stats", synth_out)
+    assert code == 0
+    sections = table_sections(stdout)
+
+    scene_name = {s["token"]: s["name"] for s in load(folder, "scene")}
+    sample_scene = {s["token"]: scene_name[s["scene_token"]] for s in load(folder, "sample")}
+    annotations = load(folder, "sample_annotation")
+    scenes = section(sections, "Scenes")
+    assert {r["name"]: int(r["nbr_samples"]) for r in scenes} == Counter(sample_scene.values())
+    assert {r["name"]: int(r["annotations"]) for r in scenes} == Counter(sample_scene[a["sample_token"]]
+                                                                         for a in annotations)
+
+    category = {c["token"]: c["name"] for c in load(folder, "category")}
+    category_of = {i["token"]: category[i["category_token"]] for i in load(folder, "instance")}
+    by_category: dict[str, list[dict]] = {}
+    for a in annotations:
+        by_category.setdefault(category_of[a["instance_token"]], []).append(a)
+    levels = sorted({f"v{int(a['visibility_token'])}" for a in annotations})
+    visibility = section(sections, "Visibility")
+    assert list(visibility[0]) == ["category_name", *levels]
+    assert {r["category_name"]: {v: int(r[v]) for v in levels} for r in visibility} == {
+        name: {v: sum(f"v{int(a['visibility_token'])}" == v for a in anns) for v in levels}
+        for name, anns in by_category.items()}
+
+    points = section(sections, "Points per box")
+    assert list(points[0])[:8] == ["category_name", "boxes", "lidar mean", "lidar p05", "lidar p50", "lidar p95",
+                                   "lidar max", "lidar zero"]
+    assert [r["category_name"] for r in points] == sorted(by_category)
+    for row in points:
+        anns = by_category[row["category_name"]]
+        assert int(row["boxes"]) == len(anns)
+        for sensor in ("lidar", "radar"):
+            counts = np.array([a[f"num_{sensor}_pts"] for a in anns if a[f"num_{sensor}_pts"] >= 0])
+            assert close_to_printed(row[f"{sensor} mean"], counts.mean()), row
+            for q in (5, 50, 95):
+                assert close_to_printed(row[f"{sensor} p{q:02d}"], np.percentile(counts, q)), (row, q)
+            assert int(row[f"{sensor} max"]) == counts.max()
+            assert row[f"{sensor} zero"] == f"{(counts == 0).mean():.1%}"

@@ -28,3 +28,14 @@ def test_info_lists_the_scene_names_render_and_stats_take(synth_root, synth_out,
     assert main(["info", str(synth_out)]) == 0
     line = next(l for l in capsys.readouterr().out.splitlines() if l.strip().startswith("scenes:"))
     assert line.split()[1:] == sorted(names)
+
+
+def test_info_prints_when_the_manifest_says_the_output_was_created(synth_out, capsys):
+    import datetime as dt
+
+    created = json.loads((synth_out / "manifest.json").read_text())["created_utc"]
+    assert dt.datetime.fromisoformat(created.replace("Z", "+00:00")).tzinfo is not None  # a UTC time, present
+    assert main(["info", str(synth_out), "--format", "json"]) == 0
+    assert json.loads(capsys.readouterr().out)["created_utc"] == created
+    assert main(["info", str(synth_out)]) == 0
+    assert f" at {created}\n" in capsys.readouterr().out

@@ -72,3 +72,20 @@ def test_a_truncated_parquet_file_is_named(synth_out, tmp_path, capsys, command)
     err = capsys.readouterr().err
     assert f"{damaged} is damaged" in err and "convert the dataset again" in err and "Traceback" not in err
     assert not (tmp_path / "x.mp4").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["validate", "{root}"], "the following arguments are required: --version"),
+    # report renders every scene in one job: --keep-going and --resume are not its flags (an unknown OUT: the
+    # run would fail at once if they were taken)
+    (["report", "{tmp}/missing", "--out", "{tmp}/report", "--keep-going"], "unrecognized arguments: --keep-going"),
+    (["report", "{tmp}/missing", "--out", "{tmp}/report", "--resume"], "unrecognized arguments: --resume"),
+])
+def test_a_missing_required_flag_or_a_flag_the_command_lacks_is_a_usage_error(synth_root, tmp_path, capsys, args,
+                                                                             message):
+    with pytest.raises(SystemExit) as exit_:
+        main([a.format(tmp=tmp_path, root=synth_root) for a in args])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: nuparquet ") and message in err and "Traceback" not in err
+    assert not (tmp_path / "report").exists()

@@ -17,6 +17,11 @@ def test_numbers_are_right_aligned_and_text_left_aligned():
     assert table.splitlines() == ["name    count", "------  -----", "a           7", "bbbbbb  12345"]
 
 
+def test_booleans_print_as_true_and_false_and_nulls_as_blank():
+    table = format_table(pl.DataFrame({"key_frame": [True, False, None], "n": [1, 2, 3]}))
+    assert table.splitlines() == ["key_frame  n", "---------  -", "true       1", "false      2", "           3"]
+
+
 @dataclass(frozen=True)
 class _Options:
     scale: float = 1.0
