@@ -20,7 +20,7 @@ def register(sub) -> None:
         "Output is written to a hidden sibling and renamed into place only when complete. Sensor files "
         "are not needed (partial downloads are fine) unless --sensors asks for the point clouds: then "
         "lidar_points/ and radar_points/ (one row per point, with lidarseg/panoptic labels when present; see "
-        "docs/points.md) are converted scene by scene on --jobs processes. Exit 1 if the input has problems "
+        "docs/points.md) are converted scene by scene on --workers processes. Exit 1 if the input has problems "
         "(all are listed).",
         epilog="example: nuparquet convert /data/nuscenes --version v1.0-mini --out nusc-mini --sensors lidar,radar",
     )
