@@ -110,6 +110,52 @@ def test_open_an_older_format_version_asks_to_convert_again(tmp_path, extract_ou
         nuparquet.open(_with_manifest(tmp_path, extract_out, format_version=FORMAT_VERSION - 1))
 
 
+def test_an_older_format_version_is_refused_naming_the_output_both_versions_and_the_fix(tmp_path, synth_out):
+    """The synthetic conversion (the mutation runs leave out tests of the real extract): the message starts with the
+    directory as opened, then says which format it holds, which one this nuparquet reads, and the command to run."""
+    out = _with_manifest(tmp_path, synth_out, format_version=FORMAT_VERSION - 1)
+    with pytest.raises(FormatError) as error:
+        nuparquet.open(out)
+    message = str(error.value)
+    assert message.startswith(f"{out.resolve()}: written in nuparquet format {FORMAT_VERSION - 1}, older ")
+    assert f"({FORMAT_VERSION})" in message and message.endswith("`nuparquet convert --overwrite`")
+
+
+def test_open_takes_a_file_url_of_a_local_directory(synth_out):
+    ds = nuparquet.open(f"file://{synth_out}")
+    assert not ds.is_remote and ds.root == str(synth_out.resolve())
+    assert ds.manifest == json.loads((synth_out / "manifest.json").read_text())
+    assert ds.scan("scenes").collect().equals(nuparquet.open(synth_out).scan("scenes").collect())
+
+
+@pytest.fixture
+def http_root(tmp_path):
+    """The URL of an empty directory served over HTTP on 127.0.0.1 (no manifest.json behind it)."""
+    import functools
+    import threading
+    from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
+
+    class Quiet(SimpleHTTPRequestHandler):
+        def log_message(self, *args):
+            pass
+
+    (tmp_path / "served").mkdir()
+    server = ThreadingHTTPServer(("127.0.0.1", 0), functools.partial(Quiet, directory=str(tmp_path / "served")))
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    yield f"http://127.0.0.1:{server.server_address[1]}"
+    server.shutdown()
+    thread.join()
+
+
+def test_a_url_without_a_manifest_is_a_format_error_naming_the_url_and_the_manifest(http_root):
+    with pytest.raises(FormatError) as error:
+        nuparquet.open(f"{http_root}/out/")  # the trailing slash is not part of the root
+    message = str(error.value)
+    assert message.startswith(f"{http_root}/out: cannot read manifest.json (") and "404" in message
+    assert message.endswith("); not a nuparquet output, or the storage_options do not reach it?")
+
+
 @pytest.mark.parametrize("format_version", ["1", 1.0, None, True, [1]])
 def test_open_a_non_integer_format_version_is_a_format_error(tmp_path, synth_out, format_version, capsys):
     out = _with_manifest(tmp_path, synth_out, format_version=format_version)
@@ -164,6 +210,17 @@ def test_sql_joins_datasets_and_agrees_with_the_scan(extract_out):
 def test_sql_errors_are_query_errors_with_polars_message(extract_out, query, message):
     with pytest.raises(QueryError, match=message):
         nuparquet.open(extract_out).sql(query)
+
+
+def test_an_sql_error_without_a_message_is_named_by_its_type(synth_out, monkeypatch):
+    class Failing:  # polars raising an error whose text is empty (nothing to quote)
+        def execute(self, query, eager):
+            raise pl.exceptions.ComputeError("")
+
+    ds = nuparquet.open(synth_out)
+    monkeypatch.setattr(ds, "sql_context", Failing)
+    with pytest.raises(QueryError, match=r"^SQL failed: ComputeError$"):
+        ds.sql("SELECT * FROM scenes")
 
 
 # --- reading only what a one-scene query needs ----------------------------------------------------------------------

@@ -62,6 +62,82 @@ def test_points_of_an_unknown_scene_or_channel_are_errors_not_empty_results(poin
     assert len(ds.radar_points(scene=scene, channel="RADAR_FRONT")) > 0
 
 
+def test_inventory_counts_rows_files_and_bytes_of_every_dataset_on_disk(synth_out):
+    import json
+
+    import pyarrow.parquet as pq
+
+    manifest = json.loads((synth_out / "manifest.json").read_text())
+    expected = []
+    for name, entry in manifest["datasets"].items():
+        paths = sorted((synth_out / entry["path"]).rglob("*.parquet"))
+        expected.append((name, sum(pq.read_metadata(p).num_rows for p in paths), entry["rows"], len(paths),
+                         sum(p.stat().st_size for p in paths)))
+    inventory = nuparquet.open(synth_out).inventory()
+    assert inventory.columns == ["dataset", "rows", "manifest_rows", "files", "bytes"]
+    assert inventory.rows() == expected
+    assert len(expected) > 4 and all(files > 0 and rows == manifest_rows for _, rows, manifest_rows, files, _ in expected)
+
+
+def test_a_scene_selection_writes_into_a_directory_never_over_a_file(tmp_path):
+    from nuparquet.dataset.selection import SceneSelection
+
+    SceneSelection(all_scenes=True, out_dir=tmp_path).check()  # an existing directory
+    SceneSelection(scenes=("a",), out_dir=tmp_path / "new").check()  # one to be made
+    (tmp_path / "taken").write_text("x")
+    with pytest.raises(UsageError, match=f"--out-dir {tmp_path / 'taken'} is a file; give a directory"):
+        SceneSelection(where="true", out_dir=tmp_path / "taken").check()
+
+
+@pytest.fixture(scope="module")
+def radar_states_out(labelled_root, tmp_path_factory):
+    """(the labelled synthetic set with its radar keyframes' states varied, that set converted with its radar
+    points): of every four points one is invalid, one has dyn_prop 7, one is ambiguous (ambig_state 4), one passes
+    the devkit's default filters (the generator writes only points that pass)."""
+    import os
+    import shutil
+
+    import numpy as np
+
+    from nuparquet.synth.sensors import _RADAR_DTYPE
+
+    base = tmp_path_factory.mktemp("radar-states")
+    root = base / "data"
+    shutil.copytree(labelled_root, root, copy_function=os.symlink)  # links, but for the radar files rewritten below
+    for path in root.glob("samples/RADAR_*/*.pcd"):
+        data = path.read_bytes()
+        start = data.index(b"DATA binary\n") + len(b"DATA binary\n")
+        count = (len(data) - start) // _RADAR_DTYPE.itemsize
+        points = np.frombuffer(data, _RADAR_DTYPE, count, start).copy()
+        points["invalid_state"][1::4], points["dyn_prop"][2::4], points["ambig_state"][3::4] = 1, 7, 4
+        path.unlink()
+        path.write_bytes(data[:start] + points.tobytes() + data[start + points.nbytes:])
+    nuparquet.convert(root, SYNTH_VERSION, base / "out", sensors=("radar",), workers=1)
+    return root, base / "out"
+
+
+def test_filtered_radar_points_are_those_the_devkits_default_filters_keep(radar_states_out):
+    import numpy as np
+    from nuscenes.utils.data_classes import RadarPointCloud
+
+    root, out = radar_states_out
+    ds = nuparquet.open(out)
+    scene = ds.scene_names()[0]
+    frames = (ds.scan("frames").filter((pl.col("scene_name") == scene) & pl.col("is_key_frame")
+                                       & pl.col("channel").cast(pl.String).str.starts_with("RADAR"))
+              .select("token", "filename").collect())
+    kept = total = 0
+    for token, filename in frames.iter_rows():
+        expected = RadarPointCloud.from_file(str(root / filename)).points.T  # the default filters
+        filtered = ds.radar_points(token, filtered=True)
+        np.testing.assert_array_equal(filtered, expected)
+        kept, total = kept + len(filtered), total + len(ds.radar_points(token))
+    assert len(frames) > 0 and 0 < kept < total  # some points removed, not all
+    with_flag = ds.radar_points(scene=scene, columns=["x", "passes_default_filters"], filtered=True)
+    assert with_flag.height == kept and with_flag["passes_default_filters"].all()
+    assert ds.radar_points(scene=scene, columns=["x"], filtered=True).columns == ["x"]
+
+
 def test_frames_given_by_token_must_exist_and_keep_their_order(synth_out):
     ds = nuparquet.open(synth_out)
     tokens = ds.scan("frames").select("token").head(3).collect()["token"].to_list()[::-1]
