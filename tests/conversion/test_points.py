@@ -321,3 +321,31 @@ def test_panoptic_labels_not_one_integer_per_point_are_refused(tmp_path, data, s
     assert error.value.reason == f"panoptic 'data' is {shape}, not one integer per point"
     np.savez_compressed(path, data=np.array([0, 1001, 65535], np.int64))
     assert read_panoptic_npz(path).tolist() == [0, 1001, 65535]
+
+
+@pytest.mark.parametrize("keep_going", [False, True])
+def test_scenes_whose_point_task_raises_are_named_and_keep_going_names_every_one(small_root, tmp_path, keep_going):
+    """A lidar keyframe that is a folder, in each of the two scenes: reading it raises IsADirectoryError (no problem
+    the reader collects), so the scene's task fails. The conversion stops naming the first scene; with the engine's
+    keep_going (a library option: `convert(..., keep_going=True)`) both scenes run and both are named. Nothing is
+    left either way. (keep_going used to end in an AttributeError from the failed scene's missing summary.)"""
+    from nuparquet.engine import UnitsFailed
+
+    samples = {s["token"]: s for s in json.loads((small_root / SYNTH_VERSION / "sample.json").read_text())}
+    scenes = {s["token"]: s["name"] for s in json.loads((small_root / SYNTH_VERSION / "scene.json").read_text())}
+    broken: dict[str, str] = {}
+    for frame in _lidar_frames(small_root, keyframes_only=True):
+        broken.setdefault(scenes[samples[frame["sample_token"]]["scene_token"]], frame["filename"])
+    assert sorted(broken) == ["scene-0001", "scene-0002"]
+    for name in broken.values():
+        (small_root / name).unlink()
+        (small_root / name).mkdir()
+    out = tmp_path / "out"
+    with pytest.raises(UnitsFailed) as failed:
+        convert(small_root, SYNTH_VERSION, out, sensors=("lidar",), workers=1, keep_going=keep_going)
+    named = sorted(f.name for f in failed.value.failures)
+    assert named == (sorted(broken) if keep_going else ["scene-0001"])
+    for scene in named:
+        assert f"{scene}: IsADirectoryError" in str(failed.value) and broken[scene].split("/")[-1] in str(failed.value)
+    assert ("the other units finished" in str(failed.value)) == keep_going
+    assert not out.exists() and not list(tmp_path.glob(".out*"))

@@ -21,3 +21,16 @@ STATE: dict = {}  # set by a test in its own process: a worker that sees it was 
 def parent_state_seen(unit: WorkUnit, part: Path) -> bool:
     """Whether this worker sees what the test process put in STATE."""
     return bool(STATE.get("in_parent_only"))
+
+
+def wait_or_fail(unit: WorkUnit, part: Path) -> str:
+    """`unit.args` = (seconds, fail): prints a line naming the unit, sleeps, then raises ValueError if `fail`, else
+    returns the unit's name (units still running or pending when another fails)."""
+    import time
+
+    seconds, fail = unit.args
+    print(f"printed by unit {unit.name} in its worker", flush=True)
+    time.sleep(seconds)
+    if fail:
+        raise ValueError(f"unit {unit.name} failed on purpose")
+    return unit.name

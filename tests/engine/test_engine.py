@@ -1,9 +1,12 @@
 """The engine's contract, with a toy task: outcomes in unit order, part folders, failures named by unit,
---keep-going, --resume from completion markers, and Ray asked for without Ray installed."""
+--keep-going, --resume from completion markers, Ray asked for without Ray installed, and one Ray job (a session of
+its own) stopped by a failing unit."""
 
 from __future__ import annotations
 
+import os
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -106,6 +109,31 @@ def test_ray_engine_without_ray_says_how_to_install_it(monkeypatch, tmp_path, ca
         run_units(square_into_part, [WorkUnit("a", 1)], parts_dir=tmp_path, options=EngineOptions(engine="ray"))
     assert main(["render", str(tmp_path), "--all-scenes", "--out-dir", str(tmp_path / "v"), "--engine", "ray"]) == 2
     assert "nuparquet[ray]" in capsys.readouterr().err
+
+
+@pytest.mark.xdist_group("ray")  # one Ray session at a time (make test: --dist loadgroup)
+def test_on_ray_a_failing_unit_stops_the_job_named_with_its_error_and_workers_print_nothing_to_the_driver(
+        tmp_path, capfd, monkeypatch):
+    """One local Ray, started (and stopped) by the engine itself through `--ray-address local` (Ray's address for "a
+    new local instance"): "bad" fails after 1.5 s while "slow" is running and two more units are pending or running.
+    The job stops with UnitsFailed naming "bad" and its own ValueError (what is left is cancelled, ref by ref), and
+    nothing a unit printed in its worker reaches the driver's output (Ray joined with log_to_driver=False: "slow"
+    printed 1.5 s before the job ended, time enough for Ray to forward it)."""
+    from tasks import wait_or_fail
+
+    # Ray's workers import the task by its module name: they find `tasks` through the environment the engine's
+    # ray.init hands to the local Ray it starts
+    here = str(Path(__file__).resolve().parent)
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [here, os.environ.get("PYTHONPATH")])))
+
+    units = [WorkUnit("slow", (30.0, False)), WorkUnit("bad", (1.5, True)), WorkUnit("pending-1", (30.0, False)),
+             WorkUnit("pending-2", (30.0, False))]
+    with pytest.raises(UnitsFailed) as failed:
+        run_units(wait_or_fail, units, parts_dir=tmp_path, options=EngineOptions(engine="ray", ray_address="local"))
+    assert [f.name for f in failed.value.failures] == ["bad"]
+    assert "bad: ValueError: unit bad failed on purpose" in str(failed.value)
+    out, err = capfd.readouterr()
+    assert "printed by unit" not in out + err
 
 
 def test_ray_address_without_the_ray_engine_is_a_usage_error(tmp_path):

@@ -144,3 +144,44 @@ def test_a_version_without_annotations_gives_the_devkits_empty_boxes(request, de
         for kwargs in VARIANTS:
             assert assert_sample_data_equal(pair, record["token"], **kwargs) == 0
         assert pair.ours.get_boxes(record["token"]) == pair.theirs.get_boxes(record["token"]) == []
+
+
+def test_sweeps_stamped_outside_their_two_samples_are_clamped_to_them_as_in_the_devkit(tiny_map_root, tmp_path,
+                                                                                        devkit):
+    """The devkit's get_boxes clamps a sweep's time into [previous sample, its sample] ("timestamps in the DB are
+    off"): a lidar sweep edited to lie 30 ms past its sample gets that sample's boxes as annotated, one edited to lie
+    30 ms before the previous sample gets the previous sample's; nuparquet's get_boxes and get_sample_data equal the
+    devkit's, where extrapolating (amount above 1 or below 0) would move every interpolated box."""
+    from types import SimpleNamespace
+
+    from nuparquet.conversion import convert
+
+    root = tmp_path / "data"
+    shutil.copytree(tiny_map_root / SYNTH_VERSION, root / SYNTH_VERSION)
+    (root / "maps").symlink_to(tiny_map_root / "maps", target_is_directory=True)  # the devkit asserts they exist
+    path = root / SYNTH_VERSION / "sample_data.json"
+    records = json.loads(path.read_text())
+    samples = {s["token"]: s for s in json.loads((root / SYNTH_VERSION / "sample.json").read_text())}
+    sweeps = [r for r in records if not r["is_key_frame"] and "LIDAR_TOP" in r["filename"]
+              and samples[r["sample_token"]]["prev"]]
+    late, early = sweeps[0], sweeps[-1]
+    current = samples[late["sample_token"]]
+    late["timestamp"] = current["timestamp"] + 30_000
+    previous = samples[samples[early["sample_token"]]["prev"]]
+    early["timestamp"] = previous["timestamp"] - 30_000
+    path.write_text(json.dumps(records))
+    convert(root, SYNTH_VERSION, tmp_path / "out")
+    theirs = devkit.NuScenes(SYNTH_VERSION, dataroot=str(root), verbose=False)
+    ours = NuScenes(SYNTH_VERSION, dataroot=str(root), parquet=tmp_path / "out", verbose=False)
+    pair = SimpleNamespace(ours=ours, theirs=theirs)
+    for sweep, clamped_to in ((late, current), (early, previous)):
+        boxes = theirs.get_boxes(sweep["token"])
+        assert_same([box_values(b) for b in ours.get_boxes(sweep["token"])], [box_values(b) for b in boxes])
+        assert_sample_data_equal(pair, sweep["token"], box_vis_level=BoxVisibility.NONE)
+        # the clamp is reached: the boxes (interpolated between the two samples' annotations of one instance) sit
+        # exactly on the annotations of the sample the time is clamped to
+        annotations = [theirs.get("sample_annotation", a) for a in theirs.get("sample", clamped_to["token"])["anns"]]
+        on = {a["instance_token"]: a["translation"] for a in annotations}
+        instance = [theirs.get("sample_annotation", b.token)["instance_token"] for b in boxes]
+        both = [(b, on[i]) for b, i in zip(boxes, instance) if i in on]
+        assert len(both) > 0 and all(np.allclose(b.center, centre, rtol=0, atol=1e-9) for b, centre in both)

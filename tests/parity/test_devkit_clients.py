@@ -263,3 +263,27 @@ def test_our_explorers_video_renderers_name_the_nuparquet_command_that_renders(e
             call()
     with pytest.raises(NotServed, match="render_egoposes_on_map"):
         extract.ours.render_egoposes_on_map("boston-seaport")
+
+
+def test_our_pointcloud_in_image_draws_the_lidarseg_predictions_it_is_given(lidarseg_root, lidarseg_out, tmp_path):
+    """`render_pointcloud_in_image(..., show_lidarseg=True, lidarseg_preds_bin_path=...)` of our NuScenes and its
+    explorer colour the points by the prediction file, as `nuparquet.rendering.single` does with the same file
+    (checked against the devkit's pixels in test_single_renders_devkit.py); the predictions (every point labelled
+    class 1) change the picture from the ground-truth one."""
+    import nuparquet
+    from nuparquet.rendering import single
+
+    ours = NuScenes(SYNTH_VERSION, dataroot=str(lidarseg_root), parquet=lidarseg_out, verbose=False)
+    ds = nuparquet.open(lidarseg_out)
+    sample = ours.sample[1]
+    lidar = ours.get("sample_data", sample["data"]["LIDAR_TOP"])
+    points = (lidarseg_root / lidar["filename"]).stat().st_size // (5 * 4)
+    predictions = tmp_path / "predictions.bin"
+    np.ones(points, np.uint8).tofile(predictions)
+    expected = single.render_pointcloud_in_image(ds, sample["token"], show_lidarseg=True,
+                                                 lidarseg_preds_bin_path=str(predictions), dataroot=lidarseg_root)
+    truth = single.render_pointcloud_in_image(ds, sample["token"], show_lidarseg=True, dataroot=lidarseg_root)
+    assert not np.array_equal(expected, truth)
+    for render in (ours.render_pointcloud_in_image, ours.explorer.render_pointcloud_in_image):
+        drawn = render(sample["token"], show_lidarseg=True, lidarseg_preds_bin_path=str(predictions), verbose=False)
+        assert np.array_equal(drawn, expected)

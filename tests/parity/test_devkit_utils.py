@@ -146,6 +146,40 @@ def test_splits_color_map_and_label_files_are_the_devkits(dk_utils, extract_trai
         data_io.load_bin_file(str(lidarseg), type="other")
 
 
+class _SceneLogs:
+    """What create_splits_logs reads of a NuScenes (`version`, `scene`, `get("log", token)`): every one of the 1,000
+    predefined scenes, each on one of 13 logs."""
+
+    def __init__(self, version: str):
+        self.version = version
+        names = splits.train + splits.val + splits.test
+        self.scene = [{"name": name, "log_token": f"log-{i % 13}"} for i, name in enumerate(names)]
+
+    def get(self, table: str, token: str) -> dict:
+        assert table == "log"
+        return {"token": token, "logfile": f"logfile-of-{token}"}
+
+
+def test_create_splits_logs_of_every_split_and_version_suffix_is_the_devkits(dk_utils):
+    """Every predefined split against the three version suffixes, ours and the devkit's on the same input: the same
+    logs where the split suits the version (sorted: both build them through a set), the same AssertionError where
+    it does not."""
+    S = dk_utils["splits"]
+    suits = {"train": "trainval", "val": "trainval", "train_detect": "trainval", "train_track": "trainval",
+             "mini_train": "mini", "mini_val": "mini", "test": "test"}
+    for split, suffix in suits.items():
+        for version in ("v1.0-trainval", "v1.0-mini", "v1.0-test"):
+            nusc = _SceneLogs(version)
+            if version.endswith(suffix):
+                logs = sorted(splits.create_splits_logs(split, nusc))
+                assert logs == sorted(S.create_splits_logs(split, nusc)) and logs, (split, version)
+            else:
+                for module in (splits, S):
+                    with pytest.raises(AssertionError, match=f"split {split} which is not compatible with NuScenes "
+                                                             f"version {version}"):
+                        module.create_splits_logs(split, nusc)
+
+
 def test_an_empty_label_file_fails_with_the_devkits_assertion_word_for_word(dk_utils, tmp_path):
     empty = tmp_path / "empty-labels.bin"
     empty.write_bytes(b"")

@@ -27,7 +27,7 @@ import pyarrow.parquet as pq
 from nuparquet.conversion.builder import BuildContext, Builder, WrittenParts
 from nuparquet.conversion.builders.common import samples
 from nuparquet.conversion.write import parquet_part_name
-from nuparquet.engine import EngineOptions, WorkUnit, move_parts, run_units
+from nuparquet.engine import EngineOptions, WorkUnit, move_parts, raise_failures, run_units
 from nuparquet.engine.backends import default_workers
 from nuparquet.problems import Problem, ProblemsFound
 from nuparquet.progress import Progress
@@ -45,12 +45,14 @@ def run_scene_tasks(tasks: list[SceneTask], directory: Path, engine: EngineOptio
     """`convert_scene` over `tasks` on the scale-out engine (`nuparquet.engine`: in this process for one job, else
     a local process pool, or Ray with --engine ray), each scene writing into its own part folder; the parts are
     then moved into `directory` as `part-{i:05d}.parquet` in task order. Summaries in task order; a scene whose task
-    raised stops the conversion with its name (UnitsFailed)."""
+    raised stops the conversion with its name (UnitsFailed; with `keep_going` once every scene ran, naming each
+    failed one)."""
     if engine.engine == "process" and ((engine.workers or default_workers()) <= 1 or len(tasks) <= 1):
         engine = replace(engine, engine="serial")  # one job: no worker process to start
     parts_dir = directory.parent / f".{directory.name}.parts"
     outcomes = run_units(convert_unit, [WorkUnit(task.scene_name, task) for task in tasks], parts_dir=parts_dir,
                          options=engine, on_progress=_forward(on_done), preload=("nuparquet.conversion.scene_points",))
+    raise_failures(outcomes)  # keep_going (library only): the other scenes ran; every failed one is named
     move_parts(outcomes, parts_dir, directory, name=lambda index, unit, filename: parquet_part_name(index))
     shutil.rmtree(parts_dir, ignore_errors=True)
     return [SceneSummary.from_json(outcome.value) for outcome in outcomes]
