@@ -58,7 +58,9 @@ def compute(inputs: Inputs, cameras: tuple[str, ...], lidar: str, max_sweeps: in
     sweep_r, sweep_t = to_lidar(sweep_row, sweep_owner)
 
     ann_order = np.argsort(inputs.ann_sample, kind="stable")
-    ann_order = ann_order[inputs.ann_sample[ann_order] >= 0]
+    # a test version's infos have no gt_* keys, so v1.4.0's update_nuscenes_infos (`if 'gt_boxes' in
+    # ori_info_dict`) leaves every v2 entry's instances empty, whatever annotations the dataset holds
+    ann_order = ann_order[(inputs.ann_sample[ann_order] >= 0) & with_annotations]
     a_sample = inputs.ann_sample[ann_order]
     lid = lidar_row[a_sample]
     center, orientation = transforms.boxes_to_sensor(inputs.ann_center[ann_order], inputs.ann_rotation[ann_order],

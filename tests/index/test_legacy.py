@@ -22,7 +22,7 @@ from mmdet3d_restated import run_restated
 from nuparquet.conversion import convert
 from nuparquet.dataset import open_dataset
 from nuparquet.errors import InputError
-from nuparquet.index import IndexOptions, build_index
+from nuparquet.index import IndexOptions, build_index, legacy
 from nuparquet.index.cam_instances import camera_instances
 from nuparquet.index.inputs import read_inputs
 from nuparquet.index.legacy import boxes_v0
@@ -109,6 +109,22 @@ def test_legacy_files_equal_the_0_17_converter(case, request):
         assert counts["nuscenes_infos_train.pkl"] and counts["nuscenes_infos_train_mono3d.coco.json"] > 100
         if case == "synthetic":  # (both irregular scenes are in train)
             assert counts["nuscenes_infos_val.pkl"] and counts["nuscenes_infos_val_mono3d.coco.json"]
+
+
+def test_the_mono3d_file_written_in_chunks_is_still_the_converters_bytes(synthetic, lidarseg_out, tmp_path,
+                                                                        monkeypatch):
+    """The annotations are encoded COCO_CHUNK at a time (a trainval split has ~1M, more than one chunk): with
+    chunks of 7 the file must still be `json.dump`'s bytes of the whole dict (chunks joined as list items are,
+    ids counted on across chunks, a last partial chunk)."""
+    _, ref = synthetic
+    monkeypatch.setattr(legacy, "COCO_CHUNK", 7)
+    build_index(lidarseg_out, IndexOptions(out=str(tmp_path), version="v1.0-trainval", format="mmdet3d-legacy"))
+    for split in ("train", "val"):
+        name = f"nuscenes_infos_{split}_mono3d.coco.json"
+        theirs = (ref / name).read_text()
+        n = len(json.loads(theirs)["annotations"])
+        assert n > 7 and n % 7  # several chunks, the last one partial
+        assert (tmp_path / name).read_text() == theirs
 
 
 def test_the_quirks_are_there(synthetic, lidarseg_root, lidarseg_out, tmp_path):

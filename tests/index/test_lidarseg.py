@@ -76,6 +76,31 @@ def test_v2_infos_equal_the_converter(built, restated_v14):
         assert sum(len(v) for e in ref["data_list"] for v in e["cam_instances"].values()) > 0
 
 
+def test_parquet_rows_equal_the_converter(lidarseg_out, restated_v14, tmp_path):
+    """DIR/infos/ against v1.4.0's v2 entries (re-stated): every field of every row, the camera instances with all
+    their fields (center_2d and depth to float32 tolerance), the sweeps with their float32-rounded lidar2sensor.
+    Built here, not by the module's fixture, so that the mutation runs map the Parquet writer to this test."""
+    build_index(lidarseg_out, IndexOptions(out=str(tmp_path), version="v1.0-trainval"))
+    for split in ("train", "val"):
+        ref = _load(restated_v14 / "v14" / "v2" / f"nuscenes_infos_{split}.pkl")["data_list"]
+        rows = pl.read_parquet(tmp_path / "infos" / f"{split}.parquet").to_dicts()
+        assert len(rows) == len(ref) > 0
+        for row, entry in zip(rows, ref):
+            assert row["split"] == split
+            for key in ("sample_idx", "token", "timestamp", "ego2global", "images", "lidar_points", KEY):
+                assert_same(row[key], entry[key], key, key, check_types=False)
+            assert_same(row["lidar_sweeps"], entry.get("lidar_sweeps", []), "lidar_sweeps", check_types=False)
+            assert_same([{k: v for k, v in i.items() if k != "velocity_valid"} for i in row["instances"]],
+                        entry["instances"], "instances", check_types=False)
+            (a, a32), (b, b32) = (_without_float32({"cam_instances": e["cam_instances"]}) for e in (row, entry))
+            assert_same(a, b, "cam_instances", check_types=False)
+            np.testing.assert_allclose(a32, b32, rtol=1e-6)
+        # the data reach the cases: sweeps, camera instances, and velocities other than zero
+        assert any("lidar_sweeps" in e for e in ref)
+        velocities = [v for e in ref for c in e["cam_instances"].values() for i in c for v in i["velocity"]]
+        assert velocities and any(np.isfinite(v) and v != 0 for v in velocities)
+
+
 def test_the_key_from_the_tables(built, lidarseg_root):
     """Independently of any converter: the label file of each sample's LIDAR_TOP keyframe (lidarseg.json,
     record token = the reading's token), in the places the converter puts it."""

@@ -7,12 +7,14 @@ import json
 import pickle
 
 import numpy as np
+import polars as pl
 import pytest
 
 from nuparquet.dataset import Dataset, open_dataset
 from nuparquet.errors import InputError, UsageError
 from nuparquet.index import IndexOptions, build_index
 from nuparquet.index.bevformer import frame_indices
+from nuparquet.index.labels import CLASSES
 from nuparquet.index.splits import assign_splits
 
 
@@ -48,6 +50,28 @@ def test_structure_against_the_json_tables(synth_root, synth_infos):
     assert [e["sample_idx"] for e in v2["data_list"]] == list(range(len(sample)))
     assert (synth_infos / "v2" / "infos" / "train.parquet").is_file()
     assert pickle.loads((synth_infos / "v2" / "nuscenes_infos_val.pkl").read_bytes())["data_list"] == []
+
+
+def test_a_test_version_has_no_instances_even_over_annotated_data(synth_root, synth_out, tmp_path):
+    """`--version v1.0-test` over a dataset with annotations: v1.4.0's infos of a test version have no gt_* keys
+    (`if not test`), and update_nuscenes_infos builds instances and cam_instances only `if 'gt_boxes' in
+    ori_info_dict`: every v2 entry keeps the template's empty `instances` and has no `cam_instances`, and the
+    metainfo ignores no class; the Parquet rows hold empty lists."""
+    anns = json.loads((synth_root / "v1.0-synth" / "sample_annotation.json").read_text())
+    samples = json.loads((synth_root / "v1.0-synth" / "sample.json").read_text())
+    assert anns  # the data reach the case
+    build_index(synth_out, IndexOptions(out=str(tmp_path / "v1"), version="v1.0-test", info_version=1))
+    build_index(synth_out, IndexOptions(out=str(tmp_path / "v2"), version="v1.0-test"))
+    v1 = pickle.loads((tmp_path / "v1" / "nuscenes_infos_test.pkl").read_bytes())["infos"]
+    assert len(v1) == len(samples) and not any(k.startswith("gt_") or k == "valid_flag" for i in v1 for k in i)
+    v2 = pickle.loads((tmp_path / "v2" / "nuscenes_infos_test.pkl").read_bytes())
+    assert v2["metainfo"]["categories"] == {name: i for i, name in enumerate(CLASSES)}
+    assert [e["token"] for e in v2["data_list"]] == [i["token"] for i in v1]
+    for entry in v2["data_list"]:
+        assert list(entry)[-1] == "instances" and entry["instances"] == []  # and no cam_instances
+    rows = pl.read_parquet(tmp_path / "v2" / "infos" / "test.parquet")
+    assert rows["instances"].to_list() == [[]] * len(samples)
+    assert all(v == [] for cams in rows["cam_instances"].to_list() for v in cams.values())
 
 
 def test_split_assignment_follows_the_devkit_lists():
