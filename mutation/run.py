@@ -218,7 +218,9 @@ GROUPS: dict[str, Group] = {
         keyword="not extract", cache_conversions=True),
     "mcap": Group(
         ("nuparquet/mcap/*.py",),
-        ("tests/mcap/test_export.py", "tests/parity/test_mcap_devkit.py"),
+        # the many-scene export's one serial-engine test (the rest of test_mcap_scale_out starts Ray)
+        ("tests/mcap/test_export.py", "tests/parity/test_mcap_devkit.py",
+         "tests/mcap/test_mcap_scale_out.py::test_missing_files_are_counted_in_the_summary_and_warned"),
         keyword="not extract", cache_conversions=True),
     "site": Group(
         ("nuparquet/site/*.py",),

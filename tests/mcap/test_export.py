@@ -254,12 +254,14 @@ def test_points_are_the_files_with_their_labels(exported, tables):
             assert [f.name for f in item.message.fields] == fields
 
 
-def test_points_read_from_the_files_are_the_same_messages(exported, synth_out, tmp_path):
+def test_points_read_from_the_files_are_the_same_messages(exported, synth_out, tables, tmp_path):
     """Without lidar_points/ and radar_points/ the points come from the files: the same bytes (lidar without the
-    labels, which only the conversion adds)."""
+    labels, which only the conversion adds). Without images, the sensor bytes carried are the point files' sizes."""
     _, _, messages = exported
     out = tmp_path / "files.mcap"
-    export_mcap(synth_out, SCENE, McapOptions(out=out, without=("images",)))
+    result = export_mcap(synth_out, SCENE, McapOptions(out=out, without=("images",)))
+    point_files = [r for r in tables.sample_data if r["channel"] in ("LIDAR_TOP", *RADARS)]
+    assert result.sensor_bytes == sum((tables.root / r["filename"]).stat().st_size for r in point_files) > 0
     from_files = read_messages(out)
     for radar in RADARS:
         assert [m.data for m in from_files[f"/{radar}"]] == [m.data for m in messages[f"/{radar}"]]
@@ -295,15 +297,19 @@ def _map_geometry(root: Path, location: str):
     return out
 
 
-def test_the_map_around_the_route_is_drawn_once(exported, tables):
-    _, _, messages = exported
-    (item,) = messages["/map"]
-    assert item.log_time_ns == min(r["timestamp"] for r in tables.sample_data) * 1000
+def _route_box(tables: Tables, margin_m: float) -> tuple[float, float, float, float]:
+    """The ego route's bounding box (every sample_data's ego pose, from the JSON) grown by `margin_m`, by hand."""
     ego = np.array([tables.ego_pose[r["ego_pose_token"]]["translation"][:2] for r in tables.sample_data])
-    box = (*(ego.min(axis=0) - 50), *(ego.max(axis=0) + 50))
+    return (*(ego.min(axis=0) - margin_m), *(ego.max(axis=0) + margin_m))
+
+
+def _assert_map_is_the_json_map_clipped_to(update, tables: Tables, box) -> np.ndarray:
+    """Every layer of the /map SceneUpdate covers the area (polygons) or length (lines) of the map expansion JSON's
+    geometries clipped to `box`; returns the (K, 2) points of every layer."""
     geometry = _map_geometry(tables.root, tables.log["location"])
-    entities = {e.id: e for e in item.message.entities}
+    entities = {e.id: e for e in update.entities}
     assert {"map/drivable_area", "map/lane", "map/road_divider", "map/lane_divider"} <= set(entities)
+    everywhere = []
     for layer, geoms in geometry.items():
         clipped = [shapely.clip_by_rect(g, *box) for g in geoms]
         if f"map/{layer}" not in entities:
@@ -316,12 +322,39 @@ def test_the_map_around_the_route_is_drawn_once(exported, tables):
             u, v = points[:, 1] - points[:, 0], points[:, 2] - points[:, 0]
             area = 0.5 * np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]).sum()
             assert area == pytest.approx(sum(g.area for g in clipped), rel=1e-6)
-            assert points[..., 0].min() >= box[0] - 1e-6 and points[..., 0].max() <= box[2] + 1e-6
         else:
             line = entity.lines[0]
             points = np.array([[p.x, p.y] for p in line.points])[list(line.indices)].reshape(-1, 2, 2)
             length = np.linalg.norm(points[:, 1] - points[:, 0], axis=1).sum()
             assert length == pytest.approx(sum(g.length for g in clipped), rel=1e-6)
+        everywhere.append(points.reshape(-1, 2))
+    return np.concatenate(everywhere)
+
+
+def test_the_map_around_the_route_is_drawn_once(exported, tables):
+    _, _, messages = exported
+    (item,) = messages["/map"]
+    assert item.log_time_ns == min(r["timestamp"] for r in tables.sample_data) * 1000
+    box = _route_box(tables, 50)
+    points = _assert_map_is_the_json_map_clipped_to(item.message, tables, box)
+    assert points[:, 0].min() >= box[0] - 1e-6 and points[:, 0].max() <= box[2] + 1e-6
+
+
+def test_the_map_reaches_the_margin_on_every_side_of_the_route_and_stops_there(synth_points_out, tables, tmp_path):
+    """With --map-margin-m 10, map elements up to 10 m beyond the route's extremes (both sides of both axes) are
+    drawn and clipped at 10 m: the JSON map reaches farther on every side, so the clipped geometry touches the box's
+    four edges and no point lies outside it."""
+    margin_m = 10.0
+    box = _route_box(tables, margin_m)
+    geometry = _map_geometry(tables.root, tables.log["location"])
+    bounds = shapely.total_bounds(np.array([g for geoms in geometry.values() for g in geoms], dtype=object))
+    assert bounds[0] < box[0] and bounds[1] < box[1] and bounds[2] > box[2] and bounds[3] > box[3]
+    out = tmp_path / "map.mcap"
+    export_mcap(synth_points_out, SCENE, McapOptions(out=out, map_margin_m=margin_m, without=(
+        "images", "points", "boxes", "can_bus", "transforms")))
+    (item,) = read_messages(out)["/map"]
+    points = _assert_map_is_the_json_map_clipped_to(item.message, tables, box)
+    np.testing.assert_allclose([*points.min(axis=0), *points.max(axis=0)], box, rtol=0, atol=1e-6)
 
 
 def test_progress_counts_every_message(exported):
@@ -394,6 +427,18 @@ def test_cli_writes_the_file_and_names_bad_input(synth_points_out, tmp_path, cap
     with pytest.raises(UsageError, match="--out-dir"):
         from nuparquet.mcap import export_scenes
         export_scenes(synth_points_out, nuparquet.SceneSelection(all_scenes=True), McapOptions())
+
+
+def test_the_scene_query_refuses_an_unknown_scene_listing_every_valid_one(synth_points_out, synth_root):
+    """load_scene's own check (export_mcap asks Dataset.check_scenes first; a direct caller has only this one): the
+    names are the JSON scene table's, sorted, joined by ", "."""
+    from nuparquet.mcap.scene import load_scene
+
+    names = sorted(s["name"] for s in json.loads((synth_root / VERSION / "scene.json").read_text()))
+    assert len(names) > 1
+    with pytest.raises(UsageError) as raised:
+        load_scene(nuparquet.open(synth_points_out), "scene-9999")
+    assert str(raised.value) == f"unknown scene 'scene-9999'; valid scenes: {', '.join(names)}"
 
 
 def test_foxglove_schemas_are_embedded_for_every_protobuf_topic(exported):
