@@ -200,7 +200,7 @@ GROUPS: dict[str, Group] = {
          "nuparquet/rendering/pointcloud_image.py", "nuparquet/rendering/topview.py",
          "nuparquet/rendering/clouds.py", "nuparquet/rendering/charts.py"),
         ("tests/parity/test_single_renders_devkit.py", "tests/rendering/test_single_cli.py",
-         "tests/rendering/test_topview.py"),
+         "tests/rendering/test_topview.py", "tests/rendering/test_charts.py"),
         keyword="not extract", cache_conversions=True),
     "index": Group(
         ("nuparquet/index/**/*.py",),

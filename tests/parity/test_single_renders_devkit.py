@@ -157,6 +157,36 @@ def test_boxes_from_above_lie_on_the_devkit_flat_ego_boxes(nusc, ds, sample):
     assert miss < 0.5 * checked * 3 / 9
 
 
+def test_boxes_from_above_in_the_sensor_frame_lie_on_the_devkits_sensor_boxes(nusc, ds, sample):
+    """use_flat_vehicle_coordinates=False: the devkit draws the lidar in its own frame (viewpoint the identity) and
+    the boxes `get_sample_data` gives in that frame."""
+    token = sample["data"]["LIDAR_TOP"]
+    _, sensor_boxes, _ = nusc.get_sample_data(token)  # the lidar's own frame
+    boxes = [(b.corners()[:2].T, b.name) for b in sensor_boxes]
+    flat_boxes = _devkit_flat_view(nusc, token, 1)[2]
+    # the two frames differ here by more than the tolerance of the check (else the test would not tell them apart)
+    assert max(np.abs(a - b).max() for (a, _), (b, _) in zip(boxes, flat_boxes)) > 1.0
+    with_boxes = single.render_sample_data(ds, token, use_flat_vehicle_coordinates=False, underlay_map=False)
+    without = single.render_sample_data(ds, token, with_anns=False, use_flat_vehicle_coordinates=False,
+                                        underlay_map=False)
+    changed = (with_boxes != without).any(axis=2)
+
+    def hits_on(box_list):
+        checked = hits = 0
+        for corners, _ in box_list:
+            px = _top_pixels(_edge_points(corners))
+            keep = _inside(px, changed.shape, 3) & _away_from_corners(px, changed.shape)
+            for u, v in np.rint(px[keep]).astype(int):
+                hits += changed[v - 1:v + 2, u - 1:u + 2].any()
+                checked += 1
+        return checked, hits
+
+    checked, hits = hits_on(boxes)
+    assert checked > 200 and hits / checked > 0.97
+    checked, hits = hits_on(flat_boxes)  # not the flat ego frame's boxes
+    assert hits / checked < 0.5
+
+
 def test_lidarseg_from_above_takes_the_class_colours_and_the_filter(nusc, ds, sample):
     from nuscenes.lidarseg.lidarseg_utils import paint_points_label
     from nuscenes.utils.data_classes import LidarPointCloud
@@ -293,6 +323,44 @@ def test_pointcloud_in_image_lidarseg_colours_and_filter(nusc, ds, sample):
     assert sel.sum() > 30 and (~shown).sum() > 30
     assert (picture[px[sel, 1], px[sel, 0]] == expected[sel]).all(axis=1).mean() > 0.98
     del paint_points_label
+
+
+def test_sample_with_lidarseg_paints_each_camera_with_the_devkits_lidarseg_points(nusc, ds, sample, synth_root):
+    """render_sample(show_lidarseg=True): the devkit draws every camera with `render_pointcloud_in_image` of the
+    lidar's lidarseg points (filter_lidarseg_labels applied); the camera tile shows those points in their class
+    colours, hides the filtered ones, and is the raw image elsewhere."""
+    lidar, camera = sample["data"]["LIDAR_TOP"], sample["data"]["CAM_BACK"]
+    labels_file = os.path.join(nusc.dataroot, nusc.get("lidarseg", lidar)["filename"])
+    kept = int(np.bincount(np.fromfile(labels_file, np.uint8)).argmax())
+    points, coloring, _ = nusc.explorer.map_pointcloud_to_image(lidar, camera, show_lidarseg=True,
+                                                               filter_lidarseg_labels=[kept])
+    picture = single.render_sample(ds, sample["token"], show_lidarseg=True, filter_lidarseg_labels=[kept], scale=1.0,
+                                   underlay_map=False)
+    raw = cv2.imread(str(synth_root / nusc.get("sample_data", camera)["filename"]))[..., ::-1]
+    height, width = raw.shape[:2]
+    # the tiles: the views from above in a first row, then the cameras in the dataset's layout, rows of three
+    layout = ds.channels["camera_layout"]
+    row = next(r for r, channels in enumerate(layout) if "CAM_BACK" in channels)
+    x0, y0 = layout[row].index("CAM_BACK") * width, (1 + row) * height
+    tile = picture[y0:y0 + height, x0:x0 + width]
+    px = np.rint(points[:2].T).astype(int)
+    near = np.zeros(raw.shape[:2], np.uint8)
+    for u, v in px:
+        cv2.circle(near, (int(u), int(v)), 6, 1, -1)
+    away = near == 0
+    away[-40:, :220] = False  # the caption
+    assert away.mean() > 0.5 and (np.abs(tile.astype(int) - raw)[away].max(axis=1) <= 2).mean() > 0.999
+    shown = coloring[:, 3] == 1  # the devkit hides the other classes (alpha 0)
+    expected = np.rint(coloring[:, :3] * 255).astype(int)
+    occupancy = np.zeros(raw.shape[:2], np.int32)
+    np.add.at(occupancy, (px[:, 1], px[:, 0]), 1)
+    lonely = cv2.boxFilter(occupancy.astype(np.float32), -1, (7, 7), normalize=False)[px[:, 1], px[:, 0]] == 1
+    sel = shown & lonely & _inside(px, raw.shape, 4)
+    hidden = ~shown & lonely & _inside(px, raw.shape, 4)
+    assert sel.sum() > 30 and hidden.sum() > 30
+    assert (tile[px[sel, 1], px[sel, 0]] == expected[sel]).all(axis=1).mean() > 0.98
+    assert (np.abs(tile[px[hidden, 1], px[hidden, 0]].astype(int) - raw[px[hidden, 1], px[hidden, 0]])
+            .max(axis=1) <= 2).mean() > 0.98
 
 
 # --- annotation and instance --------------------------------------------------------------------------------------
@@ -459,6 +527,42 @@ def test_map_patch_fills_each_layers_polygons(ds, nusc_map, sample, nusc):
         assert (np.abs(picture[v[alone], u[alone]] - tint) <= 1).all()
     outside = ~shapely.contains_xy(shapely.union_all(list(polygons.values())).buffer(0.5), probes[:, 0], probes[:, 1])
     assert outside.sum() > 100 and white[outside].all()
+
+
+def test_layers_draw_traffic_lights_as_the_devkits_arrows_and_name_the_layers_in_order(ds, nusc_map):
+    """The devkit's render_layers draws a traffic light as an arrow from its line's first node to its second, in the
+    explorer's colour, and a legend entry per layer (its colour); drawn here over a 6 m square around one light."""
+    from matplotlib.colors import to_rgb
+
+    assert nusc_map.traffic_light
+    xs, ys = nusc_map.extract_line(nusc_map.traffic_light[0]["line_token"]).xy
+    start, end = np.array([xs[0], ys[0]]), np.array([xs[1], ys[1]])
+    cx, cy = (start + end) / 2
+    extent, size = (cx - 3, cy - 3, cx + 3, cy + 3), 1000
+    picture = single.render_layers(ds, nusc_map.map_name, ["drivable_area", "traffic_light"], extent=extent,
+                                   size_px=size)
+    assert picture.shape == (size, size, 3)
+    colours = {layer: np.rint(np.array(to_rgb(nusc_map.explorer.color_map[layer])) * 255).astype(int)
+               for layer in ("drivable_area", "traffic_light")}
+    s = size / 6
+
+    def pixel(xy):
+        return np.array([(xy[0] - extent[0]) * s - 0.5, (extent[3] - xy[1]) * s - 0.5])
+
+    a, b = pixel(start), pixel(end)
+    assert np.linalg.norm(b - a) > 30
+    arrow = (picture == colours["traffic_light"]).all(axis=2)
+    arrow[:200, size // 2:] = False  # the legend (top right)
+    vs, us = np.nonzero(arrow)
+    along = ((np.c_[us, vs] - a) @ (b - a)) / np.dot(b - a, b - a)  # 0 at the first node, 1 at the second
+    assert len(us) > 40 and along.min() > -0.1 and along.max() < 1.1  # from the first node to the second ...
+    assert (along < 0.15).sum() > 0 and (along > 0.85).sum() > 0
+    assert (along > 0.6).sum() > 1.5 * (along < 0.4).sum()  # ... with the head at the second
+    # the legend: each layer's swatch, in the order given
+    legend = picture[:200, size // 2:]
+    rows = {layer: np.nonzero((legend == colour).all(axis=2))[0] for layer, colour in colours.items()}
+    assert all(len(r) > 50 for r in rows.values())
+    assert rows["drivable_area"].max() < rows["traffic_light"].min()
 
 
 def test_map_mask_picture_shows_the_devkits_masks(ds, nusc_map, sample, nusc):
