@@ -61,6 +61,9 @@ class Group:
     cache_data: the generated dataroots are made once (`NUPARQUET_TEST_CACHE`); off for the generator's own group.
     serial_engine: the process-pool engine runs its units in the test's process (`NUPARQUET_TEST_SERIAL_ENGINE`,
         tests/conftest.py): mutmut sees only what runs in that process. Off for the engine's own group.
+    not_mutated: modules of the group mutmut must leave alone (its `do_not_mutate`): numba compiles their functions
+        at run time (`numba.njit(project_pairs)`), and mutmut's trampoline around a function cannot be compiled, so
+        the unmutated tests would fail. Their hand-made mutants (mutation/hand_mutants.toml) stand in.
     """
 
     modules: tuple[str, ...]
@@ -70,6 +73,7 @@ class Group:
     cache_conversions: bool = False
     cache_data: bool = True
     serial_engine: bool = True
+    not_mutated: tuple[str, ...] = ()
 
     def pytest_args(self) -> list[str]:
         return [*self.tests, "-m", self.marks, *(["-k", self.keyword] if self.keyword else [])]
@@ -90,7 +94,8 @@ GROUPS: dict[str, Group] = {
         ("tests/parity/test_geometry_math.py", "tests/test_geometry_contract.py", "tests/test_camera.py",
          "tests/test_box_projection_kernel.py",
          "tests/parity/test_points_queries_devkit.py::test_points_in_boxes_equal_devkit_and_num_lidar_pts_on_synthetic_data",
-         *_box_projection_small_tests())),
+         *_box_projection_small_tests()),
+        not_mutated=("nuparquet/geometry/compiled.py",)),
     "projection": Group(
         ("nuparquet/frames/projection.py", "nuparquet/frames/points_in_image.py", "nuparquet/frames/poses.py",
          "nuparquet/frames/boxes.py", "nuparquet/frames/sensor_boxes.py"),
@@ -279,6 +284,7 @@ def stage(group: str, keep_results: bool = False, where: Path | None = None) -> 
         "\n[tool.mutmut]\n"
         f"source_paths = {json.dumps(['nuparquet'])}\n"
         f"only_mutate = {json.dumps(group_modules(group))}\n"
+        f"do_not_mutate = {json.dumps(list(GROUPS[group].not_mutated))}\n"
         f"also_copy = {json.dumps(['schemas', 'docs'])}\n"
         f"pytest_add_cli_args_test_selection = {json.dumps(GROUPS[group].pytest_args())}\n"
         f"pytest_add_cli_args = {json.dumps(['-p', 'no:cacheprovider', '-p', 'no:xdist', '-q'])}\n"
