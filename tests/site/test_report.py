@@ -397,6 +397,8 @@ def test_cell_text_of_booleans_and_datetimes():
     naive = datetime(2018, 8, 30, 14, 35, 16)
     assert cell_text(naive) == "2018-08-30 14:35:16"  # no zone known: none claimed
     assert cell_text(naive.replace(tzinfo=timezone.utc)) == "2018-08-30 14:35:16 UTC"
+    boston = datetime(2018, 8, 30, 10, 35, 16, tzinfo=timezone(timedelta(hours=-4)))  # the same instant, EDT
+    assert cell_text(boston) == "2018-08-30 14:35:16 UTC"
 
 
 def test_table_cells_are_escaped_as_text():
