@@ -27,7 +27,8 @@ def page(title: str, body: str, *, root: str = "", subtitle: str = "") -> str:
 
 
 def cell_text(value, decimals: int = 2) -> str:
-    """A value as table text: floats with `decimals`, datetimes as ISO text, lists as comma lists, None as ""."""
+    """A value as table text: floats with `decimals`, datetimes as ISO text (aware ones in UTC), lists as comma
+    lists, None as ""."""
     if value is None:
         return ""
     if isinstance(value, bool):
@@ -37,6 +38,8 @@ def cell_text(value, decimals: int = 2) -> str:
     if isinstance(value, int):
         return f"{value:,}"
     if isinstance(value, dt.datetime):
+        if value.tzinfo:  # labelled UTC below: an aware time in another zone is converted, not relabelled
+            value = value.astimezone(dt.timezone.utc)
         return value.strftime("%Y-%m-%d %H:%M:%S") + (" UTC" if value.tzinfo else "")
     if isinstance(value, (list, tuple)):
         return ", ".join(cell_text(v, decimals) for v in value)

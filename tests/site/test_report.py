@@ -4,6 +4,7 @@ tested in test_report_browser.py)."""
 
 from __future__ import annotations
 
+import copy
 import json
 import re
 import shutil
@@ -19,26 +20,47 @@ import pytest
 from nuparquet.cli.main import main
 from nuparquet.errors import UsageError
 from nuparquet.site import ReportOptions, build_report
-from nuparquet.site.facts import local_start, log_utc_offset_min, time_of_day, weather_words
+from nuparquet.site.facts import dataset_facts, local_start, log_utc_offset_min, time_of_day, weather_words
+from nuparquet.site.html import cell_text
 
 VERSION = "v1.0-synth"
 SCENES = ["scene-0001", "scene-0002"]
 
 
+# Elements that hold other elements, never text of their own: text in them is stray (a fragment of markup written
+# outside its element); the void elements have no end tag.
+CONTAINERS = {"html", "head", "body", "header", "main", "div", "table", "thead", "tbody", "tr", "figure", "details",
+              "select", "video"}
+VOID = {"meta", "link", "img", "input", "br", "hr", "source"}
+
+
 class Page(HTMLParser):
-    """Every URL a page refers to (href, src) and its tables as lists of rows of cell texts, by table id or the
-    id of the <details> around it."""
+    """Every URL a page refers to (href, src), its tables as lists of rows of cell texts (by table id or the id of
+    the <details> around it), the texts of its headings and paragraphs (`texts["h2"]`, `texts["p"]`), and
+    `problems`: what makes it malformed (an end tag that closes no open element, an element left open, text
+    outside any element or directly inside a container)."""
 
     def __init__(self, text: str):
         super().__init__()
         self.urls: list[str] = []
         self.tables: dict[str, list[list[str]]] = {}
+        self.texts: dict[str, list[str]] = {"h1": [], "h2": [], "p": []}
+        self.problems: list[str] = []
+        self._open: list[str] = []
+        self._texts: list[tuple[str, list[str]]] = []
         self._context: list[str] = []
         self._table: list[list[str]] | None = None
         self._cell: list[str] | None = None
         self.feed(text)
+        self.close()
+        if self._open:
+            self.problems.append(f"left open: {self._open}")
 
     def handle_starttag(self, tag, attrs):
+        if tag not in VOID:
+            self._open.append(tag)
+        if tag in self.texts:
+            self._texts.append((tag, []))
         attrs = dict(attrs)
         for name in ("href", "src"):
             if name in attrs:
@@ -55,6 +77,12 @@ class Page(HTMLParser):
             self._cell = []
 
     def handle_endtag(self, tag):
+        if not self._open or self._open[-1] != tag:
+            self.problems.append(f"</{tag}> closes no open element (open: {self._open})")
+        else:
+            self._open.pop()
+        if tag in self.texts and self._texts and self._texts[-1][0] == tag:
+            self.texts[tag].append("".join(self._texts.pop()[1]).strip())
         if tag in ("td", "th") and self._cell is not None:
             self._table[-1].append("".join(self._cell).strip())
             self._cell = None
@@ -64,6 +92,10 @@ class Page(HTMLParser):
             self._context.pop()
 
     def handle_data(self, data):
+        if data.strip() and (not self._open or self._open[-1] in CONTAINERS):
+            self.problems.append(f"text {data.strip()!r} in <{self._open[-1] if self._open else 'nothing'}>")
+        for _, parts in self._texts:
+            parts.append(data)
         if self._cell is not None:
             self._cell.append(data)
 
@@ -82,6 +114,10 @@ class Tables:
         self.log = {lg["token"]: lg for lg in table("log")}
         self.samples = table("sample")
         self.annotations = table("sample_annotation")
+        self.instances = table("instance")
+        self.sample_data = table("sample_data")
+        # the scenes with CAN bus data: those the generator wrote a pose file for (can_bus/<scene>_pose.json)
+        self.can_bus = {p.name.removesuffix("_pose.json") for p in (root / "can_bus").glob("*_pose.json")}
 
     def samples_of(self, scene: str) -> list[dict]:
         token = self.scene[scene]["token"]
@@ -91,13 +127,22 @@ class Tables:
         samples = {s["token"] for s in self.samples_of(scene)}
         return [a for a in self.annotations if a["sample_token"] in samples]
 
+    def local_start(self, scene: str) -> tuple[datetime, str]:
+        """The first sample's time in the UTC offset its log's name ends with (n008-2018-10-12-08-10-14-0400), and
+        that offset as the report names it ("UTC-04:00")."""
+        logfile = self.log[self.scene[scene]["log_token"]]["logfile"]
+        sign, hours, minutes = re.search(r"([+-])(\d\d)(\d\d)$", logfile).groups()
+        offset = timedelta(hours=int(hours), minutes=int(minutes)) * (1 if sign == "+" else -1)
+        utc = datetime(1970, 1, 1, tzinfo=timezone.utc) + timedelta(microseconds=self.samples_of(scene)[0]["timestamp"])
+        return utc + offset, f"UTC{sign}{hours}:{minutes}"
+
 
 @pytest.fixture(scope="module")
 def tables(synth_root) -> Tables:
     return Tables(synth_root)
 
 
-def test_the_site_has_an_index_a_page_per_scene_videos_and_only_local_links(synth_report):
+def test_the_site_has_an_index_a_page_per_scene_videos_well_formed_pages_and_only_local_links(synth_report):
     result, events = synth_report
     out = result.out
     assert result.scenes == SCENES and result.problems == {}
@@ -108,6 +153,7 @@ def test_the_site_has_an_index_a_page_per_scene_videos_and_only_local_links(synt
     for page in pages:
         text = page.read_text()
         assert "http://" not in text and "https://" not in text and "//cdn" not in text
+        assert Page(text).problems == [], page.name
         for url in Page(text).urls:
             if url.startswith(("#", "data:")):
                 continue
@@ -134,14 +180,49 @@ def test_scene_table_rows_are_the_scenes_of_the_json_tables(synth_report, tables
         duration = (samples[-1]["timestamp"] - samples[0]["timestamp"]) / 1e6
         assert row["duration s"] == f"{duration:.2f}"
         # the local time: the log name's offset (n008-2018-10-12-08-10-14-0400) applied to the first sample
-        sign, hours, minutes = re.search(r"([+-])(\d\d)(\d\d)$", log["logfile"]).groups()
-        offset = timedelta(hours=int(hours), minutes=int(minutes)) * (1 if sign == "+" else -1)
-        local = datetime(1970, 1, 1, tzinfo=timezone.utc) + timedelta(microseconds=samples[0]["timestamp"]) + offset
+        local, _ = tables.local_start(row["scene"])
         assert row["local start"] == local.strftime("%H:%M")
         assert row["time of day"] == ("morning" if 6 <= local.hour < 12 else "afternoon" if local.hour < 17
                                       else "evening" if local.hour < 20 else "night") if local.hour >= 6 else "night"
         assert row["description"] == scene["description"]
     assert [r["CAN bus"] for r in rows] == ["yes", "no"]  # the generator leaves the last scene without CAN bus
+    assert tables.can_bus == {"scene-0001"}
+
+
+def test_index_outline_dataset_facts_and_no_subset_note(synth_report, tables):
+    """The index's sections in order, its dataset facts counted from the JSON tables, and no note of a subset: the
+    report covers every scene."""
+    result, _ = synth_report
+    page = Page(result.index.read_text())
+    assert page.texts["h2"] == ["Dataset", f"Scenes ({len(SCENES)} of {len(SCENES)} shown)", "Charts", "Statistics"]
+    facts = dict(page.tables["table0"])  # the first table: (label, value) rows
+    assert (facts["scenes"], facts["samples (keyframes)"], facts["sensor frames"], facts["annotations"],
+            facts["instances (tracks)"]) == (f"{len(tables.scene):,}", f"{len(tables.samples):,}",
+                                             f"{len(tables.sample_data):,}", f"{len(tables.annotations):,}",
+                                             f"{len(tables.instances):,}")
+    assert facts["CAN bus"] == "converted" and facts["sensor points"] == "lidar_points, radar_points"
+    # the header's subtitle and the statistics tables' "N more rows not shown", nothing else
+    assert [p for p in page.texts["p"] if not p.endswith("more rows not shown")] == ["nuparquet dataset report"]
+
+
+def test_dataset_facts_count_the_json_tables_and_leave_samples_blank_without_the_sample_table(synth_points_out,
+                                                                                              tables):
+    from nuparquet.dataset import Dataset, as_dataset
+
+    dataset = as_dataset(synth_points_out)
+    facts = dict(dataset_facts(dataset))
+    assert (facts["scenes"], facts["samples (keyframes)"], facts["sensor frames"], facts["annotations"],
+            facts["instances (tracks)"]) == (str(len(tables.scene)), str(len(tables.samples)),
+                                             str(len(tables.sample_data)), str(len(tables.annotations)),
+                                             str(len(tables.instances)))
+    # a dataset whose manifest lists no tables/sample (the constructor takes any manifest): the samples line is
+    # blank, every other count the same
+    manifest = copy.deepcopy(dataset.manifest)
+    del manifest["datasets"]["tables/sample"]
+    without = dict(dataset_facts(Dataset(dataset.root, manifest)))
+    assert without["samples (keyframes)"] == ""
+    assert {k: v for k, v in without.items() if k not in ("samples (keyframes)", "datasets")} == \
+        {k: v for k, v in facts.items() if k not in ("samples (keyframes)", "datasets")}
 
 
 def test_statistics_tables_are_the_canned_queries(synth_report, tables):
@@ -246,6 +327,12 @@ def test_scenes_subset_and_no_videos(synth_points_out, tables, tmp_path, capsys)
     rows = rows_of(index.tables["class_distribution"])
     assert sum(int(r["num_annotations"].replace(",", "")) for r in rows) == len(tables.annotations_of("scene-0002"))
     assert "1 selected scene(s)" in (out / "index.html").read_text()
+    # the scene's local start (its log name's offset) and CAN bus (none: the generator writes none for the last scene)
+    (row,) = rows_of(index.tables["scene-table"])
+    local, zone = tables.local_start("scene-0002")
+    assert (row["local start"], row["CAN bus"]) == (local.strftime("%H:%M"), "no") and "scene-0002" not in tables.can_bus
+    page = Page((out / "scenes" / "scene-0002.html").read_text())
+    assert dict(page.tables["table0"])["local start"] == f"{local.strftime('%H:%M')} ({zone})"
     assert not (out / "videos").exists() and not list((out / "scenes").rglob("*.jpg"))
     assert "no video" in (out / "scenes" / "scene-0002.html").read_text()
 
@@ -303,6 +390,15 @@ def test_real_scenes_local_times_can_bus_and_videos(real_report):
         assert sorted(p.name for p in (real_report.out / "scenes" / scene).iterdir()) == [
             "can_speed.png", "steering.png", "still-0.jpg", "still-1.jpg"]
     assert real_report.problems == {}
+
+
+def test_cell_text_of_booleans_and_datetimes():
+    assert (cell_text(True), cell_text(False)) == ("yes", "no")
+    naive = datetime(2018, 8, 30, 14, 35, 16)
+    assert cell_text(naive) == "2018-08-30 14:35:16"  # no zone known: none claimed
+    assert cell_text(naive.replace(tzinfo=timezone.utc)) == "2018-08-30 14:35:16 UTC"
+    boston = datetime(2018, 8, 30, 10, 35, 16, tzinfo=timezone(timedelta(hours=-4)))  # the same instant, EDT
+    assert cell_text(boston) == "2018-08-30 14:35:16 UTC"
 
 
 def test_table_cells_are_escaped_as_text():
