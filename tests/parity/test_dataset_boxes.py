@@ -105,3 +105,18 @@ def test_project_boxes_of_a_dataset_finds_its_annotations_and_samples_itself(cas
     sensor = ds.boxes(tokens, visibility="any", at="sensor").filter(pl.col("frame_token").is_in(list(mine.frame_token)))
     assert sorted(zip(sensor["frame_token"], sensor["annotation_token"])) == sorted(
         zip(mine.frame_token.tolist(), mine.annotation_token.tolist()))  # the camera boxes both keep
+
+
+def test_boxes_have_the_documented_column_types_and_frame_index_is_the_row_of_the_frame_asked_for(case):
+    """`boxes_at`'s docstring: frame_index (u32, the row of `frames`), the tokens and names as strings, translation,
+    size and rotation as fixed-size float64 arrays, interpolated as a boolean."""
+    ds, _ = case
+    tokens = _frames(ds)
+    for at in ("sensor", "ego", "global"):
+        ours = ds.boxes(tokens, visibility="none", at=at)
+        assert dict(ours.schema) == {
+            "frame_index": pl.UInt32, "frame_token": pl.String, "annotation_token": pl.String,
+            "instance_token": pl.String, "category_name": pl.String, "translation": pl.Array(pl.Float64, 3),
+            "size": pl.Array(pl.Float64, 3), "rotation": pl.Array(pl.Float64, 4), "interpolated": pl.Boolean}, at
+        row_of = {token: i for i, token in enumerate(tokens)}
+        assert ours["frame_index"].to_list() == [row_of[t] for t in ours["frame_token"].to_list()], at
