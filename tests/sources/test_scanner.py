@@ -239,3 +239,24 @@ def test_a_record_over_the_limit_is_refused_without_reading_it_whole(tmp_path, m
     table, problems = _read(tmp_path, json.dumps([{"token": "a"}, {"token": "b", "n": list(range(200))}]))
     assert table is None and [(p.index, p.message) for p in problems] == [
         (1, "record is longer than 0 MiB (the longest a table may hold)")]
+
+
+def test_the_kinds_matrix_is_one_uint8_per_record_and_field_with_each_values_json_kind(tmp_path, monkeypatch):
+    """`Scanned.kinds` holds (records, fields) uint8 codes (the documented type: one byte per value, so a table of
+    millions of records and dozens of fields stays small), a field first seen in a later window included; each code
+    is the JSON kind of the value written by hand below."""
+    monkeypatch.setattr(table_scan, "WINDOW_BYTES", 64)
+    records = [{"token": f"t{i}"} for i in range(30)] + [
+        {"token": "a", "late": 7, "other": None}, {"token": "b", "late": "x", "other": [1, 2]},
+        {"token": None, "late": 2.5, "other": True}, {"token": "c", "late": {"k": 1}, "other": False}]
+    path = tmp_path / "table.json"
+    path.write_text(json.dumps(records))
+    scanned, problems = table_scan.scan_table(path, SCHEMA.fields, 1)  # from just after the opening "["
+    assert problems == []
+    assert scanned.kinds.dtype == "uint8" and scanned.kinds.shape == (len(records), 3)
+    assert list(scanned.columns) == ["token", "late", "other"]
+    j = json_scan
+    expected = [(j.STRING, j.ABSENT, j.ABSENT)] * 30 + [
+        (j.STRING, j.INT, j.NULL), (j.STRING, j.STRING, j.ARRAY), (j.NULL, j.FLOAT, j.TRUE),
+        (j.STRING, j.OBJECT, j.FALSE)]
+    assert [tuple(int(v) for v in row) for row in scanned.kinds] == expected
