@@ -8,11 +8,13 @@ from __future__ import annotations
 import json
 import re
 
+import numpy as np
 import polars as pl
 import pytest
 from eval_reference import (
     assert_same_metrics, devkit_eval, devkit_metrics_of, filtered, gt_box_tokens, sequential_matches,
 )
+from eval_submissions import ego_position, perfect, split_samples, write
 
 from nuparquet.errors import UsageError
 from nuparquet.evaluation import evaluate
@@ -43,16 +45,21 @@ def sliced(submissions, eval_out, tmp_path_factory):
     return {**{name: (result, folder / "named") for name in by}, "num_lidar_pts": (binned, folder / "binned")}
 
 
-@pytest.fixture(scope="module")
-def reference(submissions, eval_nusc, tmp_path_factory):
-    """The devkit's filtered boxes, annotation tokens and its matches at 2 m."""
-    evaluation = devkit_eval(eval_nusc, submissions["noisy"], tmp_path_factory.mktemp("devkit-slices"))
-    tokens = gt_box_tokens(eval_nusc, evaluation.gt_boxes)
+def _devkit_reference(nusc, results, folder):
+    """The devkit's evaluation of `results` (its filtered boxes), annotation tokens and its matches at 2 m."""
+    evaluation = devkit_eval(nusc, results, folder)
+    tokens = gt_box_tokens(nusc, evaluation.gt_boxes)
     matched = {}
     for name in DETECTION_NAMES:
         matched.update(sequential_matches(evaluation.gt_boxes, evaluation.pred_boxes, name, 2.0))
     meta = json.loads(open(evaluation.result_path).read())["meta"]
     return evaluation, tokens, matched, meta
+
+
+@pytest.fixture(scope="module")
+def reference(submissions, eval_nusc, tmp_path_factory):
+    """The devkit's view of the noisy submission: `_devkit_reference`."""
+    return _devkit_reference(eval_nusc, submissions["noisy"], tmp_path_factory.mktemp("devkit-slices"))
 
 
 def _scene_of(nusc, sample_token: str) -> dict:
@@ -101,6 +108,12 @@ def _pred_value(nusc, by: str, box, matched_gt, tokens):
                                 "num_lidar_pts", "vehicle"])
 def test_slice_metrics_equal_the_devkit_on_the_filtered_boxes(by, sliced, reference, eval_nusc):
     result, out = sliced[by]
+    _assert_slices_equal_the_devkit(by, result, out, reference, eval_nusc)
+
+
+def _assert_slices_equal_the_devkit(by, result, out, reference, eval_nusc) -> None:
+    """Every slice of `by` (its labels, counts, metric files, mAP, NDS) against the devkit's `evaluate()` on the
+    boxes the slice rule (computed here from the devkit's boxes and matches) puts in it."""
     evaluation, tokens, matched, meta = reference
     gt_values = {id(b): _gt_value(eval_nusc, by, b, tokens[id(b)]) for b in evaluation.gt_boxes.all}
     pred_values = {id(b): _pred_value(eval_nusc, by, b, matched, tokens) for b in evaluation.pred_boxes.all}
@@ -115,6 +128,41 @@ def test_slice_metrics_equal_the_devkit_on_the_filtered_boxes(by, sliced, refere
         row = ours.filter(pl.col("slice") == label).row(0, named=True)
         assert (row["num_gt"], row["num_predictions"]) == (len(gt.all), len(pred.all))
         assert row["mAP"] == summary["mean_ap"] and row["NDS"] == pytest.approx(summary["nd_score"], abs=1e-12)
+
+
+def test_an_unmatched_prediction_counts_in_the_slice_of_its_own_attribute_only(eval_nusc, eval_out, tmp_path):
+    """The ground-truth cars as predictions (score 0.5, their own attributes) and one false positive, a car predicted
+    "vehicle.stopped" 20 m from the ego vehicle and far from every box, scored above them all: it lowers the car AP
+    of the vehicle.stopped slice only (the devkit's evaluate() on the boxes filtered by attribute, the unmatched
+    prediction by the attribute it predicted), not that of the moving, parked or attribute-less cars."""
+    results = {token: [dict(box, detection_score=0.5) for box in boxes if box["detection_name"] == "car"]
+               for token, boxes in perfect(eval_nusc).items()}
+    sample = next(s for s in split_samples(eval_nusc) if results[s["token"]])
+    ego = np.array(ego_position(eval_nusc, sample))
+    centres = np.array([eval_nusc.get("sample_annotation", t)["translation"][:2] for t in sample["anns"]])
+    spot = next(ego[:2] + 20.0 * np.array([np.cos(a), np.sin(a)]) for a in np.linspace(0, 2 * np.pi, 36)
+                if np.linalg.norm(centres - (ego[:2] + 20.0 * np.array([np.cos(a), np.sin(a)])), axis=1).min() > 5.0)
+    stray = dict(results[sample["token"]][0], translation=[*map(float, spot), float(ego[2]) + 0.8],
+                 detection_score=0.9, attribute_name="vehicle.stopped")
+    results[sample["token"]].append(stray)
+    path = write(tmp_path / "results.json", results)
+    result = evaluate(eval_out, results=path, split="val", out=tmp_path / "eval", plots=False, by=("attribute",))
+    reference = _devkit_reference(eval_nusc, path, tmp_path / "devkit")
+
+    evaluation, _, matched, _ = reference
+    (kept,) = [b for b in evaluation.pred_boxes[sample["token"]] if b.detection_score == 0.9]
+    assert matched[id(kept)] is None  # the case: evaluated, unmatched, with an attribute
+    gt_attributes = {b.attribute_name or "none" for b in evaluation.gt_boxes.all if b.detection_name == "car"}
+    assert {"vehicle.moving", "vehicle.parked", "vehicle.stopped"} <= gt_attributes
+    _assert_slices_equal_the_devkit("attribute", result, tmp_path / "eval", reference, eval_nusc)
+    # every prediction here counts in the slice of its own attribute (the matched ones matched a box with it)
+    own = {}
+    for box in evaluation.pred_boxes.all:
+        own[box.attribute_name or "none"] = own.get(box.attribute_name or "none", 0) + 1
+    counts = dict(result.slices.select("slice", "num_predictions").iter_rows())
+    assert counts == {label: own.get(label, 0) for label in counts}
+    cars = dict(result.slices.select("slice", "AP_car").iter_rows())
+    assert cars["vehicle.stopped"] < min(cars["vehicle.moving"], cars["vehicle.parked"])
 
 
 def test_slices_partition_the_ground_truth_and_charge_unmatched_predictions_everywhere(sliced):
