@@ -120,3 +120,19 @@ def test_output_times_are_float64_microseconds_for_one_camera_and_the_keyframe_m
     samples = pl.DataFrame({"token": ["s2", "s1"], "timestamp": [200, 100]})
     keyframes, _ = camera_rows_per_output(_cameras(), samples, ["A", "B"], mosaic=True, all_frames=False, fps=2.0)
     assert one.dtype == np.float64 and keyframes.dtype == np.float64
+
+
+def test_a_row_tile_shows_the_token_and_time_of_its_row_and_nothing_for_no_row_or_no_tokens():
+    """`RowTile.shows` (the frame index's entry for each output): the row's sample_data token and timestamp, None
+    where the tile shows no row (-1), and None for a source without tokens."""
+    from nuparquet.rendering.plan import RowTile
+
+    tile = RowTile()
+    tile.rows = np.array([1, -1, 0, 1])
+    tile.tokens = ("first", "second")
+    tile.timestamps_us = np.array([1_000, 2_000], np.int64)
+    assert [tile.shows(t) for t in range(4)] == [("second", 2_000), None, ("first", 1_000), ("second", 2_000)]
+    assert [tile.key(t) for t in range(4)] == [1, None, 0, 1]
+    untokened = RowTile()
+    untokened.rows = np.array([0, -1])
+    assert [untokened.shows(t) for t in range(2)] == [None, None]

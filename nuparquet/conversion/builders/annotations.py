@@ -17,12 +17,12 @@ MAX_VELOCITY_TIME_DIFF_S = 1.5
 
 
 def build_annotations(tables: dict[str, pl.DataFrame], annotations: pl.DataFrame, samples: pl.DataFrame,
-                      references: pl.DataFrame, *, allow_dangling: bool = False,
-                      positions: pl.DataFrame | None = None) -> pl.DataFrame:
+                      references: pl.DataFrame, positions: pl.DataFrame, *,
+                      allow_dangling: bool = False) -> pl.DataFrame:
     """One row per row of `annotations` (sample_annotation rows of a batch of scenes). `references` is
     `lookups.reference_poses(tables, samples)`. `allow_dangling` (a trimmed extract): velocity is null where the devkit's
     box_velocity fails (`velocity_defined`); joins without a partner give nulls in any case. `positions`: token ->
-    file_index of every sample_annotation record (`common.file_positions`; default: the order of `annotations`)."""
+    file_index of every sample_annotation record (`common.file_positions`)."""
     names = dict(zip(tables["attribute"]["token"].to_list(), tables["attribute"]["name"].to_list()))  # a handful
     ann = declared_fields(annotations, "sample_annotation").with_columns(
         attribute_names=pl.col("attribute_tokens").list.eval(
@@ -39,7 +39,7 @@ def build_annotations(tables: dict[str, pl.DataFrame], annotations: pl.DataFrame
               on="category_token", how="left")
         .join(ego.lazy(), on="sample_token", how="left")
         .join(visibility_levels(tables["visibility"]).lazy(), on="visibility_token", how="left")
-        .join((annotations.select("token").with_row_index("file_index") if positions is None else positions).lazy(),
+        .join(positions.lazy(),
               on="token", how="left")
         .collect()
     )
