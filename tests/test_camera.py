@@ -92,3 +92,14 @@ def test_clip_segments_cuts_at_the_near_plane_and_projects_with_each_cameras_int
     # The far end lands on z = 0.1 on the line x = y = 0: the principal point, of each camera.
     np.testing.assert_allclose(clipped[0, 0], [[800.0, 450.0], [800.0, 450.0]], atol=1e-9)
     np.testing.assert_allclose(clipped[1, 0], [[399.75, 224.75], [399.75, 224.75]], atol=1e-9)
+
+
+def test_rotation_to_camera_turns_a_global_orientation_into_each_cameras_axes():
+    """A box facing global +y (yaw 90 degrees), worked out by hand: camera 1's ego faces +y, so the box's forward
+    axis is the camera's forward (z), its left (global -x) the camera's -x, its up the camera's -y; camera 0's ego
+    faces +x, so the box's forward is the ego's left (camera -x) and its left the ego's back (camera -z)."""
+    yaw_90 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    ours = two_cameras().rotation_to_camera(yaw_90)
+    assert ours.shape == (2, 3, 3)
+    np.testing.assert_allclose(ours[1], [[0.0, -1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(ours[0], [[-1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, -1.0, 0.0]], atol=1e-12)

@@ -288,3 +288,14 @@ def test_equal_sample_times_interpolate_and_slerp_without_warnings():
         amounts = geometry.slerp_amount(np.array([7, 5]), np.array([7, 3]), np.array([7, 7]))
     assert centres.tolist() == [[5.0, 2.0], [3.0, 3.0]]
     assert amounts.dtype == np.float64 and amounts.tolist() == [1.0, 0.5]
+
+
+def test_invert_quaternions_equals_pyquaternions_inverse_for_unit_and_other_norms():
+    rng = np.random.default_rng(7)
+    q = rng.normal(size=(2, 5, 4)) * rng.uniform(0.2, 3.0, size=(2, 5, 1))  # batched, norms far from 1
+    ours = quaternions.invert_quaternions(q)
+    assert ours.shape == (2, 5, 4)
+    expected = [[Quaternion(*row).inverse.elements for row in block] for block in q]
+    np.testing.assert_allclose(ours, expected, rtol=1e-12, atol=0)
+    with pytest.raises(ValueError, match=r"q_wxyz must have shape \(\.\.\., 4\), got \(5, 3\)"):
+        quaternions.invert_quaternions(np.ones((5, 3)))
