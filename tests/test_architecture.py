@@ -204,3 +204,14 @@ def test_every_cli_command_has_its_verb_in_the_front_door():
             "sql": "open"}
     for command in COMMANDS:
         assert verb.get(command, command) in nuparquet.__all__, command
+
+
+def test_no_two_test_modules_share_a_file_name():
+    """The test folders are not packages: pytest imports each test module by its file name, and test modules import
+    helpers from one another by name (`from test_reference import assert_same`), so a second `test_x.py` in
+    another folder makes one of them import the other (or fail to collect) when both run in one process."""
+    names: dict[str, list[str]] = {}
+    for path in sorted((REPO / "tests").rglob("*.py")):
+        names.setdefault(path.name, []).append(str(path.relative_to(REPO)))
+    shared = {name: paths for name, paths in names.items() if len(paths) > 1 and name not in ("__init__.py", "conftest.py")}
+    assert shared == {}

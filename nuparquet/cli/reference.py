@@ -1,5 +1,5 @@
 """docs/cli.md: the `--help` of `nuparquet` and of every command, generated from the parser (the help texts users
-read are behaviour: a stale or broken one fails `tests/cli/test_reference.py`).
+read are behaviour: a stale or broken one fails `tests/cli/test_cli_reference.py`).
 
     python -m nuparquet.cli.reference --docs docs/cli.md     # or `make docs`
 """
