@@ -81,3 +81,16 @@ def test_a_name_with_descenders_stays_in_its_row_when_a_wider_name_has_none():
     # and the descenders of the middle name are drawn within its own row
     rows = np.nonzero(ink[swatch_tops[1] - 2:swatch_tops[2] - 2].any(axis=1))[0]
     assert rows.max() > step * 0.75  # the descenders reach low into the row
+
+
+def test_the_caption_text_lies_inside_its_darkened_band_in_every_corner():
+    """Every pixel the caption changes, its text included, lies within the darkened band's rectangle: text drawn
+    too low spills out of a top band (or off the picture under a bottom one)."""
+    darkened = (np.array(GREY_BGR) * PANEL_DARKEN).astype(np.uint8)
+    for corner in ("top-left", "top-right", "bottom-left", "bottom-right"):
+        image = draw_caption(_picture(), "CAM_BACK_RIGHT jpg", corner=corner, font_scale=0.6)
+        rows, cols = np.nonzero((image == darkened).all(axis=2))
+        band = (rows.min(), rows.max() + 1, cols.min(), cols.max() + 1)
+        assert _changed_box(image) == band, corner
+        white_rows = np.nonzero(_white(image).any(axis=1))[0]
+        assert band[0] + 2 <= white_rows.min() and white_rows.max() < band[1] - 2, corner  # a margin inside the band

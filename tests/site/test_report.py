@@ -335,6 +335,9 @@ def test_scenes_subset_and_no_videos(synth_points_out, tables, tmp_path, capsys)
     assert dict(page.tables["table0"])["local start"] == f"{local.strftime('%H:%M')} ({zone})"
     assert not (out / "videos").exists() and not list((out / "scenes").rglob("*.jpg"))
     assert "no video" in (out / "scenes" / "scene-0002.html").read_text()
+    # no CAN bus: no speed or steering chart (its ego-pose speeds alone are not charted)
+    assert not list((out / "scenes" / "scene-0002").glob("*.png"))
+    assert "no CAN bus messages for this scene" in (out / "scenes" / "scene-0002.html").read_text()
 
 
 def test_existing_output_unknown_scene_and_missing_dataroot_are_refused(synth_points_out, tmp_path, capsys):
