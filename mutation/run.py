@@ -146,7 +146,8 @@ GROUPS: dict[str, Group] = {
              "test_unknown_scene_or_bad_where_is_refused_before_any_work",
              "test_resume_after_a_stopped_run_reuses_the_scenes_it_finished",
              "test_resume_renders_again_scenes_made_with_other_options",
-             "test_a_second_run_keeps_the_summary_entries_of_scenes_it_did_not_render_and_ignores_a_broken_summary"))),
+             "test_a_second_run_keeps_the_summary_entries_of_scenes_it_did_not_render_and_ignores_a_broken_summary",
+             "test_the_many_scene_progress_counts_scenes_under_the_jobs_name"))),
         serial_engine=False),
     "can_bus": Group(
         ("nuparquet/can_bus/*.py", "nuparquet/sources/can_bus.py", "nuparquet/conversion/builders/can_bus.py",

@@ -254,3 +254,18 @@ def test_a_second_run_keeps_the_summary_entries_of_scenes_it_did_not_render_and_
         assert main(["render", str(scenes_out), "--scenes", "scene-0002", "--out-dir", str(out_dir), "--engine",
                      "serial", "--resume", *SMALL]) == 0
         assert sorted(json.loads((out_dir / SUMMARY_NAME).read_text())["scenes"]) == ["scene-0002"]
+
+
+def test_the_many_scene_progress_counts_scenes_under_the_jobs_name(scenes_out, tmp_path):
+    """One progress task for the job, named for what it does and how many scenes ("render 2 scene(s)"), counting
+    scenes to its total; each scene's own render reports under its own name."""
+    import nuparquet
+
+    events = []
+    nuparquet.render_scenes(scenes_out, scenes=["scene-0003", "scene-0001"], out_dir=tmp_path / "v", scale=0.1,
+                            engine=nuparquet.EngineOptions(engine="serial"), on_progress=events.append)
+    job = [e for e in events if e.task == "render 2 scene(s)"]
+    assert job and {e.total for e in job} == {2} and {e.unit for e in job} == {"scene"}
+    assert job[-1].finished and job[-1].done == 2
+    assert {e.task for e in events} - {"render 2 scene(s)"} <= {f"render {s} CAM_FRONT" for s in ("scene-0001",
+                                                                                                  "scene-0003")}
