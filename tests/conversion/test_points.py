@@ -349,3 +349,34 @@ def test_scenes_whose_point_task_raises_are_named_and_keep_going_names_every_one
         assert f"{scene}: IsADirectoryError" in str(failed.value) and broken[scene].split("/")[-1] in str(failed.value)
     assert ("the other units finished" in str(failed.value)) == keep_going
     assert not out.exists() and not list(tmp_path.glob(".out*"))
+
+
+def _pcd(tmp_path, name: str, header_lines: list[str], points: np.ndarray):
+    path = tmp_path / name
+    path.write_bytes(("\n".join(header_lines) + "\n").encode() + points.tobytes())
+    return path
+
+
+def test_a_pcd_header_without_count_has_one_value_per_field_as_the_pcd_format_says(tmp_path):
+    """PCD v0.7: COUNT is optional and defaults to 1 per field; the same points with and without the line."""
+    from nuparquet.sources.points import read_radar_pcd
+
+    points = np.array([(1.5, -2.0, 0.25), (10.0, 3.5, -1.0)], dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4")])
+    head = ["# .PCD v0.7 - Point Cloud Data file format", "VERSION 0.7", "FIELDS x y z", "SIZE 4 4 4", "TYPE F F F"]
+    tail = ["WIDTH 2", "HEIGHT 1", "VIEWPOINT 0 0 0 1 0 0 0", "POINTS 2", "DATA binary"]
+    with_count = read_radar_pcd(_pcd(tmp_path, "a.pcd", [*head, "COUNT 1 1 1", *tail], points))
+    without = read_radar_pcd(_pcd(tmp_path, "b.pcd", [*head, *tail], points))
+    assert without.dtype.names == ("x", "y", "z") and with_count.dtype.names == ("x", "y", "z")
+    for name in ("x", "y", "z"):
+        np.testing.assert_array_equal(without[name], points[name])
+        np.testing.assert_array_equal(with_count[name], points[name])
+
+
+def test_a_panoptic_file_that_is_not_an_npz_archive_is_a_problem_naming_it(tmp_path):
+    from nuparquet.sources.points import PointFileError, read_panoptic_npz
+
+    path = tmp_path / "labels_panoptic.npz"
+    path.write_bytes(b"not a zip archive at all")
+    with pytest.raises(PointFileError, match="not a readable .npz file") as raised:
+        read_panoptic_npz(path)
+    assert raised.value.path == str(path)
