@@ -7,8 +7,9 @@ For each group staged under `.mutation/<group>/` (in `run.GROUPS` order), mutmut
 (`mutmut results --all true`), restricted to the group's sample when the run sampled (`sample.txt`, its seed in
 `result.json`). A first-run survivor that a re-check (`run.py GROUP --recheck NAMES`, `.mutation/<group>-recheck/`)
 kills counts as killed since; each remaining survivor is shown with its change and the judgement recorded under the
-group in `mutation/judgements.toml` (equivalent, with why; or killed by a named test, checked by hand; or left). The
-score is
+group in `mutation/judgements.toml` (equivalent, with why; or killed by a named test, checked by hand; or left). A
+survivor killed by a test only checked by hand (no re-check has run it) is shown in its own column and is not counted
+as detected: the score is the tool's verdicts only,
 
     (killed + timeout + segfault + killed since) / (checked - equivalent)
 
@@ -61,7 +62,7 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
     # first run's for the mutants it ran
     recheck_dir = STAGING / f"{group}-recheck"
     rechecked = {n: s for n, s in statuses(recheck_dir).items() if s != "not checked"} if recheck_dir.is_dir() else {}
-    lines, equivalent, killed_since, left = [], 0, 0, 0
+    lines, equivalent, killed_since, killed_by_hand, left = [], 0, 0, 0, 0
     for name, first in sorted(considered.items()):
         if first in DETECTED or first == "not checked":
             continue
@@ -73,8 +74,8 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
         verdict = judgements.get(name) or judgements.get(name.rsplit(".", 1)[-1])
         if verdict and verdict.startswith("equivalent"):
             equivalent += 1
-        elif verdict and verdict.startswith("killed"):
-            killed_since += 1
+        elif verdict and verdict.startswith("killed"):  # by a test checked by hand: not the tool's verdict, so
+            killed_by_hand += 1                         # shown apart and left out of the score
         else:
             left += 1
         state = f"{first}, re-checked: {state}" if name in rechecked else state
@@ -86,7 +87,8 @@ def group_report(group: str, judgements: dict[str, str]) -> tuple[str, dict]:
     figures = {"group": group, "mutants": len(status), "sample": len(sample) if sample else None, "seed": seed,
                "checked": checked, "not_checked": counts["not checked"], "killed": counts["killed"],
                "timeout": counts["timeout"], "segfault": counts["segfault"], "survived": counts["survived"],
-               "no_tests": counts["no tests"], "equivalent": equivalent, "killed_since": killed_since, "left": left,
+               "no_tests": counts["no tests"], "equivalent": equivalent, "killed_since": killed_since,
+               "killed_by_hand": killed_by_hand, "left": left,
                "score_tool": detected / denominator if denominator else None,
                "score_now": (detected + killed_since) / denominator if denominator else None}
     return "\n".join(lines), figures
@@ -121,14 +123,15 @@ def main(groups: list[str]) -> int:
         rows.append(figures)
         sections.append(f"### {group}\n\n{text or '(none)'}\n")
     print("| group | mutants | sample (seed) | checked | killed | timeout | segfault | survived | no tests | "
-          "equivalent | killed since | left | score (tool run) | score now |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "equivalent | killed since (re-check) | killed (by hand only) | left | score (tool run) | score now |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for f in rows:
         score = lambda v: f"**{v:.1%}**" if v is not None else "—"  # noqa: E731
         sample = f"{f['sample']} ({f['seed']})" if f["sample"] else "all"
         print(f"| {f['group']} | {f['mutants']} | {sample} | {f['checked']} | {f['killed']} | "
               f"{f['timeout']} | {f['segfault']} | {f['survived']} | {f['no_tests']} | {f['equivalent']} | "
-              f"{f['killed_since']} | {f['left']} | {score(f['score_tool'])} | {score(f['score_now'])} |")
+              f"{f['killed_since']} | {f['killed_by_hand']} | {f['left']} | {score(f['score_tool'])} | "
+              f"{score(f['score_now'])} |")
     total = {k: sum(f[k] for f in rows) for k in ("checked", "killed", "timeout", "segfault", "equivalent",
                                                    "killed_since")}
     denominator = total["checked"] - total["equivalent"]
