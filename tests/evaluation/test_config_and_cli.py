@@ -132,3 +132,20 @@ def test_without_out_nothing_is_written(submissions, eval_out, tmp_path, monkeyp
     with pytest.raises(UsageError, match="converted dataset"):
         evaluate(eval_out, results=submissions["perfect"], out=eval_out / "eval")
     shutil.rmtree(eval_out / "eval", ignore_errors=True)
+
+
+def test_a_split_missing_from_splits_json_is_refused_listing_the_splits_it_has(tmp_path):
+    """A custom split is looked up in <dataroot>/<version>/splits.json: the error for one it lacks lists the
+    splits the file has (sorted), or none when the file is not an object of lists; a split it has is returned."""
+    from nuparquet.evaluation.splits import split_scene_names
+
+    folder = tmp_path / "v1.0-custom"
+    folder.mkdir()
+    (folder / "splits.json").write_text(json.dumps({"night": ["scene-0002"], "dusk": ["scene-0001", "scene-0003"]}))
+    assert split_scene_names("dusk", dataroot=str(tmp_path), version="v1.0-custom") == ["scene-0001", "scene-0003"]
+    with pytest.raises(UsageError, match=r"unknown split 'rain': not predefined, nor in .*splits.json "
+                                         r"\(it lists: dusk, night\)"):
+        split_scene_names("rain", dataroot=str(tmp_path), version="v1.0-custom")
+    (folder / "splits.json").write_text(json.dumps(["scene-0001"]))
+    with pytest.raises(UsageError, match=r"\(it lists: none\)"):
+        split_scene_names("rain", dataroot=str(tmp_path), version="v1.0-custom")
