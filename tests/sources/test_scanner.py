@@ -119,7 +119,7 @@ def test_a_bare_word_after_an_escaped_backslash_closing_a_string_is_found(tmp_pa
 
 
 STRINGS = ["héllo\u2028\x07\x1b[31mred", "\x00nul", "😀 outside the basic plane", "tab\there", "東京", "\u007f", "",
-           "\\", '"', "/"]
+           "\\", '"', "/", "form\x0cfeed back\x08space new\nline return\r"]  # written as \\f \\b \\n \\r
 
 
 @pytest.mark.parametrize("ensure_ascii", [True, False])
@@ -129,6 +129,14 @@ def test_unicode_control_characters_and_escapes_come_back_as_python_reads_them(t
     table, problems = _read(tmp_path, text)
     assert problems == []
     assert _as_records(table) == json.loads(text)
+
+
+def test_every_escape_json_allows_reads_as_python_reads_it(tmp_path, windows):
+    """The escapes json.dumps never writes (\\/, upper-case hex) and every short one, in field values and names."""
+    text = r'[{"token": "a\/b\u00E9\u00e9\b\f\n\r\t\"\\", "k\u0065y": "\/"}]'
+    table, problems = _read(tmp_path, text)
+    assert problems == []
+    assert _as_records(table) == json.loads(text) == [{"token": 'a/béé\b\f\n\r\t"\\', "key": "/"}]
 
 
 @pytest.mark.parametrize("text, what", [
