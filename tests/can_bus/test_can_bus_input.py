@@ -145,3 +145,21 @@ def test_message_and_route_files_that_are_empty_arrays_convert_typed_and_come_ba
     export_json(tmp_path / "out", tmp_path / "back")
     for message in ("route", "steeranglefeedback"):
         assert json.loads(_path(tmp_path / "back", message).read_text()) == []
+
+
+def test_integer_route_coordinates_come_back_as_integers(root, tmp_path):
+    """A route point written with integers (600 rather than 600.0, on either axis) is exported as it was read."""
+    def integers(points):
+        points[0] = [int(points[0][0]), points[0][1]]  # x an integer
+        points[1] = [points[1][0], int(points[1][1])]  # y an integer
+        points[2] = [int(points[2][0]), int(points[2][1])]
+        return points
+
+    _edit(root, "route", integers)
+    convert(root, V, tmp_path / "out")
+    export_json(tmp_path / "out", tmp_path / "back")
+    original = json.loads(_path(root, "route").read_text())
+    again = json.loads(_path(tmp_path / "back", "route").read_text())
+    assert again == original
+    assert [[type(c) for c in p] for p in again] == [[type(c) for c in p] for p in original]
+    assert [[type(c) for c in p] for p in again[:3]] == [[int, float], [float, int], [int, int]]

@@ -36,3 +36,13 @@ def test_the_first_pose_and_the_first_pose_of_a_second_block_count():
     assert misaligned_routes(ds, 6.5) == ["scene-0001"]
     assert misaligned_routes(ds, 5.0) == ["scene-0001", "scene-0002"]
     assert misaligned_routes(ds, 0.25) == ["scene-0001", "scene-0002"]  # more than the threshold, not equal to it
+
+
+def test_a_scene_with_poses_but_no_route_is_left_out():
+    """The devkit's list_misaligned_routes only measures scenes that have a route: a scene whose route file is
+    missing (its poses alone) is not in the table, and the others are measured as before."""
+    route = [(0.0, 0.0), (10.0, 0.0)]
+    ds = _dataset({"scene-0002": route}, {"scene-0001": [(5.0, 3.0)], "scene-0002": [(10.0, 2.0), (0.0, 0.5)]})
+    got = route_misalignment_m(ds)
+    assert got["scene_name"].to_list() == ["scene-0002"]
+    assert got["misalignment_m"].to_list() == pytest.approx([2.0], abs=1e-12)

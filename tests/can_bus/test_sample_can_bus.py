@@ -143,3 +143,16 @@ def test_a_scene_without_can_bus_gets_zeros_and_nulls(synth_root, synth_out):
     assert without.height > 0
     assert (without["can_bus"].arr.sum() == 0).all() and without["can_bus_corrected"].is_null().all()
     assert without["pose"].is_null().all() and without["pose_age_us"].is_null().all()
+
+
+def test_a_message_type_with_one_message_in_the_whole_dataset_reaches_only_the_samples_at_or_after_it():
+    """One message in all (a short drive's rare message type): a sample before it has none (null, no age), the
+    samples at and after it carry it with their age; the other scene's sample has none."""
+    from nuparquet.can_bus.align import aligned
+
+    samples = pl.DataFrame({"scene_name": ["scene-0001"] * 3 + ["scene-0002"],
+                            "timestamp": [1_000, 2_000, 2_500, 3_000]})
+    messages = pl.DataFrame({"scene_name": ["scene-0001"], "utime": [2_000], "value": [7]})
+    got = aligned(samples, "rare", messages)
+    assert got["rare"].to_list() == [None, {"utime": 2_000, "value": 7}, {"utime": 2_000, "value": 7}, None]
+    assert got["rare_age_us"].to_list() == [None, 0, 500, None]
