@@ -53,6 +53,8 @@ def test_resized_camera_projects_where_cv2_resize_moves_the_pixel():
     v, u = np.argwhere(small == 255)[0]
     cameras = two_cameras().take([0])
     point_camera = cameras.unproject(np.array([[[1000.5, 600.5]]]), np.array([[12.0]]))  # depth 12 m
+    # by hand: x = (u - cx) z / f, y = (v - cy) z / f, z the depth
+    np.testing.assert_allclose(point_camera[0, 0], [200.5 * 12 / 1000, 150.5 * 12 / 1000, 12.0], atol=1e-12)
     uv, _ = cameras.resized_to((800, 450)).project(point_camera)
     np.testing.assert_allclose(uv[0, 0], [u, v], atol=1e-9)
     np.testing.assert_allclose(scale_pixels([[1000.5, 600.5]], 0.5)[0], [u, v])
