@@ -365,6 +365,8 @@ def mutant_change(where: Path, name: str) -> tuple[list[str], list[str]]:
     module of thousands of mutants.)"""
     module, function = name.rsplit(".", 1)
     path = where / "mutants" / (module.replace(".", "/") + ".py")
+    if not path.is_file():  # a package's own module: `nuparquet.engine` is nuparquet/engine/__init__.py
+        path = path.with_suffix("") / "__init__.py"
     if path not in _FUNCTIONS:
         source = path.read_text()
         spans = {node.name: (node.lineno, node.end_lineno) for node in ast.walk(ast.parse(source))
