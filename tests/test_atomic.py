@@ -10,7 +10,7 @@ import sys
 import pytest
 
 from conftest import SYNTH_VERSION
-from nuparquet.atomic import check_target, remove_stale
+from nuparquet.atomic import check_apart, check_target, remove_stale
 from nuparquet.cli.main import main
 from nuparquet.errors import UsageError
 
@@ -85,3 +85,14 @@ def test_check_target_refuses_an_existing_output_unless_told_to_replace_it(tmp_p
     (tmp_path / "file").write_text("x")
     with pytest.raises(UsageError, match="exists and is not a directory"):
         check_target(tmp_path / "file", overwrite=True)
+
+
+def test_check_apart_refuses_an_output_that_is_inside_or_contains_the_input_and_names_how(tmp_path):
+    source = tmp_path / "data"
+    for out, relation in ((source, "is"), (source / "videos", "is inside"), (tmp_path, "contains"),
+                          (tmp_path / "data" / ".." / "data", "is")):  # the same folder spelt another way
+        with pytest.raises(UsageError) as refused:
+            check_apart(out, source, what="the dataroot")
+        assert str(refused.value) == f"{out} {relation} the dataroot {source}; write the output somewhere else"
+    check_apart(tmp_path / "data-videos", source)  # a sibling whose name starts with the input's: apart
+    check_apart(tmp_path / "other" / "data", source)

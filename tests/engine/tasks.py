@@ -34,3 +34,13 @@ def wait_or_fail(unit: WorkUnit, part: Path) -> str:
     if fail:
         raise ValueError(f"unit {unit.name} failed on purpose")
     return unit.name
+
+
+def scene_file(unit: WorkUnit, part: Path) -> dict:
+    """A many-scene job's task (`engine.scene_files`): writes `<scene>.txt` (the dataset root it was given) into
+    its part folder and returns the scene's summary entry; a scene whose name starts with "bad" raises ValueError."""
+    root, _storage_options, _options = unit.args
+    if unit.name.startswith("bad"):
+        raise ValueError(f"scene {unit.name} failed on purpose")
+    (part / f"{unit.name}.txt").write_text(root)
+    return {"file": f"{unit.name}.txt", "frames": len(unit.name)}

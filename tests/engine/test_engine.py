@@ -196,3 +196,140 @@ def test_process_pool_workers_start_fresh_without_the_parents_state(tmp_path, pr
     finally:
         tasks.STATE.clear()
     assert [(o.ok, o.value) for o in outcomes] == [(True, False), (True, False)]
+
+
+def test_an_unknown_name_of_the_engine_package_is_an_attribute_error_naming_it():
+    import nuparquet.engine as engine
+
+    with pytest.raises(AttributeError, match=r"^module 'nuparquet\.engine' has no attribute 'run_unit'$"):
+        engine.run_unit  # noqa: B018 - a misspelt run_units
+    assert not hasattr(engine, "backends_of_ray")
+
+
+def test_default_workers_are_the_cores_this_process_may_run_on_else_every_core_else_one(monkeypatch):
+    """The affinity mask (a container or `taskset` limited to 3 of 64 cores: 3 workers), where the system has one;
+    else os.cpu_count(), and 1 when even that is unknown."""
+    from nuparquet.engine.backends import default_workers
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 64)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 3, 5}, raising=False)
+    assert default_workers() == 3
+    monkeypatch.delattr(os, "sched_getaffinity")  # macOS, Windows
+    assert default_workers() == 64
+    monkeypatch.setattr(os, "cpu_count", lambda: None)
+    assert default_workers() == 1
+
+
+class _StopAtRayInit(Exception):
+    pass
+
+
+def _ray_init_arguments(monkeypatch, options: EngineOptions, tmp_path) -> dict:
+    """The keyword arguments the Ray engine passes to `ray.init` for `options` (a stand-in `ray` module records
+    them and stops the job there: no Ray is started)."""
+    import types
+
+    seen: dict = {}
+
+    def init(**kwargs):
+        seen.update(kwargs)
+        raise _StopAtRayInit
+
+    monkeypatch.setitem(sys.modules, "ray", types.SimpleNamespace(is_initialized=lambda: False, init=init))
+    with pytest.raises(_StopAtRayInit):
+        run_units(square_into_part, [WorkUnit("a", 1)], parts_dir=tmp_path, options=options)
+    return seen
+
+
+def test_ray_joins_the_cluster_of_ray_address_and_otherwise_starts_a_local_ray_of_workers_cpus(monkeypatch, tmp_path):
+    """--ray-address joins that cluster (no local Ray, so no CPU count of ours); without it a local Ray of --workers
+    CPUs is started, and --workers 0 (or none) means every core (here an affinity mask of 6 cores)."""
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(6)), raising=False)
+    joined = _ray_init_arguments(monkeypatch, EngineOptions(engine="ray", ray_address="ray://head:10001"), tmp_path)
+    assert joined["address"] == "ray://head:10001" and "num_cpus" not in joined
+    assert joined["log_to_driver"] is False
+    local = _ray_init_arguments(monkeypatch, EngineOptions(engine="ray", workers=3), tmp_path)
+    assert local["num_cpus"] == 3 and "address" not in local
+    assert _ray_init_arguments(monkeypatch, EngineOptions(engine="ray", workers=0), tmp_path)["num_cpus"] == 6
+    assert _ray_init_arguments(monkeypatch, EngineOptions(engine="ray"), tmp_path)["num_cpus"] == 6
+
+
+def test_workers_0_means_every_core_and_any_other_count_is_kept():
+    assert EngineOptions(workers=0).workers is None  # as if not given: every core
+    assert EngineOptions(workers=1).workers == 1 and EngineOptions(workers=5).workers == 5
+    with pytest.raises(UsageError, match="--workers must be 0 \\(every core\\) or more, got -1"):
+        EngineOptions(workers=-1)
+
+
+def test_a_failing_unit_on_the_process_pool_cancels_the_units_that_have_not_started(tmp_path):
+    """One worker; "bad" fails at once, each other unit takes 0.6 s. The job stops with "bad": the pool runs at
+    most the units already handed to its worker's queue (two or three) and cancels the rest, so the last unit,
+    which would start 3 s after "bad" failed, never starts (no part folder) and nothing runs after the job
+    returned."""
+    from tasks import wait_or_fail
+
+    units = [WorkUnit("bad", (0.0, True))] + [WorkUnit(f"wait-{i}", (0.6, False)) for i in range(1, 7)]
+    with pytest.raises(UnitsFailed, match="bad: ValueError: unit bad failed on purpose"):
+        run_units(wait_or_fail, units, parts_dir=tmp_path, options=EngineOptions(engine="process", workers=1))
+    assert not (tmp_path / "wait-6").exists() and not (tmp_path / "wait-5").exists()
+    assert not list(tmp_path.glob("*.done.json"))  # the units that did finish after the failure are not marked
+
+
+def test_resume_reruns_a_unit_whose_marker_names_another_unit_or_records_an_error(tmp_path):
+    """A marker is taken only for its own unit and only if it finished without error: b's marker copied from a's
+    (a file copied by hand, an older layout), and c's recording an error, both run again."""
+    import json
+    import shutil
+
+    run_units(square_into_part, [WorkUnit("a", 1)], parts_dir=tmp_path, options=EngineOptions(engine="serial"))
+    shutil.copy(tmp_path / "a.done.json", tmp_path / "b.done.json")
+    (tmp_path / "c.done.json").write_text(json.dumps({"name": "c", "value": 9, "error": "ValueError: boom",
+                                                      "resumed": False, "seconds": 0.1, "peak_rss_mb": 1.0,
+                                                      "worker": 1}))
+    outcomes = run_units(square_into_part, [WorkUnit("a", 1), WorkUnit("b", 2), WorkUnit("c", 3)], parts_dir=tmp_path,
+                         options=EngineOptions(engine="serial", resume=True))
+    assert [(o.name, o.value, o.resumed) for o in outcomes] == [("a", 1, True), ("b", 4, False), ("c", 9, False)]
+    assert (tmp_path / "b" / "value.txt").read_text() == "4" and (tmp_path / "c" / "value.txt").read_text() == "9"
+
+
+def test_the_many_scene_summary_lists_the_dataset_the_callers_fields_the_scenes_written_and_those_failed(tmp_path):
+    """`write_scene_files`' summary (what `render --all-scenes` and `export-mcap --all-scenes` leave beside their
+    files): {"dataset", the caller's own fields (render: "channel"), "scenes": {scene: entry + settings}, "failed":
+    {scene: error}}, and without extra fields just the three keys."""
+    import json
+    import re
+    import types
+    from dataclasses import dataclass
+
+    from nuparquet.engine.scene_files import write_scene_files
+    from tasks import scene_file
+
+    @dataclass
+    class Options:
+        scale: float = 0.5
+
+    data = tmp_path / "data"
+    data.mkdir()
+    dataset = types.SimpleNamespace(root=data, is_remote=False, storage_options=None)
+    out = tmp_path / "videos"
+    with pytest.raises(UnitsFailed, match="bad-1: ValueError: scene bad-1 failed on purpose"):
+        write_scene_files(dataset, ["s-1", "bad-1", "s-22"], out, scene_file, Options(),
+                          EngineOptions(engine="serial", keep_going=True), summary_name="videos.json", file_key="file",
+                          leave_out=(), label="scenes", summary_fields={"channel": "CAM_FRONT"})
+    summary = json.loads((out / "videos.json").read_text())
+    assert sorted(summary) == ["channel", "dataset", "failed", "scenes"]
+    assert summary["dataset"] == str(data.resolve()) and summary["channel"] == "CAM_FRONT"
+    assert sorted(summary["scenes"]) == ["s-1", "s-22"]
+    settings = summary["scenes"]["s-1"]["settings"]
+    assert re.fullmatch("[0-9a-f]{12}", settings)
+    assert summary["scenes"]["s-22"] == {"file": "s-22.txt", "frames": 4, "settings": settings}
+    assert list(summary["failed"]) == ["bad-1"]
+    assert summary["failed"]["bad-1"].startswith("ValueError: scene bad-1 failed on purpose (at tasks.py:")
+    assert (out / "s-22.txt").read_text() == str(data.resolve())
+
+    again = write_scene_files(dataset, ["s-3"], tmp_path / "other", scene_file, Options(),
+                              EngineOptions(engine="serial"), summary_name="files.json", file_key="file", leave_out=(),
+                              label="scenes")
+    summary = json.loads(again.summary.read_text())
+    assert sorted(summary) == ["dataset", "failed", "scenes"] and summary["failed"] == {}
+    assert summary["scenes"]["s-3"]["file"] == "s-3.txt" and again.written == ["s-3"]
