@@ -3,7 +3,9 @@ valid files convert exactly; a dataroot without can_bus/ converts as before and 
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -148,7 +150,9 @@ def test_message_and_route_files_that_are_empty_arrays_convert_typed_and_come_ba
 
 
 def test_integer_route_coordinates_come_back_as_integers(root, tmp_path):
-    """A route point written with integers (600 rather than 600.0, on either axis) is exported as it was read."""
+    """A route point written with integers (600 rather than 600.0, on either axis) is exported as it was read; the
+    manifest's entry for the route file names a point's fields as the columns of can_bus/route (x, y) and, by point,
+    the integer ones."""
     def integers(points):
         points[0] = [int(points[0][0]), points[0][1]]  # x an integer
         points[1] = [points[1][0], int(points[1][1])]  # y an integer
@@ -156,10 +160,29 @@ def test_integer_route_coordinates_come_back_as_integers(root, tmp_path):
         return points
 
     _edit(root, "route", integers)
-    convert(root, V, tmp_path / "out")
+    manifest = convert(root, V, tmp_path / "out")
+    entry, = (f for f in manifest["files"] if f["path"] == f"can_bus/{SCENE}_route.json")
+    assert entry["kind"] == "can_bus_route" and entry["dataset"] == "can_bus/route"
+    route_columns = pl.read_parquet(tmp_path / "out" / "can_bus" / "route").columns
+    assert entry["keys"] == ["x", "y"] and set(entry["keys"]) <= set(route_columns)
+    assert entry["int_values"] == {"x": [0, 2], "y": [1, 2]}
     export_json(tmp_path / "out", tmp_path / "back")
     original = json.loads(_path(root, "route").read_text())
     again = json.loads(_path(tmp_path / "back", "route").read_text())
     assert again == original
     assert [[type(c) for c in p] for p in again] == [[type(c) for c in p] for p in original]
     assert [[type(c) for c in p] for p in again[:3]] == [[int, float], [float, int], [int, int]]
+
+
+def test_a_file_that_cannot_be_read_is_a_problem_naming_it_even_when_the_next_scenes_file_is_fine(tmp_path):
+    """Two scenes' pose files: the first is a folder (read_text raises IsADirectoryError), the second is valid. The
+    problem names the first file and why it cannot be read; the type is not read from the good file alone."""
+    from nuparquet.sources.can_bus import discover, read_messages
+
+    (tmp_path / "can_bus" / "scene-0001_pose.json").mkdir(parents=True)
+    (tmp_path / "can_bus" / "scene-0002_pose.json").write_text(json.dumps([{"utime": 1, "vel": [1.0, 0.0, 0.0]}]))
+    found, others = discover(tmp_path, {"scene-0001", "scene-0002"})
+    assert [f.name for f in found["pose"]] == ["can_bus/scene-0001_pose.json", "can_bus/scene-0002_pose.json"]
+    read, problems = read_messages(tmp_path, found["pose"])
+    assert read is None
+    assert [str(p) for p in problems] == [f"can_bus/scene-0001_pose.json: cannot be read ({os.strerror(errno.EISDIR)})"]

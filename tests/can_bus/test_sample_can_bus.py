@@ -156,3 +156,18 @@ def test_a_message_type_with_one_message_in_the_whole_dataset_reaches_only_the_s
     got = aligned(samples, "rare", messages)
     assert got["rare"].to_list() == [None, {"utime": 2_000, "value": 7}, {"utime": 2_000, "value": 7}, None]
     assert got["rare_age_us"].to_list() == [None, 0, 500, None]
+
+
+def test_every_float_field_but_utime_is_interpolated_whatever_its_name():
+    """The interpolated struct holds the float fields, utime excepted by its exact name: a float field `UTIME`
+    (JSON keys are case-sensitive, and the reader takes any field name) is a signal like the others. By hand: at
+    1500 halfway between the messages at 1000 and 2000; at 1000 and 2000 the messages' own values; after the last
+    message nothing."""
+    from nuparquet.can_bus.align import aligned
+
+    samples = pl.DataFrame({"scene_name": ["scene-0001"] * 4, "timestamp": [1_000, 1_500, 2_000, 3_500]})
+    messages = pl.DataFrame({"scene_name": ["scene-0001"] * 3, "utime": [1_000, 2_000, 3_000],
+                             "speed": [1.0, 3.0, 4.0], "UTIME": [10.0, 20.0, 40.0], "gear": [1, 2, 2]})
+    got = aligned(samples, "wild", messages)
+    assert got["wild_interp"].to_list() == [{"speed": 1.0, "UTIME": 10.0}, {"speed": 2.0, "UTIME": 15.0},
+                                            {"speed": 3.0, "UTIME": 20.0}, None]
