@@ -154,6 +154,46 @@ def test_boxes_behind_the_camera_and_on_the_limits():
         assert (r.depths[4] == 0.0).sum() == 4 and not np.isfinite(r.corners_px[4][r.depths[4] == 0.0]).any()
 
 
+def test_a_resized_camera_keeps_the_full_image_edges_in_u_and_v_apart():
+    """A camera resized by (0.25, 0.5): the devkit's `box_in_image` limits 0 < u < 1600 and 0 < v < 900 hold on
+    the full-size image, so in resized pixels the left edge is at (0.25 - 1) / 2 = -0.375 and the top edge at
+    (0.5 - 1) / 2 = -0.25: each edge is its own axis's. Point-like boxes 10 m ahead at full-image pixels a quarter
+    pixel inside and outside each edge (the pixels placed by hand through the unresized K)."""
+    camera_mount = rigid_transforms([0.0, 0.0, 0.0], [0.5, -0.5, 0.5, -0.5])  # camera x = -ego y, y = -ego z
+    cameras = Cameras.from_poses(np.eye(4)[None], camera_mount[None], K[None], [[1600.0, 900.0]]).resized((0.25, 0.5))
+    full_px = [(0.25, 450.0), (-0.25, 450.0), (1599.75, 450.0), (1600.25, 450.0),
+               (800.0, 0.25), (800.0, -0.25), (800.0, 899.75), (800.0, 900.25)]
+    depth = 10.0
+    centres = [[depth, -(u - K[0, 2]) / K[0, 0] * depth, -(v - K[1, 2]) / K[1, 1] * depth] for u, v in full_px]
+    half_axes = box_half_axes([[1e-6, 1e-6, 1e-6]], [[1.0, 0.0, 0.0, 0.0]])
+    inside = [0.0 < u < 1600.0 and 0.0 < v < 900.0 for u, v in full_px]
+    assert inside == [True, False] * 4
+    for result in _both(cameras, [0] * len(full_px), centres, half_axes, [0] * len(full_px)):
+        # the resized pixels are s * (u + 0.5) - 0.5 of the full ones (a millionth of a metre box: ~1e-4 px)
+        expected_px = np.array(full_px) * [0.25, 0.5] + [(0.25 - 1.0) / 2, (0.5 - 1.0) / 2]
+        np.testing.assert_allclose(result.corners_px, np.broadcast_to(expected_px[:, None], (8, 8, 2)), atol=1e-3)
+        np.testing.assert_array_equal(result.corner_visible, np.repeat(np.array(inside)[:, None], 8, axis=1))
+        np.testing.assert_array_equal(result.visible, inside)
+
+
+def test_index_columns_of_any_integer_like_dtype_or_empty_lists_are_taken_as_rows():
+    """`frame_index` and `axes_index` are row numbers whatever their dtype: int32 or uint32 (polars' row
+    indices), whole floats, or empty Python lists for no pairs; both implementations give the int64 rows' bits."""
+    rng = np.random.default_rng(9)
+    cameras = _cameras(rng, 3)
+    frame = rng.integers(0, 3, 40)
+    half_axes = box_half_axes(rng.uniform(0.5, 5.0, (6, 3)), _unit_quaternions(rng, 6))
+    axes_row = rng.integers(0, 6, 40)
+    translation = _boxes_near(rng, cameras, frame, 15.0)
+    expected = project_pairs(cameras, frame, translation, half_axes, axes_row, kernel="numpy")
+    assert expected.visible.any()
+    for dtype in (np.int32, np.uint32, np.float64):
+        for result in _both(cameras, frame.astype(dtype), translation, half_axes, axes_row.astype(dtype)):
+            _assert_same_bits(result, expected)
+    for result in _both(cameras, [], [], [], []):
+        assert result.corners_px.shape == (0, 8, 2) and result.visible.shape == (0,)
+
+
 def test_extreme_but_finite_values():
     """Far-away cameras (1e6 m), huge and tiny boxes, a huge focal length, boxes 1e-9 m from a camera: both
     implementations give the same bits (infinities and nans where a division by ~0 gives them)."""

@@ -94,6 +94,30 @@ def test_dataset_channels_come_from_the_manifest_or_else_from_the_data(synth_roo
     assert nuparquet.open(copy).channels == manifest["channels"]
 
 
+def test_an_output_without_channels_or_sensor_tables_takes_its_channels_from_the_frames(synth_root, synth_out,
+                                                                                       tmp_path):
+    """channels_of_dataset's last resort: no "channels" record and no tables/sensor in the manifest, so the channels
+    and modalities come from `frames`; the names lay the cameras out. The expectation: the channels of the source
+    sample_data records, read as JSON through calibrated_sensor and sensor."""
+    copy = tmp_path / "out"
+    shutil.copytree(synth_out, copy)
+    manifest = json.loads((copy / "manifest.json").read_text())
+    manifest.pop("channels", None)
+    del manifest["datasets"]["tables/sensor"]
+    (copy / "manifest.json").write_text(json.dumps(manifest))
+    source = synth_root / SYNTH_VERSION
+    sensor = {s["token"]: s for s in json.loads((source / "sensor.json").read_text())}
+    sensor_of = {c["token"]: sensor[c["sensor_token"]] for c in json.loads((source / "calibrated_sensor.json").read_text())}
+    recorded = {(sensor_of[d["calibrated_sensor_token"]]["channel"], sensor_of[d["calibrated_sensor_token"]]["modality"])
+                for d in json.loads((source / "sample_data.json").read_text())}
+    computed = nuparquet.open(copy).channels
+    for modality, key in (("camera", "cameras"), ("lidar", "lidars"), ("radar", "radars")):
+        assert computed[key] == sorted(c for c, m in recorded if m == modality), key
+    assert computed["cameras"] == NUSCENES_CAMERAS and computed["reference_lidar"] == "LIDAR_TOP"
+    assert computed["camera_layout"] == [["CAM_FRONT_LEFT", "CAM_FRONT", "CAM_FRONT_RIGHT"],
+                                         ["CAM_BACK_LEFT", "CAM_BACK", "CAM_BACK_RIGHT"]]
+
+
 def test_a_rig_with_one_camera_name_that_says_neither_front_nor_back_is_laid_out_by_yaw():
     """Names decide only when every camera's name says FRONT or BACK: one unknown name (a side camera looking
     backwards) puts the whole rig on yaw, which sends that camera to the back row, in yaw order."""

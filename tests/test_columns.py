@@ -27,3 +27,20 @@ def test_to_numpy_gives_null_rows_as_nan_rows_in_the_row_shape():
     out = to_numpy(column, (2, 2))
     assert out.shape == (3, 2, 2) and np.isnan(out[1]).all()
     np.testing.assert_array_equal(out[[0, 2]], [[[1, 2], [3, 4]], [[5, 6], [7, 8]]])
+
+
+def test_to_numpy_names_the_column_when_rows_do_not_hold_the_shape():
+    """A row of the wrong size is refused with the column, the row size expected and the values found, on the
+    fixed-size path (an Array column) and the variable-list one."""
+    import pytest
+
+    from nuparquet.columns import to_numpy
+
+    lists = pl.Series("rotation", [[1.0, 0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], dtype=pl.List(pl.Float64))
+    with pytest.raises(ValueError) as error:
+        to_numpy(lists, (4,))
+    assert str(error.value) == "column 'rotation': expected 4 values per row, got 7 for 2 rows"
+    fixed = pl.Series("translation", [[1.0, 2.0, 3.0]] * 2, dtype=pl.Array(pl.Float64, 3))
+    with pytest.raises(ValueError) as error:
+        to_numpy(fixed, (4,))
+    assert str(error.value) == "column 'translation': expected 4 values per row, got 6 for 2 rows"

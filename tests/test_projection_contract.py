@@ -85,6 +85,20 @@ def test_missing_pose_and_camera_columns_are_named():
     assert str(error.value) == "frames lacks column(s) timestamp"
 
 
+def test_frame_boxes_names_the_table_and_the_columns_it_lacks():
+    frames = camera_frame()
+    annotations, samples = one_box(10.0)
+    with pytest.raises(ValueError) as error:
+        frame_boxes(frames, annotations, samples.drop("prev"))
+    assert str(error.value) == "samples lacks column(s) prev"
+    with pytest.raises(ValueError) as error:
+        frame_boxes(frames, annotations.drop("size", "rotation"), samples)
+    assert str(error.value) == "annotations lacks column(s) size, rotation"
+    with pytest.raises(ValueError) as error:
+        frame_boxes(frames.drop("is_key_frame"), annotations, samples)
+    assert str(error.value) == "frames lacks column(s) is_key_frame"
+
+
 def test_project_boxes_keeps_visible_boxes_by_default_and_names_the_visibilities():
     frames = camera_frame()
     annotations, samples = one_box(-10.0)  # behind the camera: projected by "none" only

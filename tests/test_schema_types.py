@@ -33,7 +33,8 @@ def test_every_type_spelling_parses_to_its_arrow_type(spec, expected):
 
 
 @pytest.mark.parametrize("spec", ["uint7", "list<int64", "struct<a int64>", "struct<a: int64", "fixed_size_list<int8>",
-                                  "fixed_size_list<int8>[x]", "int64 extra", "struct<>", ""])
+                                  "fixed_size_list<int8>[x]", "int64 extra", "struct<>", "",
+                                  "struct(a: int64>", "list(int64>"])
 def test_malformed_spellings_are_refused(spec):
     with pytest.raises(ValueError, match="unknown type"):
         parse_type(spec)
@@ -71,3 +72,9 @@ def test_an_unknown_type_name_is_refused_naming_it_and_the_spelling():
     with pytest.raises(ValueError) as error:
         parse_type("list<float65>")
     assert str(error.value) == "unknown type in schema file: 'list<float65>' (no type 'float65')"
+
+
+def test_a_struct_without_its_opening_bracket_is_refused_saying_what_was_expected():
+    with pytest.raises(ValueError) as error:
+        parse_type("struct[a: int64>")
+    assert str(error.value) == "unknown type in schema file: 'struct[a: int64>' (expected < at token 1)"

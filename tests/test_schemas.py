@@ -32,6 +32,19 @@ def test_every_nuscenes_table_and_derived_dataset_has_a_schema():
                                       "findings"}
 
 
+def test_schema_for_finds_a_manifest_name_s_schema():
+    """`schema_for` takes the names manifest.json lists: a table under tables/, a map layer by its family, a
+    derived dataset by its own name; None for what is typed by inference (CAN bus messages, extra tables)."""
+    from nuparquet.schemas import schema_for
+
+    assert schema_for("tables/sample") is table_schemas()["sample"]
+    assert schema_for("tables/sample_annotation") is table_schemas()["sample_annotation"]
+    assert schema_for("frames") is dataset_schemas()["frames"]
+    assert schema_for("map/arcline_path_3") is dataset_schemas()["map/<lane layer>"]  # keyed by lane token
+    assert schema_for("map/lane") is dataset_schemas()["map/<layer>"]
+    assert schema_for("tables/object_ann") is None and schema_for("can_bus/pose") is None
+
+
 def test_every_reference_names_a_table():
     for schema in table_schemas().values():
         for field in schema.fields:

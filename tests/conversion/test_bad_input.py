@@ -250,6 +250,24 @@ def test_allow_dangling_warns_of_each_dangling_reference_and_count_by_file_recor
         (f, i) for f, i, *_ in expected if f != "object_ann.json")
 
 
+def test_allow_dangling_still_checks_every_count_when_a_counted_table_is_missing(root):
+    """Everything at once: without scene.json the scene count cannot be checked, but the instance count still is;
+    both the missing table (a problem) and the wrong nbr_annotations (a warning) are reported."""
+    import nuparquet
+
+    (root / V / "scene.json").unlink()
+    instances = load(root, "instance")
+    instances[2]["nbr_annotations"] += 1
+    save(root, "instance", instances)
+    actual = sum(a["instance_token"] == instances[2]["token"] for a in load(root, "sample_annotation"))
+    found = nuparquet.validate(root, V, allow_dangling=True)
+    assert [(p.file, p.message) for p in found.problems] == [
+        ("scene.json", f"table scene is missing (expected {root / V / 'scene.json'})")]
+    assert [(w.file, w.index, w.token, w.message) for w in found.warnings] == [
+        ("instance.json", 2, instances[2]["token"],
+         f"nbr_annotations is {actual + 1} but {actual} sample_annotation records refer to it")]
+
+
 def test_problems_are_listed_all_at_once_with_a_bound(root, capsys):
     records = load(root, "sample_data")
     for r in records:

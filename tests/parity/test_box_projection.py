@@ -373,8 +373,31 @@ def test_duplicate_instance_in_previous_sample_gives_one_box_from_the_last_like_
 
 def test_missing_previous_sample_is_an_error_not_silently_uninterpolated_boxes():
     frames, annotations, samples = small_tables(frame_timestamp=1250)
-    with pytest.raises(ValueError, match="'s0'"):
+    with pytest.raises(ValueError, match="'s0'") as error:
         boxes_for_frames(frames, annotations, samples.filter(pl.col("token") == "s1"))
+    # the message says what to pass, not only what is missing
+    assert str(error.value) == ("samples lacks sample 's0' needed for frame 'f'; pass the sample table rows of the "
+                                "frames' samples and of their previous samples")
+
+
+def test_frame_boxes_as_a_dataframe_hold_every_box_under_its_documented_column():
+    """`boxes_for_frames` (`FrameBoxes.to_polars`): the columns its docstring names, in that order and type, each
+    holding the values of the hand-written tables (a keyframe: the boxes of s1 as written)."""
+    frames, annotations, samples = small_tables(frame_timestamp=2000, is_key_frame=True)
+    boxes = boxes_for_frames(frames, annotations, samples)
+    assert boxes.columns == ["frame_index", "frame_token", "annotation_token", "instance_token", "category_name",
+                             "translation", "size", "rotation", "interpolated"]
+    assert boxes.schema["frame_index"] == pl.UInt32 and boxes.schema["interpolated"] == pl.Boolean
+    assert all(boxes.schema[c] == pl.String for c in ("frame_token", "annotation_token", "instance_token",
+                                                      "category_name"))
+    written = {r["token"]: r for r in annotations.iter_rows(named=True)}
+    assert boxes["annotation_token"].to_list() == ["a-both-1", "a-new-1"]
+    for row in boxes.iter_rows(named=True):
+        source = written[row["annotation_token"]]
+        assert (row["frame_index"], row["frame_token"], row["interpolated"]) == (0, "f", False)
+        assert (row["instance_token"], row["category_name"]) == (source["instance_token"], source["category_name"])
+        assert [row[c] for c in ("translation", "size", "rotation")] == [source[c] for c in ("translation", "size",
+                                                                                              "rotation")]
 
 
 def test_box_straight_ahead_projects_around_the_principal_point():

@@ -179,6 +179,45 @@ def test_velocity_is_nan_for_single_annotation_track(synth_out):
     assert np.isnan(single["velocity"].to_numpy()).all()
 
 
+def test_velocity_is_defined_exactly_where_devkit_box_velocity_answers(devkit):
+    """`velocity_defined` (what `--allow-dangling` keeps of the velocity) against the devkit's `box_velocity` run on
+    the same small tables: it raises (KeyError) where a prev/next names no annotation or an annotation it reads
+    has no sample, and answers elsewhere, a track of one without reading anything, a centred difference without
+    reading its own sample."""
+    from nuparquet.conversion.builders.annotations import velocity_defined
+
+    samples = {"s1": 0, "s2": 500_000, "s3": 1_000_000}  # "gone" is no sample
+    rows = [  # token, sample, prev, next
+        ("a1", "s1", "", "a2"), ("a2", "s2", "a1", "a3"), ("a3", "s3", "a2", ""),  # a whole track
+        ("b1", "s1", "", "absent"),  # next names no annotation
+        ("c1", "gone", "", ""),  # a track of one: NaN, nothing read
+        ("d1", "gone", "", "d2"), ("d2", "s2", "d1", ""),  # both ends read d1's absent sample
+        ("e1", "s1", "", "e2"), ("e2", "gone", "e1", "e3"), ("e3", "s3", "e2", ""),  # e2 reads e1 and e3 only
+    ]
+
+    class Tables:  # what box_velocity reads through `get`: a missing token raises KeyError, as in the devkit
+        records = {"sample_annotation": {t: {"token": t, "sample_token": s, "prev": p, "next": n,
+                                             "translation": [1.0, 2.0, 0.0]} for t, s, p, n in rows},
+                   "sample": {s: {"token": s, "timestamp": ts} for s, ts in samples.items()}}
+
+        def get(self, table, token):
+            return self.records[table][token]
+
+    def answers(token) -> bool:
+        try:
+            devkit.NuScenes.box_velocity(Tables(), token)
+        except KeyError:
+            return False
+        return True
+
+    expected = [answers(t) for t, *_ in rows]
+    assert expected == [True, True, True, False, True, False, False, False, True, False]  # every case reached
+    ann = pl.DataFrame({"token": [r[0] for r in rows], "timestamp": [samples.get(r[1]) for r in rows],
+                        "prev": [r[2] for r in rows], "next": [r[3] for r in rows]},
+                       schema_overrides={"timestamp": pl.Int64})
+    assert velocity_defined(ann).tolist() == expected
+
+
 @pytest.mark.parametrize("dataset", ["frames", "annotations"])
 def test_one_scene_filter_prunes_row_groups(extract_out, dataset):
     """Row groups follow scene boundaries, so statistics exclude every other scene's groups."""

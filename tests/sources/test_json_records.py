@@ -82,6 +82,22 @@ def test_integers_and_floats_count_as_one_kind_against_the_others():
 def test_integers_beyond_float64_precision_among_floats_are_refused():
     _, problems = to_columns([{"a": 0.5}, {"a": 2**53 + 1}], Located(["f.json"], [0]), "message")
     assert problems and "beyond 2**53" in problems[0].message
+    assert [(p.file, p.message) for p in problems] == [
+        ("f.json", "message field 'a': integer 9007199254740993 among floats is beyond 2**53 and would not convert "
+                   "exactly")]
+
+
+def test_no_records_give_an_empty_table_and_come_back_as_no_records(tmp_path):
+    """An empty JSON array (an extra table a version ships empty, as T4's object_ann can be): no columns, no rows,
+    no problem, and nothing written back."""
+    from nuparquet.sources.tables import read_extra_table
+
+    columns, back = round_trip([])
+    assert columns.table.num_rows == 0 and columns.table.num_columns == 0 and columns.keys == [] and back == []
+    path = tmp_path / "object_ann.json"
+    path.write_text("[]")
+    table, problems = read_extra_table(path)
+    assert problems == [] and table.name == "object_ann" and table.table.num_rows == 0
 
 
 def test_problems_name_the_file_and_the_record_within_it():
