@@ -259,7 +259,7 @@ def test_where_picks_the_scenes_whose_row_passes_the_condition_sorted(synth_root
     assert select_scenes(ds, where=f"nbr_samples = {scenes[0]['nbr_samples']}") == sorted(
         s["name"] for s in scenes if s["nbr_samples"] == scenes[0]["nbr_samples"])
     assert select_scenes(ds, scenes=tuple(names), where=f"name = '{names[-1]}'") == [names[-1]]
-    with pytest.raises(UsageError, match=f"no scene selected by --where \"name = 'nowhere'\""):
+    with pytest.raises(UsageError, match="no scene selected by --where \"name = 'nowhere'\""):
         select_scenes(ds, where="name = 'nowhere'")
 
 

@@ -63,7 +63,7 @@ def test_render_scenes_takes_engine_fields_as_keywords_and_writes_one_video_per_
 
     table = {name: json.loads((synth_root / "v1.0-synth" / f"{name}.json").read_text())
              for name in ("scene", "sample", "sample_data", "calibrated_sensor", "sensor")}
-    scene = sorted(s["name"] for s in table["scene"])[0]
+    scene = min(s["name"] for s in table["scene"])
     scene_token = next(s["token"] for s in table["scene"] if s["name"] == scene)
     front = {c["token"] for c in table["calibrated_sensor"]
              if next(s["channel"] for s in table["sensor"] if s["token"] == c["sensor_token"]) == "CAM_FRONT"}

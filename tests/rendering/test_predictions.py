@@ -151,7 +151,8 @@ def test_an_evaluation_directory_missing_its_predictions_or_its_summary_is_refus
     summary_only.mkdir()
     shutil.copy(evaluation / "metrics_summary.json", summary_only)
     for folder in (predictions_only, summary_only):
-        with pytest.raises(UsageError, match=rf"^--predictions {re.escape(str(folder))}: a directory, but not one written by "
-                                             r"`nuparquet eval` \(no predictions/\*\.parquet and metrics_summary\.json\)$"):
+        message = (rf"^--predictions {re.escape(str(folder))}: a directory, but not one written by `nuparquet eval` "
+                   r"\(no predictions/\*\.parquet and metrics_summary\.json\)$")
+        with pytest.raises(UsageError, match=message):
             predicted.load_predictions(folder, None, SCENE)  # the dataset is read for a results.json only
     assert len(predicted.load_predictions(evaluation, None, SCENE, 0.0).score) > 0  # both halves: read
