@@ -200,7 +200,9 @@ GROUPS: dict[str, Group] = {
         ("tests/rendering/test_render.py", "tests/rendering/test_bev.py", "tests/rendering/test_frame_index.py",
          "tests/rendering/test_lidar_colors.py", "tests/rendering/test_predictions.py",
          "tests/rendering/test_pipeline.py", "tests/rendering/test_rigs.py", "tests/rendering/test_video.py",
-         "tests/rendering/test_decode.py", "tests/rendering/test_legend.py", "tests/rendering/test_loop.py"),
+         "tests/rendering/test_decode.py", "tests/rendering/test_legend.py", "tests/rendering/test_loop.py",
+         # ImageOptions.check (image_options.py is this group's) refuses a map picture without --map here
+         "tests/rendering/test_single_cli.py::test_what_cannot_be_drawn_is_a_usage_error"),
         keyword="not extract", cache_conversions=True),
     "pictures": Group(  # one picture of one thing: the devkit's render_* and their drawing
         ("nuparquet/rendering/single.py", "nuparquet/rendering/sample_data.py", "nuparquet/rendering/sample_grid.py",

@@ -121,6 +121,16 @@ def test_an_older_format_version_is_refused_naming_the_output_both_versions_and_
     assert f"({FORMAT_VERSION})" in message and message.endswith("`nuparquet convert --overwrite`")
 
 
+def test_a_newer_format_version_is_refused_naming_the_output_both_versions_and_the_fix(tmp_path, synth_out):
+    """The synthetic conversion (the mutation runs leave out tests of the real extract): the message starts with the
+    directory as opened, says which format it holds, which one this nuparquet reads, and to upgrade."""
+    out = _with_manifest(tmp_path, synth_out, format_version=FORMAT_VERSION + 1)
+    with pytest.raises(FormatError) as error:
+        nuparquet.open(out)
+    assert str(error.value) == (f"{out.resolve()}: written in nuparquet format {FORMAT_VERSION + 1}, newer than this "
+                                f"nuparquet reads ({FORMAT_VERSION}); upgrade nuparquet")
+
+
 def test_open_takes_a_file_url_of_a_local_directory(synth_out):
     ds = nuparquet.open(f"file://{synth_out}")
     assert not ds.is_remote and ds.root == str(synth_out.resolve())
@@ -210,6 +220,22 @@ def test_sql_joins_datasets_and_agrees_with_the_scan(extract_out):
 def test_sql_errors_are_query_errors_with_polars_message(extract_out, query, message):
     with pytest.raises(QueryError, match=message):
         nuparquet.open(extract_out).sql(query)
+
+
+def test_an_unknown_table_in_sql_lists_the_datasets_and_the_source_tables(synth_out):
+    """The hint after polars' message: the manifest's datasets but the source tables, then the source tables by
+    their SQL names (the manifest read here as JSON)."""
+    names = list(json.loads((synth_out / "manifest.json").read_text())["datasets"])
+    derived = [n for n in names if not n.startswith("tables/")]
+    tables = [n[len("tables/"):] for n in names if n.startswith("tables/")]
+    assert derived and tables
+    with pytest.raises(QueryError) as error:
+        nuparquet.open(synth_out).sql("SELECT * FROM no_such_table")
+    message = str(error.value)
+    assert message.startswith("SQL failed: ") and "no_such_table" in message
+    assert message.endswith(f" (datasets: {', '.join(derived)}; source tables: {', '.join(tables)}; "
+                            'a name with a slash is double-quoted: SELECT * FROM "map/lane"; tables also as sample, '
+                            "tables_sample)")
 
 
 def test_an_sql_error_without_a_message_is_named_by_its_type(synth_out, monkeypatch):

@@ -228,3 +228,101 @@ def test_points_are_read_safely_from_several_threads_at_once(points_out):
         for _ in range(5):
             for token, points in zip(tokens, pool.map(fresh.points, tokens)):
                 np.testing.assert_array_equal(points, expected[token])
+
+
+def test_as_dataset_opens_a_path_and_hands_a_dataset_back_as_it_is(synth_out):
+    """What every verb accepts: a path (Path or str) is opened as `nuparquet.open` opens it; a Dataset is used
+    as given (its caches kept), never reopened."""
+    import json
+
+    from nuparquet.dataset import Dataset, as_dataset
+
+    manifest = json.loads((synth_out / "manifest.json").read_text())
+    for given in (synth_out, str(synth_out)):
+        ds = as_dataset(given)
+        assert isinstance(ds, Dataset) and ds.root == str(synth_out.resolve()) and ds.manifest == manifest
+    opened = nuparquet.open(synth_out)
+    assert as_dataset(opened) is opened
+
+
+def test_where_picks_the_scenes_whose_row_passes_the_condition_sorted(synth_root, synth_out):
+    """`select_scenes` with an SQL condition on the scenes dataset, against the scenes of scene.json: the names
+    whose row passes, sorted; with names as well, the names that also pass."""
+    import json
+
+    from nuparquet.dataset import select_scenes
+
+    scenes = json.loads((synth_root / SYNTH_VERSION / "scene.json").read_text())
+    names = sorted(s["name"] for s in scenes)
+    ds = nuparquet.open(synth_out)
+    assert select_scenes(ds, where=f"name <> '{names[0]}'") == names[1:]
+    assert select_scenes(ds, where=f"nbr_samples = {scenes[0]['nbr_samples']}") == sorted(
+        s["name"] for s in scenes if s["nbr_samples"] == scenes[0]["nbr_samples"])
+    assert select_scenes(ds, scenes=tuple(names), where=f"name = '{names[-1]}'") == [names[-1]]
+    with pytest.raises(UsageError, match="no scene selected by --where \"name = 'nowhere'\""):
+        select_scenes(ds, where="name = 'nowhere'")
+
+
+def test_the_radar_points_of_one_channel_are_that_channels_keyframes_as_the_devkit_reads_them(radar_states_out):
+    """`radar_points(scene=..., channel=...)`: the points of that radar's keyframes of the scene only, in time
+    order, each frame as devkit `RadarPointCloud.from_file` reads its file (filtered: the devkit's defaults)."""
+    import numpy as np
+    from nuscenes.utils.data_classes import RadarPointCloud
+
+    root, out = radar_states_out
+    ds = nuparquet.open(out)
+    scene = ds.scene_names()[0]
+    frames = (ds.scan("frames").filter((pl.col("scene_name") == scene) & pl.col("is_key_frame")
+                                       & pl.col("channel").cast(pl.String).str.starts_with("RADAR"))
+              .select(pl.col("channel").cast(pl.String), "timestamp", "filename").sort("timestamp").collect())
+    channels = sorted(set(frames["channel"]))
+    assert len(channels) > 1  # another radar's points would be seen
+    for channel in channels:
+        files = frames.filter(pl.col("channel") == channel)["filename"].to_list()
+        expected = np.concatenate([RadarPointCloud.from_file(str(root / f)).points.T for f in files])
+        np.testing.assert_array_equal(ds.radar_points(scene=scene, channel=channel, filtered=True), expected)
+
+
+@pytest.fixture(scope="module")
+def short_radar_out(labelled_root, tmp_path_factory):
+    """The labelled synthetic set with every radar file cut to its first six fields (x y z dyn_prop id rcs: fewer
+    than the devkit's 18, so no default-filter flag), converted with its radar points."""
+    import os
+    import shutil
+
+    import numpy as np
+
+    from nuparquet.synth.sensors import _RADAR_DTYPE
+
+    base = tmp_path_factory.mktemp("short-radar")
+    root = base / "data"
+    shutil.copytree(labelled_root, root, copy_function=os.symlink)  # links, but for the radar files rewritten below
+    kept = list(_RADAR_DTYPE.names[:6])
+    for path in root.glob("samples/RADAR_*/*.pcd"):
+        data = path.read_bytes()
+        start = data.index(b"DATA binary\n") + len(b"DATA binary\n")
+        points = np.frombuffer(data, _RADAR_DTYPE, (len(data) - start) // _RADAR_DTYPE.itemsize, start)
+        short = np.empty(len(points), [(n, _RADAR_DTYPE[n]) for n in kept])
+        for name in kept:
+            short[name] = points[name]
+        header = ["# .PCD v0.7 - Point Cloud Data file format", "VERSION 0.7", f"FIELDS {' '.join(kept)}",
+                  "SIZE " + " ".join(str(_RADAR_DTYPE[n].itemsize) for n in kept),
+                  "TYPE " + " ".join("F" if _RADAR_DTYPE[n].kind == "f" else "I" if _RADAR_DTYPE[n].kind == "i"
+                                     else "U" for n in kept),
+                  "COUNT " + " ".join("1" for _ in kept), f"WIDTH {len(points)}", "HEIGHT 1",
+                  "VIEWPOINT 0 0 0 1 0 0 0", f"POINTS {len(points)}", "DATA binary"]
+        path.unlink()
+        path.write_bytes(("\n".join(header) + "\n").encode("ascii") + short.tobytes())
+    nuparquet.convert(root, SYNTH_VERSION, base / "out", sensors=("radar",), workers=1)
+    return base / "out"
+
+
+def test_filtered_radar_points_of_files_without_the_devkits_fields_are_none_not_all(short_radar_out):
+    """A PCD of fewer than the devkit's 18 fields has no default-filter flag (null: the rule cannot be applied):
+    `filtered=True` keeps only points known to pass, so none, while every point is read unfiltered."""
+    ds = nuparquet.open(short_radar_out)
+    scene = ds.scene_names()[0]
+    everything = ds.radar_points(scene=scene, columns=["x", "passes_default_filters"])
+    assert everything.height > 0 and everything["passes_default_filters"].null_count() == everything.height
+    assert ds.radar_points(scene=scene, filtered=True).shape == (0, 6)
+    assert ds.radar_points(scene=scene, columns=["x"], filtered=True).height == 0

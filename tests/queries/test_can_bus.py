@@ -6,6 +6,7 @@ import json
 import math
 from collections import defaultdict
 
+import polars as pl
 import pytest
 
 import nuparquet
@@ -98,3 +99,36 @@ def test_a_scene_filter_keeps_only_that_scene(case):
     scene = sorted(_messages(root, "pose"))[0]
     assert set(can_bus.speed_over_time(ds, scene=scene).collect()["scene_name"]) == {scene}
     assert set(can_bus.can_speed(ds, scene=[scene]).collect()["scene_name"]) == {scene}
+
+
+@pytest.fixture(scope="module")
+def trimmed_start(synth_root, tmp_path_factory):
+    """(root, output) of the synthetic set whose first scene's first_sample_token names no sample (a trimmed
+    extract's shape), converted with --allow-dangling: that scene has no start time (first_timestamp null)."""
+    import os
+    import shutil
+
+    base = tmp_path_factory.mktemp("trimmed-start")
+    root = base / "data"
+    shutil.copytree(synth_root, root, copy_function=os.symlink)
+    path = root / SYNTH_VERSION / "scene.json"
+    scenes = json.loads(path.read_text())
+    scenes[0]["first_sample_token"] = "f" * 32
+    path.unlink()
+    path.write_text(json.dumps(scenes))
+    nuparquet.convert(root, SYNTH_VERSION, base / "out", allow_dangling=True, workers=1)
+    return root, scenes[0]["name"], nuparquet.open(base / "out")
+
+
+def test_can_speed_counts_the_messages_of_a_scene_without_a_start_time(trimmed_start):
+    """The mean and max CAN speeds need no time axis: a scene whose first sample is missing keeps every message
+    in them (only `speed_over_time`'s time_s is unknown there)."""
+    root, scene, ds = trimmed_start
+    assert ds.scan("scenes").filter(pl.col("name") == scene).select("first_timestamp").collect().item() is None
+    row = can_bus.can_speed(ds, scene=scene).collect().row(0, named=True)
+    speeds = [m["vehicle_speed"] / 3.6 for m in _messages(root, "vehicle_monitor")[scene]]
+    assert row["scene_name"] == scene and len(speeds) > 1
+    assert row["vehicle_monitor_mean_mps"] == pytest.approx(sum(speeds) / len(speeds), rel=1e-12)
+    assert row["vehicle_monitor_max_mps"] == pytest.approx(max(speeds), rel=1e-12)
+    pose_speeds = [math.sqrt(sum(v * v for v in m["vel"])) for m in _messages(root, "pose")[scene]]
+    assert row["pose_mean_mps"] == pytest.approx(sum(pose_speeds) / len(pose_speeds), rel=1e-12)

@@ -83,3 +83,18 @@ def test_map_sections_join_the_default_stats_when_map_was_converted(map_out, syn
     manifest = json.loads((synth_out / "manifest.json").read_text())
     convert(manifest["source"]["dataroot"], manifest["source"]["version"], convert_out, no_map=True)
     assert not {"map_surfaces", "ego_on_map"} & set(default_sections(nuparquet.open(convert_out)))
+
+
+def test_no_annotations_give_empty_surface_tables_with_every_column(irregular_empty_out):
+    """A split without annotations (the test set's shape): the surface queries answer empty tables with their
+    columns, as with annotations, not an error."""
+    from nuparquet.queries.map import LAYERS, SURFACES
+
+    ds = nuparquet.open(irregular_empty_out)
+    assert "map/lane" in ds.datasets and ds.scan("annotations").select(pl.len()).collect().item() == 0
+    rows = annotation_surfaces(ds).collect()
+    assert rows.height == 0
+    assert rows.columns == ["token", "scene_name", "location", "category_name", "x_m", "y_m", *LAYERS, "surface"]
+    assert rows.schema["surface"] == pl.String
+    table = surfaces_by_category(ds).collect()
+    assert table.height == 0 and table.columns == ["category_name", *SURFACES, "total"]

@@ -167,3 +167,25 @@ def test_the_legend_lists_map_layers_only_when_the_map_is_drawn(map_root, map_ou
     # two lines of 13 px at this size, where the eight layers took ten.
     panel_rows = int((without_map[:, 7] == (11, 11, 11)).all(axis=1).sum())
     assert 20 <= panel_rows <= 3 * 13
+
+
+@pytest.mark.parametrize("height", [400, 900, 1800])
+@pytest.mark.parametrize("map_layers, points", [(True, "height"), (False, "height"), (False, "intensity")])
+def test_everything_the_legend_draws_lies_on_its_darkened_panel(height, map_layers, points):
+    """On a plain grey view, the legend darkens one panel in the top-left corner (to 35 %) and draws its swatches
+    and text inside it, none on the undarkened view around it (the descenders of its last line included; the
+    panel's extent read from its left edge and top row, where nothing is drawn)."""
+    from nuparquet.rendering.bev import draw_legend
+
+    grey = 120
+    image = np.full((height, height, 3), grey, np.uint8)
+    draw_legend(image, points=points, map_layers=map_layers)
+    dark = int(grey * 0.35)
+    rows = np.flatnonzero((image[:, 6] == dark).all(axis=1))  # the panel's first column
+    columns = np.flatnonzero((image[rows[0]] == dark).all(axis=1))  # its first row: darkened, nothing drawn
+    assert rows[0] == 6 and columns[0] == 6
+    assert np.array_equal(rows, np.arange(rows[0], rows[-1] + 1))
+    assert np.array_equal(columns, np.arange(columns[0], columns[-1] + 1))
+    inside = np.zeros(image.shape[:2], bool)
+    inside[rows[0]:rows[-1] + 1, columns[0]:columns[-1] + 1] = True
+    assert not (image != grey).any(axis=2)[~inside].any()  # nothing drawn outside the panel

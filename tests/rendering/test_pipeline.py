@@ -48,3 +48,33 @@ def test_every_cli_render_option_is_a_flag_with_the_library_default():
         "help", "dataset", "scene", "quiet"}
     assert options_from(args, SceneSelection) == SceneSelection() and options_from(args, EngineOptions) == EngineOptions()
     assert options_from(args, ImageOptions) == ImageOptions() and not ImageOptions().wanted
+
+
+def test_render_scenes_takes_engine_fields_as_keywords_and_writes_one_video_per_scene(synth_root, synth_out, tmp_path):
+    """The many-scene render as a notebook calls it (selection, render and engine options as keyword fields): a
+    video per scene holding one frame per CAM_FRONT keyframe of the scene (counted in the JSON tables); `out` is
+    refused (the files are DIR/<scene>.mp4)."""
+    import json
+
+    import av
+    import pytest
+
+    from nuparquet.errors import UsageError
+
+    table = {name: json.loads((synth_root / "v1.0-synth" / f"{name}.json").read_text())
+             for name in ("scene", "sample", "sample_data", "calibrated_sensor", "sensor")}
+    scene = min(s["name"] for s in table["scene"])
+    scene_token = next(s["token"] for s in table["scene"] if s["name"] == scene)
+    front = {c["token"] for c in table["calibrated_sensor"]
+             if next(s["channel"] for s in table["sensor"] if s["token"] == c["sensor_token"]) == "CAM_FRONT"}
+    samples = {s["token"] for s in table["sample"] if s["scene_token"] == scene_token}
+    keyframes = sum(d["is_key_frame"] and d["sample_token"] in samples and d["calibrated_sensor_token"] in front
+                    for d in table["sample_data"])
+    result = nuparquet.render_scenes(synth_out, scenes=[scene], out_dir=tmp_path / "videos", scale=0.1,
+                                     keep_going=True, engine=EngineOptions(engine="serial"))
+    assert result.written == [scene] and sorted(p.name for p in (tmp_path / "videos").glob("*.mp4")) == [f"{scene}.mp4"]
+    with av.open(str(tmp_path / "videos" / f"{scene}.mp4")) as video:
+        assert keyframes > 1 and sum(1 for _ in video.decode(video=0)) == keyframes
+    with pytest.raises(UsageError, match="a many-scene render writes DIR/<scene>.mp4: leave out --out"):
+        nuparquet.render_scenes(synth_out, scenes=[scene], out_dir=tmp_path / "x", out=tmp_path / "v.mp4",
+                                workers=1)

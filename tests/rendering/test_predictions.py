@@ -134,3 +134,25 @@ def test_a_directory_that_is_not_an_evaluation_is_refused(synth_out, tmp_path, c
     assert main(["render", str(synth_out), "--scene", SCENE, "--predictions", str(tmp_path), "--frames-dir",
                  str(tmp_path / "f"), "--quiet"]) == 2
     assert "not one written by `nuparquet eval`" in capsys.readouterr().err
+
+
+def test_an_evaluation_directory_missing_its_predictions_or_its_summary_is_refused(results, tmp_path):
+    """`nuparquet eval` writes predictions/*.parquet and metrics_summary.json: a directory holding one without the
+    other is not read (neither half is enough), and the message names the directory and what it lacks."""
+    import re
+    import shutil
+
+    from nuparquet.errors import UsageError
+
+    evaluation = results[1]
+    assert list((evaluation / "predictions").glob("*.parquet")) and (evaluation / "metrics_summary.json").is_file()
+    predictions_only, summary_only = tmp_path / "predictions-only", tmp_path / "summary-only"
+    shutil.copytree(evaluation / "predictions", predictions_only / "predictions")
+    summary_only.mkdir()
+    shutil.copy(evaluation / "metrics_summary.json", summary_only)
+    for folder in (predictions_only, summary_only):
+        message = (rf"^--predictions {re.escape(str(folder))}: a directory, but not one written by `nuparquet eval` "
+                   r"\(no predictions/\*\.parquet and metrics_summary\.json\)$")
+        with pytest.raises(UsageError, match=message):
+            predicted.load_predictions(folder, None, SCENE)  # the dataset is read for a results.json only
+    assert len(predicted.load_predictions(evaluation, None, SCENE, 0.0).score) > 0  # both halves: read

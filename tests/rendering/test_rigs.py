@@ -131,3 +131,40 @@ def test_lidar_draws_the_reference_lidar_points_where_the_devkit_projects_them(l
     # The other lidars' points are elsewhere: the check tells the lidars apart.
     for other in ("LIDAR_FRONT_LEFT", "LIDAR_FRONT_RIGHT"):
         assert near(changed, devkit_points_px(other), 1.5) < 0.5
+
+
+@pytest.fixture(scope="module")
+def no_camera_out(synth_root, tmp_path_factory) -> Path:
+    """The synthetic set without its cameras (their sensors, calibrations and frames taken out of the JSON tables:
+    a lidar and radar rig), converted."""
+    import json
+    import shutil
+
+    from conftest import SYNTH_VERSION
+
+    base = tmp_path_factory.mktemp("no-camera")
+    root = base / "data"
+    shutil.copytree(synth_root, root, copy_function=os.symlink)
+
+    def rewrite(name, keep):
+        path = root / SYNTH_VERSION / f"{name}.json"
+        records = [r for r in json.loads(path.read_text()) if keep(r)]
+        path.unlink()
+        path.write_text(json.dumps(records))
+        return records
+
+    sensors = {r["token"] for r in rewrite("sensor", lambda r: r["modality"] != "camera")}
+    calibrations = {r["token"] for r in rewrite("calibrated_sensor", lambda r: r["sensor_token"] in sensors)}
+    rewrite("sample_data", lambda r: r["calibrated_sensor_token"] in calibrations)
+    nuparquet.convert(root, SYNTH_VERSION, base / "out", workers=1)
+    return base / "out"
+
+
+@pytest.mark.parametrize("channel", [None, "all"])
+def test_a_rig_without_cameras_has_no_camera_to_render(no_camera_out, channel, tmp_path):
+    """The default camera and `--channel all` of a dataset with no camera: a usage error saying so, no video."""
+    ds = nuparquet.open(no_camera_out)
+    assert ds.channels["cameras"] == [] and ds.channels["reference_lidar"] == "LIDAR_TOP"
+    with pytest.raises(nuparquet.UsageError, match="^the dataset has no camera to render$"):
+        nuparquet.render(ds, _scene(no_camera_out), channel=channel, out=tmp_path / "v.mp4", scale=SCALE)
+    assert not (tmp_path / "v.mp4").exists()
