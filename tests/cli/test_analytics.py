@@ -379,3 +379,36 @@ def test_stats_table_shows_scenes_visibility_and_lidar_points_per_box_as_counted
                 assert close_to_printed(row[f"{sensor} p{q:02d}"], np.percentile(counts, q)), (row, q)
             assert int(row[f"{sensor} max"]) == counts.max()
             assert row[f"{sensor} zero"] == f"{(counts == 0).mean():.1%}"
+
+
+def test_stats_table_counts_annotations_of_unknown_visibility_in_a_v_question_mark_column(run, layouts_root,
+                                                                                            layouts_out):
+    """An empty visibility token (derived datasets write them) has no level: the terminal table counts such boxes in
+    a column of their own, 'v?', after v1..v4, per category, as counted from the JSON."""
+    folder = layouts_root / SYNTH_VERSION
+    code, stdout, _ = run("stats", layouts_out, "--only", "visibility")
+    assert code == 0
+    category = {c["token"]: c["name"] for c in load(folder, "category")}
+    category_of = {i["token"]: category[i["category_token"]] for i in load(folder, "instance")}
+    expected: dict[str, Counter] = {}
+    for a in load(folder, "sample_annotation"):
+        level = f"v{int(a['visibility_token'])}" if a["visibility_token"] else "v?"
+        expected.setdefault(category_of[a["instance_token"]], Counter())[level] += 1
+    levels = sorted({level for counts in expected.values() for level in counts} - {"v?"}) + ["v?"]
+    assert sum(counts["v?"] for counts in expected.values()) > 0
+    rows = section(table_sections(stdout), "Visibility")
+    assert list(rows[0]) == ["category_name", *levels]
+    assert {r["category_name"]: {v: int(r[v]) for v in levels} for r in rows} == {
+        name: {v: counts[v] for v in levels} for name, counts in expected.items()}
+
+
+def test_json_outputs_are_laid_out_alike_one_space_indent_keys_in_order(run, synth_out):
+    """`info`, `stats` and `sql` with --format json print the same layout: the document indented by one space per
+    level, keys in the order written, then a newline (output one can diff across commands and runs)."""
+    outputs = [run("info", synth_out, "--format", "json"),
+               run("stats", synth_out, "--only", "scenes", "--format", "json"),
+               run("sql", synth_out, "SELECT name FROM scenes ORDER BY name", "--format", "json")]
+    for code, stdout, _ in outputs:
+        assert code == 0
+        assert stdout == json.dumps(json.loads(stdout), indent=1) + "\n"
+        assert stdout.startswith(("{\n \"", "[\n {\n  \""))

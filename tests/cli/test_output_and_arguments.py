@@ -33,3 +33,24 @@ def test_what_the_command_sets_wins_over_the_parsed_flag_of_the_same_name():
     assert options_from(parsed, _Options) == _Options(scale=0.5, quiet=False)
     assert options_from(parsed, _Options, quiet=True) == _Options(scale=0.5, quiet=True)
     assert options_from(argparse.Namespace(), _Options, scale=2.0) == _Options(scale=2.0)
+
+
+def test_an_optional_number_flag_parses_as_its_number_type(capsys):
+    """`fps: float | None` and `workers: int | None` (None: the default rule) give a float and an int from the
+    command line, and a non-number is argparse's usage error naming the type, not a crash in the options' checks."""
+    import pytest
+
+    from nuparquet.cli.arguments import add_options
+    from nuparquet.engine import EngineOptions
+    from nuparquet.rendering.options import RenderOptions
+
+    parser = argparse.ArgumentParser()
+    add_options(parser, RenderOptions)
+    add_options(parser, EngineOptions)
+    parsed = parser.parse_args(["--fps", "2.5", "--workers", "3"])
+    assert (parsed.fps, parsed.workers) == (2.5, 3) and type(parsed.fps) is float and type(parsed.workers) is int
+    assert options_from(parsed, EngineOptions).workers == 3
+    assert (parser.parse_args([]).fps, parser.parse_args([]).workers) == (None, None)
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--workers", "two"])
+    assert "--workers: invalid int value: 'two'" in capsys.readouterr().err

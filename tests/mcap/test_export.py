@@ -449,3 +449,67 @@ def test_foxglove_schemas_are_embedded_for_every_protobuf_topic(exported):
     assert names["/markers/annotations"] == names["/map"] == "foxglove.SceneUpdate"
     assert names["/CAM_FRONT/camera_info"] == "foxglove.CameraCalibration"
     assert Counter(names.values())["foxglove.CompressedImage"] == len(CAMERAS)
+
+
+def test_the_scene_metadata_and_the_can_bus_json_schemas_are_what_a_reader_is_told(synth_points_out, tables, tmp_path):
+    """The file's "scene" metadata record holds the scene's and its log's JSON fields (a viewer shows them), and each
+    CAN bus topic is JSON whose schema is declared as a JSON Schema (encoding "jsonschema", as MCAP's registry
+    names it and Foxglove reads it) listing every field of its messages. Exported here, in this test's process."""
+    from mcap.reader import SeekingReader
+
+    out = tmp_path / "can.mcap"
+    export_mcap(synth_points_out, SCENE, McapOptions(out=out, without=("images", "points", "boxes", "map",
+                                                                      "transforms")))
+    with open(out, "rb") as f:
+        reader = SeekingReader(f)
+        metadata = [(m.name, m.metadata) for m in reader.iter_metadata()]
+        summary = reader.get_summary()
+    assert tables.scene["description"]  # the generator writes one: the record must carry it
+    assert metadata == [("scene", {"name": SCENE, "description": tables.scene["description"],
+                                   "log_location": tables.log["location"], "vehicle": tables.log["vehicle"],
+                                   "date_captured": tables.log["date_captured"], "source_version": VERSION})]
+    channels = {c.topic: c for c in summary.channels.values() if c.topic.startswith("/can_bus/")}
+    assert set(channels) == {f"/can_bus/{m}" for m in ("ms_imu", "pose", "steeranglefeedback", "vehicle_monitor",
+                                                       "zoe_veh_info")}
+    for topic, channel in channels.items():
+        schema = summary.schemas[channel.schema_id]
+        assert (channel.message_encoding, schema.encoding) == ("json", "jsonschema")
+        declared = json.loads(schema.data)
+        assert declared["type"] == "object"
+        fields = {key for record in tables.can_bus(topic.split("/")[-1]) for key in record}
+        assert set(declared["properties"]) == fields
+
+
+def test_chunk_bytes_takes_1024_and_refuses_less(synth_points_out, tmp_path):
+    """chunk_bytes (the MCAP writer's chunk size) has a floor of 1024 bytes: 1024 itself writes a valid file, of
+    many chunks; 1023 is refused naming the option and the value."""
+    with pytest.raises(UsageError, match="chunk_bytes must be at least 1024, got 1023"):
+        McapOptions(out=tmp_path / "x.mcap", chunk_bytes=1023)
+    out = tmp_path / "small-chunks.mcap"
+    export_mcap(synth_points_out, SCENE, McapOptions(out=out, chunk_bytes=1024, without=("images", "points",
+                                                                                          "map", "boxes")))
+    assert len(validate(out)["chunks"]) > 1
+
+
+def test_an_unreadable_point_file_stops_the_export_with_the_reason(synth_out, synth_root, tmp_path):
+    """With --on-missing error, a lidar file that is gone or truncated stops the export with an InputError naming
+    the file and why (the OS's reason; the point reader's for a truncated file): read from the files, as a dataset
+    converted without points is."""
+    import os
+    import shutil
+
+    dataroot = tmp_path / "data"
+    shutil.copytree(synth_root, dataroot, copy_function=os.symlink)  # links: only the two files below change
+    frames = (pl.scan_parquet(f"{synth_out}/frames/**/*.parquet")
+              .filter((pl.col("scene_name") == SCENE) & (pl.col("channel").cast(pl.String) == "LIDAR_TOP"))
+              .sort("timestamp").select("filename").collect()["filename"].to_list())
+    (dataroot / frames[0]).unlink()
+    options = dict(dataroot=dataroot, on_missing="error", without=("images", "boxes", "map", "can_bus"))
+    with pytest.raises(InputError) as raised:
+        export_mcap(synth_out, SCENE, McapOptions(out=tmp_path / "a.mcap", **options))
+    assert str(raised.value).startswith(f"sensor file {dataroot / frames[0]}: No such file or directory")
+    (dataroot / frames[0]).write_bytes(b"\0" * 22)  # 5.5 float32: not whole 5-float points
+    with pytest.raises(InputError) as raised:
+        export_mcap(synth_out, SCENE, McapOptions(out=tmp_path / "b.mcap", **options))
+    assert str(raised.value).startswith(f"sensor file {dataroot / frames[0]}: 22 bytes is not a whole number of "
+                                        "5-float32 points")

@@ -108,3 +108,66 @@ def test_every_map_file_exists(synth_root, tables):
     assert sorted(t for m in tables["map"] for t in m["log_tokens"]) == sorted(log["token"] for log in tables["log"])
 
 
+
+
+def test_lidarseg_labels_are_the_class_of_the_devkit_box_each_point_lies_in(nusc, synth_root):
+    """Each keyframe's lidarseg label of a point is the lidarseg index of the category of the devkit box it lies in
+    (`points_in_box` on `get_sample_data`'s boxes in the lidar frame), and flat.driveable_surface for a point in
+    no box (the generator's ground returns), point for point."""
+    from nuscenes.utils.data_classes import LidarPointCloud
+    from nuscenes.utils.geometry_utils import points_in_box
+
+    index = nusc.lidarseg_name2idx_mapping
+    in_box = on_ground = 0
+    for sample in nusc.sample:
+        token = sample["data"]["LIDAR_TOP"]
+        path, boxes, _ = nusc.get_sample_data(token)
+        points = LidarPointCloud.from_file(path).points[:3]
+        labels = np.fromfile(synth_root / nusc.get("lidarseg", token)["filename"], dtype=np.uint8)
+        assert labels.shape == (points.shape[1],)
+        inside = np.array([points_in_box(box, points) for box in boxes]).reshape(len(boxes), -1)
+        assert inside.sum(axis=0).max() <= 1  # the generator's boxes do not overlap: one class per point
+        expected = np.full(points.shape[1], index["flat.driveable_surface"])
+        for box, mask in zip(boxes, inside):
+            expected[mask] = index[box.name]
+        np.testing.assert_array_equal(labels, expected)
+        in_box += int(inside.any(axis=0).sum())
+        on_ground += int((~inside.any(axis=0)).sum())
+    assert in_box > 10_000 and on_ground > 10_000
+
+
+def test_camera_images_paint_each_box_out_to_the_corners_the_devkit_projects(nusc):
+    """The painted box is the convex hull of the devkit's eight projected corners (`Box.corners()`, view_points):
+    inside it, three quarters of the way from the centre to each corner of the hull, the pixel has the category's
+    colour, wherever no nearer box is painted within 4 px (keyframes; expectations from the devkit alone)."""
+    import cv2
+    from nuscenes.utils.color_map import get_colormap
+    from nuscenes.utils.geometry_utils import BoxVisibility, view_points
+
+    colormap = get_colormap()
+    checked = 0
+    for sd in nusc.sample_data:
+        if sd["sensor_modality"] != "camera" or not sd["is_key_frame"]:
+            continue
+        path, boxes, intrinsic = nusc.get_sample_data(sd["token"], box_vis_level=BoxVisibility.NONE)
+        image = cv2.imread(path)
+        painted = sorted((b for b in boxes if (b.corners()[2] >= 0.1).all()), key=lambda b: b.center[2])
+        hulls = [cv2.convexHull(view_points(b.corners(), intrinsic, normalize=True)[:2].T.astype(np.float32))
+                 for b in painted]
+        for i, box in enumerate(painted):
+            hull = hulls[i][:, 0, :]
+            if np.ptp(hull, axis=0).min() < 40:
+                continue
+            centre = hull.mean(axis=0)
+            for corner in hull:
+                u, v = centre + 0.75 * (corner - centre)
+                if not (8 <= u < 1592 and 8 <= v < 892) or cv2.pointPolygonTest(hulls[i], (float(u), float(v)),
+                                                                                 True) < 4:
+                    continue
+                if any(cv2.pointPolygonTest(h, (float(u), float(v)), True) > -4 for h in hulls[:i]):
+                    continue  # a nearer box is painted here
+                patch = image[int(v) - 2:int(v) + 3, int(u) - 2:int(u) + 3].reshape(-1, 3).astype(int)
+                rgb = np.median(patch, axis=0)[::-1]
+                assert np.abs(rgb - colormap[box.name]).max() <= 24, (sd["filename"], box.name, (u, v), rgb)
+                checked += 1
+    assert checked >= 300, checked

@@ -332,7 +332,11 @@ def test_scenes_subset_and_no_videos(synth_points_out, tables, tmp_path, capsys)
     local, zone = tables.local_start("scene-0002")
     assert (row["local start"], row["CAN bus"]) == (local.strftime("%H:%M"), "no") and "scene-0002" not in tables.can_bus
     page = Page((out / "scenes" / "scene-0002.html").read_text())
-    assert dict(page.tables["table0"])["local start"] == f"{local.strftime('%H:%M')} ({zone})"
+    facts = dict(page.tables["table0"])
+    assert facts["local start"] == f"{local.strftime('%H:%M')} ({zone})"
+    scene, log = tables.scene["scene-0002"], tables.log[tables.scene["scene-0002"]["log_token"]]
+    assert (facts["description"], facts["location"], facts["date"]) == (scene["description"], log["location"],
+                                                                        log["date_captured"])
     assert not (out / "videos").exists() and not list((out / "scenes").rglob("*.jpg"))
     assert "no video" in (out / "scenes" / "scene-0002.html").read_text()
     # no CAN bus: no speed or steering chart (its ego-pose speeds alone are not charted)
@@ -412,3 +416,49 @@ def test_table_cells_are_escaped_as_text():
     html = table(pl.DataFrame({"description": ["night, <rain> & fog"], "n": [3]}))
     assert '">night, &lt;rain&gt; &amp; fog</td>' in html and "<rain>" not in html
     assert '<td class="num" data-sort="3">3</td>' in html
+
+
+def test_keyframe_renderings_draw_the_reference_lidar_when_the_dataset_has_one(synth_points_out, tmp_path):
+    """The dataset has LIDAR_TOP: each still is the one-scene renderer's frame of the default camera with the
+    lidar's points drawn (`render --lidar`), not the frame without them. (A report of its own, in this test's
+    process: the session's report is built during another test.)"""
+    import numpy as np
+
+    from nuparquet.rendering.options import RenderOptions
+    from nuparquet.rendering.pipeline import render
+    from nuparquet.site.scene_assets import STILL_SCALE
+
+    scene = SCENES[1]
+    result = build_report(synth_points_out, ReportOptions(out=tmp_path / "report", scenes=(scene,), stills=2))
+    assert len(result.assets[scene]["stills"]) == 2
+    frames = {}
+    for lidar in (True, False):
+        folder = tmp_path / f"lidar-{lidar}"
+        render(synth_points_out, scene, RenderOptions(channel="CAM_FRONT", lidar=lidar, scale=STILL_SCALE,
+                                                      frames_dir=folder, frame_format="jpg"))
+        frames[lidar] = sorted(folder.glob("*.jpg"))
+    for file, index, count in result.assets[scene]["stills"]:
+        assert count == len(frames[True])
+        still = cv2.imread(str(result.out / "scenes" / scene / file)).astype(int)
+        with_points = cv2.imread(str(frames[True][index])).astype(int)
+        without = cv2.imread(str(frames[False][index])).astype(int)
+        assert np.abs(still - with_points).max() == 0
+        assert (np.abs(still - without).max(axis=2) > 40).sum() > 100  # the points: many pixels, not JPEG noise
+
+
+def test_the_report_says_its_steps_as_it_goes(synth_points_out, tmp_path):
+    """The report's own progress task names each of its five steps as it starts it, in order (the CLI shows the
+    step beside the bar)."""
+    events = []
+    build_report(synth_points_out, ReportOptions(out=tmp_path / "report", scenes=("scene-0002",), videos=False),
+                 on_progress=events.append)
+    steps = [(e.done, e.total, e.step) for e in events if e.task == "report" and e.step]
+    assert steps == [(1, 5, "statistics"), (2, 5, "videos"), (3, 5, "scene assets"), (4, 5, "pages"),
+                     (5, 5, "done")]
+
+
+def test_stills_of_a_scene_with_fewer_keyframes_than_asked_are_every_keyframe():
+    from nuparquet.site.scene_assets import evenly_spaced
+
+    assert evenly_spaced(3, 4) == [0, 1, 2] and evenly_spaced(4, 4) == [0, 1, 2, 3] and evenly_spaced(0, 4) == []
+    assert evenly_spaced(10, 4) == [0, 3, 6, 9]  # round(k * 9 / 3)

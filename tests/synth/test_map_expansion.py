@@ -73,3 +73,27 @@ def test_map_expansion_is_deterministic(tmp_path):
     assert files
     for name in files:
         assert (a / "maps" / "expansion" / name).read_bytes() == (b / "maps" / "expansion" / name).read_bytes()
+
+
+def test_the_drivable_area_holds_the_road_from_its_first_point():
+    """The map holds the road it is drawn for from where the road begins (`Road.s_m[0]`): across the drivable
+    band (-9 m .. 12 m of the centreline), the road's first 30 m lie in the drivable area, as shapely reads the
+    JSON's polygons (a map starting a grid step late leaves the road's first half metre off the map)."""
+    import shapely
+
+    from nuparquet.synth.map_expansion import map_expansion
+    from nuparquet.synth.road import make_road
+
+    road, _ = make_road(np.random.default_rng(5), -100.0, 200.0, 50.0)
+    data = map_expansion(5, 0, "boston-seaport", [road], drives_on_right=True)
+    nodes = {n["token"]: (n["x"], n["y"]) for n in data["node"]}
+    polygons = {p["token"]: shapely.Polygon([nodes[t] for t in p["exterior_node_tokens"]],
+                                            [[nodes[t] for t in hole["node_tokens"]] for hole in p["holes"]])
+                for p in data["polygon"]}
+    drivable = shapely.union_all([polygons[t] for r in data["drivable_area"] for t in r["polygon_tokens"]])
+    s = road.s_m[road.s_m <= road.s_m[0] + 30.0]
+    assert s[0] == road.s_m[0] == -100.0 and len(s) == 61
+    for lateral in (-8.9, 0.0, 11.9):
+        xy, _ = road.at(s, lateral)
+        inside = shapely.covers(drivable.buffer(1e-6), shapely.points(xy))
+        assert inside.all(), (lateral, s[~inside])

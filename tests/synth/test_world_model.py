@@ -215,3 +215,20 @@ def test_quat_from_matrix_equals_pyquaternion_in_every_branch_and_at_diagonal_ti
         assert abs(np.linalg.norm(ours) - 1.0) < 1e-12 and ours[0] >= 0.0
         np.testing.assert_allclose(quat_to_matrix(ours), m, atol=1e-12)
     assert ties > 20
+
+
+def test_a_barrier_stands_along_its_row():
+    """A barrier's long side is its width (nuScenes' barriers: about 2.5 m wide, 0.5 m long): the generator turns it
+    a quarter turn so that it stands along the median, as real barriers line a road. Seen from above (shapely
+    footprints on a road along x), every barrier reaches farther along the road than across it."""
+    row = next(r for r in world.ROWS if "movable_object.barrier" in r.categories)
+    checked = 0
+    for seed in range(3):
+        category, size, s_m, yaw_offset = world._place_row(np.random.default_rng([seed, 31]), row, 1.0, 0.0, 300.0)
+        is_barrier = np.array([world.CATEGORIES[c].name == "movable_object.barrier" for c in category])
+        assert (size[is_barrier, 0] > 2 * size[is_barrier, 1]).all()  # wide, short boxes
+        for polygon in np.array(_footprints(s_m, size, yaw_offset), dtype=object)[is_barrier]:
+            x0, y0, x1, y1 = polygon.bounds
+            assert x1 - x0 > 2 * (y1 - y0), polygon
+            checked += 1
+    assert checked >= 20
