@@ -380,3 +380,38 @@ def test_a_panoptic_file_that_is_not_an_npz_archive_is_a_problem_naming_it(tmp_p
     with pytest.raises(PointFileError, match="not a readable .npz file") as raised:
         read_panoptic_npz(path)
     assert raised.value.path == str(path)
+
+
+def test_the_scene_tasks_counted_before_the_run_are_the_scenes_with_frames_of_the_modality(labelled_root, tmp_path):
+    """`Builder.units` of the points builders (the progress total, counted before any dataset is written): the
+    scenes that have a frame of the modality, keyframes only unless --sweeps. Scene 2 keeps no lidar frame and only
+    radar sweeps (its radar keyframes made sweeps), so each count tells the modality and the keyframe rule apart;
+    the expectation is counted from the JSON records, one frame at a time."""
+    from types import SimpleNamespace
+
+    from nuparquet.conversion.builder import BuildContext
+    from nuparquet.conversion.builders.points import _scene_tasks
+
+    def records(table):
+        return json.loads((labelled_root / SYNTH_VERSION / f"{table}.json").read_text())
+
+    modality_of = {s["token"]: s["modality"] for s in records("sensor")}
+    sensor_of = {c["token"]: modality_of[c["sensor_token"]] for c in records("calibrated_sensor")}
+    scene_of = {s["token"]: s["scene_token"] for s in records("sample")}
+    second = records("scene")[1]["token"]
+    frames = []
+    for frame in records("sample_data"):
+        modality, scene = sensor_of[frame["calibrated_sensor_token"]], scene_of[frame["sample_token"]]
+        if modality == "lidar" and scene == second:
+            continue
+        frames.append(frame | {"is_key_frame": frame["is_key_frame"] and not (modality == "radar" and scene == second)})
+    tables = {name: pl.DataFrame(records(name)) for name in ("sensor", "calibrated_sensor", "sample", "scene", "log")}
+    tables["sample_data"] = pl.DataFrame(frames)
+    for modality in ("lidar", "radar"):
+        for sweeps in (False, True):
+            expected = len({scene_of[f["sample_token"]] for f in frames
+                            if sensor_of[f["calibrated_sensor_token"]] == modality and (sweeps or f["is_key_frame"])})
+            ctx = BuildContext(labelled_root, SYNTH_VERSION, SimpleNamespace(sweeps=sweeps), None, tables, tmp_path)
+            assert _scene_tasks(modality)(ctx) == expected, (modality, sweeps)
+    assert [_scene_tasks("radar")(BuildContext(labelled_root, SYNTH_VERSION, SimpleNamespace(sweeps=s), None, tables,
+                                               tmp_path)) for s in (False, True)] == [1, 2]  # the cases are reached
