@@ -415,3 +415,28 @@ def test_the_scene_tasks_counted_before_the_run_are_the_scenes_with_frames_of_th
             assert _scene_tasks(modality)(ctx) == expected, (modality, sweeps)
     assert [_scene_tasks("radar")(BuildContext(labelled_root, SYNTH_VERSION, SimpleNamespace(sweeps=s), None, tables,
                                                tmp_path)) for s in (False, True)] == [1, 2]  # the cases are reached
+
+
+def test_a_row_group_holds_whole_frames_up_to_exactly_its_row_limit(tmp_path):
+    """`convert_scene` packs whole frames into row groups of at most ROW_GROUP_ROWS points, a new group only when
+    the next frame would pass the limit: two frames that fill it exactly share one group, a frame as large as the
+    limit has its own, a larger one too. Expected group sizes packed by hand from the frame sizes."""
+    from nuparquet.conversion.scene_points import ROW_GROUP_ROWS, SceneTask, convert_scene
+
+    half = ROW_GROUP_ROWS // 2
+    sizes = [half, ROW_GROUP_ROWS - half, 100, ROW_GROUP_ROWS, ROW_GROUP_ROWS + 7, 1]
+    expected = [ROW_GROUP_ROWS, 100, ROW_GROUP_ROWS, ROW_GROUP_ROWS + 7, 1]
+    frames = {key: [] for key in ("token", "channel", "timestamp", "is_key_frame", "filename", "lidarseg", "panoptic")}
+    for k, n in enumerate(sizes):
+        points = np.zeros((n, 5), np.float32)
+        points[:, 0] = np.arange(n)
+        (tmp_path / f"frame{k}.pcd.bin").write_bytes(points.tobytes())
+        for key, value in (("token", f"frame{k}"), ("channel", "LIDAR_TOP"), ("timestamp", 1000 + k),
+                           ("is_key_frame", True), ("filename", f"frame{k}.pcd.bin"), ("lidarseg", None),
+                           ("panoptic", None)):
+            frames[key].append(value)
+    path = tmp_path / "part.parquet"
+    summary = convert_scene(SceneTask(str(tmp_path), str(path), 0, "scene-1", "lidar", frames))
+    assert summary.written and summary.rows == sum(sizes) and not summary.problems
+    metadata = pq.ParquetFile(path).metadata
+    assert [metadata.row_group(i).num_rows for i in range(metadata.num_row_groups)] == expected
