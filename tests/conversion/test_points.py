@@ -275,6 +275,25 @@ def test_select_points_of_a_scene_and_one_channel_with_every_column_by_default(l
         select_points(index, scene=scene, columns=["x", "nope", "z2"])
 
 
+def test_select_points_of_a_scene_no_row_group_holds_is_empty_with_the_datasets_columns(labelled_out):
+    """A scene name no row group's scene range reaches (before the first scene, between the two, after the last;
+    each scene has its own part file): no row group is read, and the answer is an empty table of the asked columns
+    typed as the Parquet files type them."""
+    import nuparquet
+    from nuparquet.frames.points import select_points
+
+    ds = nuparquet.open(labelled_out)
+    for dataset in ("lidar_points", "radar_points"):
+        index = ds._points_index(dataset)
+        stored = pq.read_schema(next((labelled_out / dataset).glob("*.parquet")))
+        for columns in (None, ["x", "timestamp", "channel"]):
+            names = columns or stored.names
+            for scene in ("scene-0000", "scene-0001-not", "scene-9999"):
+                got = select_points(index, scene=scene, columns=columns)
+                assert got.num_rows == 0 and got.column_names == names, (dataset, scene)
+                assert [f.type for f in got.schema] == [stored.field(n).type for n in names], (dataset, scene)
+
+
 def test_pcd_headers_with_an_unknown_line_or_lines_missing_are_refused_naming_both():
     from nuparquet.sources.points import PointFileError, read_pcd_header
 
