@@ -92,6 +92,25 @@ def test_ds_points_returns_one_frame_a_list_and_a_scene_as_the_files_hold_them(l
     assert labels.height == len(raw[one])
 
 
+def test_ds_points_of_an_empty_token_list_are_no_points_typed_as_the_files(labelled_root, labelled_out):
+    """`ds.points([])` (a list of frames that happens to be empty, e.g. a filter that kept none): no points, of the
+    same array shape and dtype as a frame's, not Arrow's "Must pass at least one table"; radar and columns alike."""
+    import nuparquet
+    from nuparquet.sources.points import read_radar_pcd
+
+    ds = nuparquet.open(labelled_out)
+    lidar = ds.points([])
+    assert lidar.shape == (0, 5) and lidar.dtype == np.float32
+    radar_file = next(f["filename"] for f in json.loads((labelled_root / SYNTH_VERSION / "sample_data.json").read_text())
+                      if f["filename"].endswith(".pcd"))
+    radar = ds.radar_points([])
+    assert radar.shape == (0, len(read_radar_pcd(labelled_root / radar_file).dtype.names)) and radar.dtype == np.float64
+    for dataset, read in (("lidar_points", ds.points), ("radar_points", ds.radar_points)):
+        stored = pl.read_parquet(next((labelled_out / dataset).glob("*.parquet")), n_rows=1)
+        frame = read([], columns=["x", "timestamp", "sample_data_token"])
+        assert frame.height == 0 and frame.schema == stored.select("x", "timestamp", "sample_data_token").schema
+
+
 def test_ds_points_chooses_every_row_group_holding_the_frame_and_not_all(labelled_out):
     import nuparquet
 
