@@ -189,6 +189,33 @@ def test_export_json_into_the_converted_dataset_is_refused_naming_it(synth_out):
     assert not (synth_out / "json").exists()
 
 
+def test_export_json_of_a_manifest_without_its_file_list_writes_the_tables_under_the_version_folder(
+        synth_root, synth_out, tmp_path):
+    """A manifest that lists no files (written before it did): the tables come back at <version>/<table>.json, as
+    the source's version folder holds them; one that names no source version either is refused by name, nothing
+    written (its tables would otherwise land at the filesystem's root)."""
+    from nuparquet.errors import FormatError
+
+    converted = tmp_path / "converted"
+    converted.mkdir()
+    for child in synth_out.iterdir():
+        if child.name != "manifest.json":
+            (converted / child.name).symlink_to(child, target_is_directory=child.is_dir())
+    manifest = json.loads((synth_out / "manifest.json").read_text())
+    del manifest["files"]
+    (converted / "manifest.json").write_text(json.dumps(manifest))
+    written = export_json(converted, tmp_path / "back")
+    expected = sorted(p.relative_to(synth_root) for p in (synth_root / SYNTH_VERSION).glob("*.json"))
+    assert len(expected) > 10 and sorted(p.relative_to(tmp_path / "back") for p in written) == expected
+    for path in expected:
+        assert json.loads((tmp_path / "back" / path).read_text()) == json.loads((synth_root / path).read_text()), path
+    del manifest["source"]
+    (converted / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(FormatError, match=r"^manifest\.json lists neither the files converted nor the source version"):
+        export_json(converted, tmp_path / "again")
+    assert not (tmp_path / "again").exists()
+
+
 @pytest.mark.parametrize("argv", [["convert", "/nonexistent/dataroot", "--version", "v1.0-mini", "--out", "/tmp/never"]])
 def test_missing_dataroot_is_a_usage_error(argv, capsys):
     assert main(argv) == 2
