@@ -60,6 +60,9 @@ def export_json(dataset_dir: Path | str, out: Path | str, *, overwrite: bool = F
 def _files_of_older_manifest(manifest: dict) -> list[dict]:
     """Outputs written before the manifest listed its files: the tables, under the version folder."""
     version = manifest.get("source", {}).get("version", "")
+    if not version:  # the tables' folder: without it they would be written at the filesystem's root ("/sample.json")
+        raise FormatError(f"{MANIFEST} lists neither the files converted nor the source version; "
+                          "convert the dataroot again with `nuparquet convert --overwrite`")
     return [{"path": f"{version}/{table_schemas()[name].source if name in table_schemas() else name + '.json'}",
              "kind": "table", "dataset": f"tables/{name}"} for name in manifest["tables"]]
 

@@ -139,6 +139,8 @@ class RowGroupIndex:
                 tables.append(self._parquet(groups[start]).read_row_groups(self.group[groups[start:stop]].tolist(),
                                                                             columns=list(columns)))
             start = stop
+        if not tables:  # no frame asked (`ds.points([])`): no rows, typed as the files (Arrow concatenates no tables)
+            return pa.table({c: pa.array([], self.schema.field(c).type) for c in columns})
         return pa.concat_tables(tables)
 
 

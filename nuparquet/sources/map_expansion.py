@@ -144,11 +144,15 @@ def _check_references(name: str, data: dict) -> list[Problem]:
         elif _all_known([values], known) and None not in values:
             continue
         for i, (record, value) in enumerate(zip(data[layer], values)):
-            tokens = value if isinstance(value, list) else [value]
-            absent = next((t for t in tokens if t not in known), None)
-            if absent is not None or value is None:
-                problems.append(Problem(name, f"{layer} field {key} names {what} {echo(absent)}, which is not in the "
-                                              f"map's {what} list", i, record["token"]))
+            if isinstance(value, list) != (layer == "drivable_area"):  # a list of tokens there, one token elsewhere
+                shape = f"a list of {what} tokens" if layer == "drivable_area" else f"one {what} token"
+                problems.append(Problem(name, f"{layer} field {key} must be {shape}, not {echo(value)}", i, record["token"]))
+                continue
+            # not str: unknown (a nested list or null would be unhashable or a missing token further on)
+            absent = [t for t in (value if isinstance(value, list) else [value]) if type(t) is not str or t not in known]
+            if absent:
+                problems.append(Problem(name, f"{layer} field {key} names {what} {echo(absent[0])}, which is not in "
+                                              f"the map's {what} list", i, record["token"]))
             if len(problems) >= 20:
                 return problems
     return problems

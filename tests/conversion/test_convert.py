@@ -122,9 +122,10 @@ def _rewrite(path: Path, change, indent: int | None) -> None:
 
 def test_every_input_file_comes_back_byte_for_byte_whatever_its_shape(tmp_path):
     """One small dataroot holding what each writer of export-json has to give back and the generator's own files
-    lack: integers where a CAN bus message or meta field otherwise holds floats, a record in another key order, a
-    field no schema knows (JSON text) that is null in one record and absent from another, an extra table no schema describes (inferred)
-    with a record in another key order, beside the map expansion file. Every JSON file of the dataroot comes back
+    lack: integers where a CAN bus message or meta field otherwise holds floats, a CAN bus field of no one type
+    (JSON text), a record in another key order, a field no schema knows (JSON text) that is null in one record and
+    absent from another, integers in a table's float list and a float in its integer field, an extra table no
+    schema describes (inferred) on one line with a record in another key order, beside the map expansion file. Every JSON file of the dataroot comes back
     byte for byte, and parsed, with the same JSON types (1 is not 1.0)."""
     from nuparquet.conversion import convert
     from nuparquet.synth import synthesize
@@ -135,6 +136,8 @@ def test_every_input_file_comes_back_byte_for_byte_whatever_its_shape(tmp_path):
     def steering(records):
         records[0]["value"] = 0  # an int among floats
         records[1] = {"value": records[1]["value"], "utime": records[1]["utime"]}  # another key order
+        for i, record in enumerate(records):  # objects in a message field: kept as JSON text
+            record["note"] = {"rain": i % 2 == 1, "lux": [i, 0.5]} if i % 3 else {"fog": None}
 
     def pose(records):
         records[2]["pos"] = [1, records[2]["pos"][1], 0]  # ints inside a float list
@@ -150,12 +153,17 @@ def test_every_input_file_comes_back_byte_for_byte_whatever_its_shape(tmp_path):
     _rewrite(can / "scene-0001_steeranglefeedback.json", steering, None)
     _rewrite(can / "scene-0001_pose.json", pose, None)
     _rewrite(can / "scene-0001_meta.json", meta, 0)
+    def ego_pose(records):  # a schema table's JSON types the columns cannot hold
+        records[0]["translation"] = [1, records[0]["translation"][1], 0]  # ints in a float list
+        records[1]["timestamp"] = float(records[1]["timestamp"])  # a float in an integer field
+
     _rewrite(tables / "sample.json", weather, 0)
+    _rewrite(tables / "ego_pose.json", ego_pose, 0)
     frames = json.loads((tables / "sample_data.json").read_text())
     objects = [{"token": f"{i:032x}", "sample_data_token": frames[i]["token"], "bbox": [10 + i, 20, 30.5, 40],
                 "attribute_tokens": []} for i in range(3)]
     objects[1] = dict(reversed(list(objects[1].items())))
-    (tables / "object_ann.json").write_text(json.dumps(objects, indent=0))
+    (tables / "object_ann.json").write_text(json.dumps(objects))  # on one line: not the indent=0 of the tables
 
     manifest = convert(root, SYNTH_VERSION, tmp_path / "out")
     kinds = {f["path"]: f["kind"] for f in manifest["files"]}
@@ -179,6 +187,33 @@ def test_export_json_into_the_converted_dataset_is_refused_naming_it(synth_out):
             export_json(synth_out, out)
         assert str(refused.value) == f"{out} {relation} the converted dataset {synth_out}; write the output somewhere else"
     assert not (synth_out / "json").exists()
+
+
+def test_export_json_of_a_manifest_without_its_file_list_writes_the_tables_under_the_version_folder(
+        synth_root, synth_out, tmp_path):
+    """A manifest that lists no files (written before it did): the tables come back at <version>/<table>.json, as
+    the source's version folder holds them; one that names no source version either is refused by name, nothing
+    written (its tables would otherwise land at the filesystem's root)."""
+    from nuparquet.errors import FormatError
+
+    converted = tmp_path / "converted"
+    converted.mkdir()
+    for child in synth_out.iterdir():
+        if child.name != "manifest.json":
+            (converted / child.name).symlink_to(child, target_is_directory=child.is_dir())
+    manifest = json.loads((synth_out / "manifest.json").read_text())
+    del manifest["files"]
+    (converted / "manifest.json").write_text(json.dumps(manifest))
+    written = export_json(converted, tmp_path / "back")
+    expected = sorted(p.relative_to(synth_root) for p in (synth_root / SYNTH_VERSION).glob("*.json"))
+    assert len(expected) > 10 and sorted(p.relative_to(tmp_path / "back") for p in written) == expected
+    for path in expected:
+        assert json.loads((tmp_path / "back" / path).read_text()) == json.loads((synth_root / path).read_text()), path
+    del manifest["source"]
+    (converted / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(FormatError, match=r"^manifest\.json lists neither the files converted nor the source version"):
+        export_json(converted, tmp_path / "again")
+    assert not (tmp_path / "again").exists()
 
 
 @pytest.mark.parametrize("argv", [["convert", "/nonexistent/dataroot", "--version", "v1.0-mini", "--out", "/tmp/never"]])

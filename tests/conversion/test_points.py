@@ -92,6 +92,25 @@ def test_ds_points_returns_one_frame_a_list_and_a_scene_as_the_files_hold_them(l
     assert labels.height == len(raw[one])
 
 
+def test_ds_points_of_an_empty_token_list_are_no_points_typed_as_the_files(labelled_root, labelled_out):
+    """`ds.points([])` (a list of frames that happens to be empty, e.g. a filter that kept none): no points, of the
+    same array shape and dtype as a frame's, not Arrow's "Must pass at least one table"; radar and columns alike."""
+    import nuparquet
+    from nuparquet.sources.points import read_radar_pcd
+
+    ds = nuparquet.open(labelled_out)
+    lidar = ds.points([])
+    assert lidar.shape == (0, 5) and lidar.dtype == np.float32
+    radar_file = next(f["filename"] for f in json.loads((labelled_root / SYNTH_VERSION / "sample_data.json").read_text())
+                      if f["filename"].endswith(".pcd"))
+    radar = ds.radar_points([])
+    assert radar.shape == (0, len(read_radar_pcd(labelled_root / radar_file).dtype.names)) and radar.dtype == np.float64
+    for dataset, read in (("lidar_points", ds.points), ("radar_points", ds.radar_points)):
+        stored = pl.read_parquet(next((labelled_out / dataset).glob("*.parquet")), n_rows=1)
+        frame = read([], columns=["x", "timestamp", "sample_data_token"])
+        assert frame.height == 0 and frame.schema == stored.select("x", "timestamp", "sample_data_token").schema
+
+
 def test_ds_points_chooses_every_row_group_holding_the_frame_and_not_all(labelled_out):
     import nuparquet
 
@@ -275,6 +294,25 @@ def test_select_points_of_a_scene_and_one_channel_with_every_column_by_default(l
         select_points(index, scene=scene, columns=["x", "nope", "z2"])
 
 
+def test_select_points_of_a_scene_no_row_group_holds_is_empty_with_the_datasets_columns(labelled_out):
+    """A scene name no row group's scene range reaches (before the first scene, between the two, after the last;
+    each scene has its own part file): no row group is read, and the answer is an empty table of the asked columns
+    typed as the Parquet files type them."""
+    import nuparquet
+    from nuparquet.frames.points import select_points
+
+    ds = nuparquet.open(labelled_out)
+    for dataset in ("lidar_points", "radar_points"):
+        index = ds._points_index(dataset)
+        stored = pq.read_schema(next((labelled_out / dataset).glob("*.parquet")))
+        for columns in (None, ["x", "timestamp", "channel"]):
+            names = columns or stored.names
+            for scene in ("scene-0000", "scene-0001-not", "scene-9999"):
+                got = select_points(index, scene=scene, columns=columns)
+                assert got.num_rows == 0 and got.column_names == names, (dataset, scene)
+                assert [f.type for f in got.schema] == [stored.field(n).type for n in names], (dataset, scene)
+
+
 def test_pcd_headers_with_an_unknown_line_or_lines_missing_are_refused_naming_both():
     from nuparquet.sources.points import PointFileError, read_pcd_header
 
@@ -380,3 +418,63 @@ def test_a_panoptic_file_that_is_not_an_npz_archive_is_a_problem_naming_it(tmp_p
     with pytest.raises(PointFileError, match="not a readable .npz file") as raised:
         read_panoptic_npz(path)
     assert raised.value.path == str(path)
+
+
+def test_the_scene_tasks_counted_before_the_run_are_the_scenes_with_frames_of_the_modality(labelled_root, tmp_path):
+    """`Builder.units` of the points builders (the progress total, counted before any dataset is written): the
+    scenes that have a frame of the modality, keyframes only unless --sweeps. Scene 2 keeps no lidar frame and only
+    radar sweeps (its radar keyframes made sweeps), so each count tells the modality and the keyframe rule apart;
+    the expectation is counted from the JSON records, one frame at a time."""
+    from types import SimpleNamespace
+
+    from nuparquet.conversion.builder import BuildContext
+    from nuparquet.conversion.builders.points import _scene_tasks
+
+    def records(table):
+        return json.loads((labelled_root / SYNTH_VERSION / f"{table}.json").read_text())
+
+    modality_of = {s["token"]: s["modality"] for s in records("sensor")}
+    sensor_of = {c["token"]: modality_of[c["sensor_token"]] for c in records("calibrated_sensor")}
+    scene_of = {s["token"]: s["scene_token"] for s in records("sample")}
+    second = records("scene")[1]["token"]
+    frames = []
+    for frame in records("sample_data"):
+        modality, scene = sensor_of[frame["calibrated_sensor_token"]], scene_of[frame["sample_token"]]
+        if modality == "lidar" and scene == second:
+            continue
+        frames.append(frame | {"is_key_frame": frame["is_key_frame"] and not (modality == "radar" and scene == second)})
+    tables = {name: pl.DataFrame(records(name)) for name in ("sensor", "calibrated_sensor", "sample", "scene", "log")}
+    tables["sample_data"] = pl.DataFrame(frames)
+    for modality in ("lidar", "radar"):
+        for sweeps in (False, True):
+            expected = len({scene_of[f["sample_token"]] for f in frames
+                            if sensor_of[f["calibrated_sensor_token"]] == modality and (sweeps or f["is_key_frame"])})
+            ctx = BuildContext(labelled_root, SYNTH_VERSION, SimpleNamespace(sweeps=sweeps), None, tables, tmp_path)
+            assert _scene_tasks(modality)(ctx) == expected, (modality, sweeps)
+    assert [_scene_tasks("radar")(BuildContext(labelled_root, SYNTH_VERSION, SimpleNamespace(sweeps=s), None, tables,
+                                               tmp_path)) for s in (False, True)] == [1, 2]  # the cases are reached
+
+
+def test_a_row_group_holds_whole_frames_up_to_exactly_its_row_limit(tmp_path):
+    """`convert_scene` packs whole frames into row groups of at most ROW_GROUP_ROWS points, a new group only when
+    the next frame would pass the limit: two frames that fill it exactly share one group, a frame as large as the
+    limit has its own, a larger one too. Expected group sizes packed by hand from the frame sizes."""
+    from nuparquet.conversion.scene_points import ROW_GROUP_ROWS, SceneTask, convert_scene
+
+    half = ROW_GROUP_ROWS // 2
+    sizes = [half, ROW_GROUP_ROWS - half, 100, ROW_GROUP_ROWS, ROW_GROUP_ROWS + 7, 1]
+    expected = [ROW_GROUP_ROWS, 100, ROW_GROUP_ROWS, ROW_GROUP_ROWS + 7, 1]
+    frames = {key: [] for key in ("token", "channel", "timestamp", "is_key_frame", "filename", "lidarseg", "panoptic")}
+    for k, n in enumerate(sizes):
+        points = np.zeros((n, 5), np.float32)
+        points[:, 0] = np.arange(n)
+        (tmp_path / f"frame{k}.pcd.bin").write_bytes(points.tobytes())
+        for key, value in (("token", f"frame{k}"), ("channel", "LIDAR_TOP"), ("timestamp", 1000 + k),
+                           ("is_key_frame", True), ("filename", f"frame{k}.pcd.bin"), ("lidarseg", None),
+                           ("panoptic", None)):
+            frames[key].append(value)
+    path = tmp_path / "part.parquet"
+    summary = convert_scene(SceneTask(str(tmp_path), str(path), 0, "scene-1", "lidar", frames))
+    assert summary.written and summary.rows == sum(sizes) and not summary.problems
+    metadata = pq.ParquetFile(path).metadata
+    assert [metadata.row_group(i).num_rows for i in range(metadata.num_row_groups)] == expected

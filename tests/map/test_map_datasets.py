@@ -117,6 +117,33 @@ def test_geoparquet_files_read_by_geopandas_with_types_and_bounds(map_out, devki
         assert list(ours) == [xy[:, 0].min(), xy[:, 1].min(), xy[:, 2].max(), xy[:, 3].max()]
 
 
+def test_geo_metadata_names_each_geometry_type_as_geoparquet_does():
+    """`with_geo_metadata` on one geometry of each kind (a null beside it): GeoParquet's `geometry_types` are the
+    OGC names, which are shapely's `geom_type`, and its bbox is the geometry's bounds; the same when the metadata
+    parses the geometries back from the WKB column. Today's layers hold Point, LineString, Polygon and MultiPolygon
+    only (the test above); a map of other types must still get the names readers look for."""
+    import pyarrow as pa
+
+    from nuparquet.map.geo import geometry_columns, with_geo_metadata
+
+    kinds = [shapely.Point(1.0, 2.0), shapely.LineString([(0.0, 0.0), (3.0, 4.0)]), shapely.box(1.0, 1.0, 2.0, 3.0),
+             shapely.MultiPoint([(0.0, 1.0), (5.0, -2.0)]),
+             shapely.MultiLineString([[(0.0, 0.0), (1.0, 1.0)], [(2.0, 2.0), (4.0, -1.0)]]),
+             shapely.MultiPolygon([shapely.box(0.0, 0.0, 1.0, 1.0), shapely.box(3.0, 3.0, 5.0, 6.0)])]
+    for geometry in kinds:
+        geometries = np.array([geometry, None], dtype=object)
+        wkb, bbox = geometry_columns(geometries)
+        table = pa.table({"geometry": wkb, "bbox": bbox})
+        for given in (geometries, None):
+            column = json.loads(with_geo_metadata(table, None, given).schema.metadata[b"geo"])["columns"]["geometry"]
+            assert column["geometry_types"] == [geometry.geom_type], geometry.wkt
+            assert column["bbox"] == list(geometry.bounds), geometry.wkt
+    mixed = np.array(kinds, dtype=object)
+    table = pa.table(dict(zip(("geometry", "bbox"), geometry_columns(mixed))))
+    column = json.loads(with_geo_metadata(table, None, mixed).schema.metadata[b"geo"])["columns"]["geometry"]
+    assert sorted(column["geometry_types"]) == sorted(g.geom_type for g in kinds)  # each once, in no set order
+
+
 def test_export_json_writes_every_map_file_back_exactly(map_root, map_out, tmp_path):
     export_json(map_out, tmp_path / "back")
     files = sorted((map_root / "maps" / "expansion").glob("*.json"))

@@ -19,6 +19,12 @@ def _with_hole(d):
     d["polygon"][0]["holes"] = [{"node_tokens": [d["node"][0]["token"], "e" * 32, d["node"][1]["token"]]}]
 
 
+def _tokens_as_strings(d):
+    """Every drivable area names its polygon by a bare (known) token instead of a list of them."""
+    for record in d["drivable_area"]:
+        record["polygon_tokens"] = record["polygon_tokens"][0]
+
+
 @pytest.mark.parametrize("change, expected, token_of", [
     (_with_hole, "names node '" + "e" * 32 + "' (holes)", lambda d: d["polygon"][0]["token"]),
     (lambda d: d["line"][1].__setitem__("node_tokens", "not-a-list"), "line field node_tokens must be a list",
@@ -32,6 +38,15 @@ def _with_hole(d):
     (lambda d: d["walkway"].__setitem__(0, {"polygon_token": d["walkway"][0]["polygon_token"]}),
      "walkway must be a list of objects with a token", lambda d: None),
     (lambda d: d["node"][4].__setitem__("token", 7), "node must be a list of objects with a token", lambda d: None),
+    # a known token in the wrong shape, or an item no token can be: a problem, not a KeyError or TypeError later
+    (_tokens_as_strings, "drivable_area field polygon_tokens must be a list of polygon tokens, not '",
+     lambda d: d["drivable_area"][0]["token"]),
+    (lambda d: d["lane"][1].__setitem__("polygon_token", [d["lane"][1]["polygon_token"]]),
+     "lane field polygon_token must be one polygon token, not ['", lambda d: d["lane"][1]["token"]),
+    (lambda d: d["drivable_area"][0]["polygon_tokens"].append(["x"]),
+     "drivable_area field polygon_tokens names polygon ['x']", lambda d: d["drivable_area"][0]["token"]),
+    (lambda d: d["drivable_area"][0]["polygon_tokens"].append(None),
+     "drivable_area field polygon_tokens names polygon None", lambda d: d["drivable_area"][0]["token"]),
 ])
 def test_damage_the_fast_checks_must_still_find(small_map_root, tmp_path, capsys, change, expected, token_of):
     path = first_map(small_map_root)

@@ -6,6 +6,8 @@ exactly on polygon nodes (on a boundary: the devkit's strict `within` says no)."
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -116,6 +118,38 @@ def test_map_mask_is_pixel_equal(maps):
             assert mine.shape[0] == 2  # traffic_light has no mask
             assert np.array_equal(mine, expected_lines)
     assert painted > 10_000
+
+
+def test_an_invalid_drivable_area_polygon_is_painted_and_an_invalid_road_segment_is_not(small_map_root, tmp_path):
+    """The devkit's map mask skips invalid polygons (`polygon.is_valid`) of every polygon layer but drivable_area,
+    whose polygons it paints whatever their validity. A polygon whose ring touches itself (valid for GEOS's
+    intersection, not `is_valid`), far from the rest of the map, named by a drivable area and by a road segment:
+    the drivable_area mask shows it, the road_segment mask does not, both pixel for pixel as the devkit's."""
+    from nuscenes.map_expansion.map_api import NuScenesMap
+
+    from conftest import SYNTH_VERSION, first_map
+    from nuparquet.conversion import convert
+
+    path = first_map(small_map_root)
+    data = json.loads(path.read_text())
+    x0 = max(n["x"] for n in data["node"]) + 500.0
+    y0 = max(n["y"] for n in data["node"]) + 500.0
+    ring = [(0.0, 0.0), (20.0, 0.0), (20.0, 20.0), (10.0, 0.0), (0.0, 20.0)]  # (10, 0) lies on the first edge
+    nodes = [{"token": f"bad-node-{k}", "x": x0 + x, "y": y0 + y} for k, (x, y) in enumerate(ring)]
+    data["node"] += nodes
+    data["polygon"].append({"token": "bad-polygon", "exterior_node_tokens": [n["token"] for n in nodes], "holes": []})
+    data["drivable_area"].append({"token": "bad-drivable", "polygon_tokens": ["bad-polygon"]})
+    data["road_segment"].append(data["road_segment"][0] | {"token": "bad-segment", "polygon_token": "bad-polygon"})
+    path.write_text(json.dumps(data))
+    convert(small_map_root, SYNTH_VERSION, tmp_path / "out")
+    ours = nuparquet.open(tmp_path / "out").map(path.stem)
+    nusc_map = NuScenesMap(str(small_map_root), path.stem)
+    assert not nusc_map.extract_polygon("bad-polygon").is_valid
+    layers = ["drivable_area", "road_segment"]
+    for box, angle in (((x0 + 10.0, y0 + 10.0, 30.0, 30.0), 0.0), ((x0 + 8.0, y0 + 12.0, 26.0, 34.0), 25.0)):
+        expected = nusc_map.get_map_mask(box, angle, layers, (120, 150))
+        assert expected[0].sum() > 500 and expected[1].sum() == 0  # only our polygon is there: painted, skipped
+        assert np.array_equal(ours.map_mask(box, angle, layers, (120, 150)), expected)
 
 
 def test_open_names_what_is_missing(map_out, extract_out):
