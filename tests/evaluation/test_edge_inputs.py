@@ -43,3 +43,13 @@ def test_progress_is_reported_step_by_step(submissions, eval_out, tmp_path):
     assert any(step.startswith("slice night") for step in steps)
     assert [e.done for e in events] == sorted(e.done for e in events)
     assert len({e.total for e in events if e.total is not None}) == 1  # a bar's total never changes midway
+
+
+def test_progress_without_slices_names_each_stage_and_no_more(submissions, eval_out):
+    """Without slices the total is known from the start (six steps without --out), every step is named by its
+    stage, and the steps with nothing to do (no slices, nothing to write) say nothing."""
+    events = []
+    evaluate(eval_out, results=submissions["noisy"], split="val", on_progress=events.append)
+    assert [e.step for e in events if e.step] == ["read the submission", "load the ground truth", "filter",
+                                                  "match and score", "tables"]
+    assert {e.total for e in events} == {6} and events[-1].finished and events[-1].done == 6

@@ -88,6 +88,20 @@ def test_no_ground_truth_or_no_prediction_matches_nothing():
     assert (result.gt == -1).all() and np.isnan(result.distance_m).all()
 
 
+def test_no_boxes_have_each_field_in_its_documented_dtype_and_shape():
+    """`Boxes.empty()`: zero rows of every field as the class documents it (int64 indices, float64 values, str
+    attributes), so its indices index the class names as any boxes' do (numpy refuses a float index array)."""
+    empty = Boxes.empty()
+    documented = {"sample_index": (np.int64, ()), "class_index": (np.int64, ()), "translation_m": (np.float64, (3,)),
+                  "size_wlh_m": (np.float64, (3,)), "rotation_wxyz": (np.float64, (4,)),
+                  "velocity_mps": (np.float64, (2,)), "attribute": (object, ()), "score": (np.float64, ()),
+                  "num_pts": (np.int64, ())}
+    for name, (dtype, shape) in documented.items():
+        value = getattr(empty, name)
+        assert value.dtype == np.dtype(dtype) and value.shape == (0, *shape), name
+    assert len(empty) == 0 and np.array(["car", "truck"])[empty.class_index].shape == (0,)
+
+
 def test_candidate_search_finds_every_pair_closer_than_the_distance():
     """The x-window search against all pairs measured: coordinates far from the origin and negative, boxes exactly
     at the distance in x (not taken: strictly closer), several samples and classes."""

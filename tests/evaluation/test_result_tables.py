@@ -3,9 +3,11 @@ threshold, against the devkit's filtered boxes and its matching loop (transcribe
 
 from __future__ import annotations
 
+import numpy as np
 import polars as pl
 import pytest
 from eval_reference import devkit_eval, gt_box_tokens, pred_box_keys, sequential_matches
+from eval_submissions import ego_position
 
 from nuparquet.evaluation import evaluate
 from nuparquet.evaluation.classes import DETECTION_NAMES
@@ -43,7 +45,7 @@ def test_matches_and_filters_equal_the_devkit(name, submissions, eval_out, eval_
     assert matched_somewhere > 0
 
 
-def test_tables_describe_each_box(submissions, eval_out, tmp_path):
+def test_tables_describe_each_box(submissions, eval_out, eval_nusc, tmp_path):
     result = evaluate(eval_out, results=submissions["edges"], split="val", out=tmp_path / "out", plots=False)
     predictions = pl.read_parquet(tmp_path / "out" / "predictions")
     assert predictions.equals(result.predictions)
@@ -70,3 +72,17 @@ def test_tables_describe_each_box(submissions, eval_out, tmp_path):
     gt = pl.read_parquet(tmp_path / "out" / "ground_truth")
     assert gt.equals(result.ground_truth)
     assert set(gt["filtered_by"].drop_nulls()) == {"range", "points", "bike_rack"}
+    # the columns of the module docstring, in its order
+    assert gt.columns == ["token", "sample_token", "scene_name", "timestamp", "detection_name", "attribute_name",
+                          "visibility_name", "num_pts", "ego_distance_m", "evaluated", "filtered_by",
+                          *[f"{kind}_{threshold_suffix(t)}" for t in THRESHOLDS
+                            for kind in ("matched_box", "match_distance_m")]]
+    # ego_distance_m: the devkit's ego_dist, from the annotation to its sample's LIDAR_TOP ego pose, in the plane
+    for name, table, key in (("ground truth", gt, "token"), ("predictions", predictions, None)):
+        expected = []
+        for row in table.iter_rows(named=True):
+            ego = np.array(ego_position(eval_nusc, eval_nusc.get("sample", row["sample_token"])))
+            where = (np.array(eval_nusc.get("sample_annotation", row[key])["translation"]) if key
+                     else np.array(row["translation"]))
+            expected.append(np.sqrt(np.sum((where[:2] - ego[:2]) ** 2)))
+        np.testing.assert_allclose(table["ego_distance_m"].to_numpy(), expected, rtol=1e-12, err_msg=name)

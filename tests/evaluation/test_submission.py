@@ -143,6 +143,21 @@ def test_many_problems_are_counted_and_the_first_ones_listed(good, tmp_path):
     assert f"{total} problem(s)" in str(caught.value) and f"... and {total - 10} more" in str(caught.value)
 
 
+def test_a_bad_value_is_quoted_whole_up_to_60_characters_and_cut_beyond(good, tmp_path):
+    """The value quoted in a problem: its JSON text whole when at most 60 characters, else its first 57 and
+    "..." (60 in all)."""
+    for length, shown in ((58, None), (59, 57)):  # a string of n characters is n + 2 in JSON
+        value = "n" * length
+        text = json.dumps(value)
+        data, token = _edited(good, lambda d, t, boxes: boxes[1].__setitem__("num_pts", value))
+        with pytest.raises(InputError) as caught:
+            read_submission(_write(tmp_path, data))
+        quoted = text if shown is None else text[:shown] + "..."
+        assert len(quoted) == 60
+        assert f"sample {token} box 1: num_pts must be an integer, got {quoted}" in str(caught.value)
+        assert (text in str(caught.value)) == (shown is None)
+
+
 def test_a_missing_results_file_is_a_usage_error(eval_out, tmp_path):
     with pytest.raises(UsageError, match="no such file"):
         evaluate(eval_out, results=tmp_path / "nope.json", split="val")

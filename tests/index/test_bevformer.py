@@ -67,3 +67,23 @@ def test_bevformer_infos_follow_its_converter(built):
                 assert repr(info[key]) == repr(base[key]), key
             seen += 1
     assert seen == len(samples)
+
+
+def test_bevformer_infos_carry_its_can_bus_vector_on_synthetic_data(synth_root, synth_out, tmp_path):
+    """The same walk on the synthetic set (no real data), whose CAN bus covers every scene but the last: each info
+    has BEVFormer's keys in its order and `_get_can_bus_info`'s vector, zeros where the scene has no pose file."""
+    build_index(synth_out, IndexOptions(out=str(tmp_path), version="v1.0-trainval", format="bevformer",
+                                        info_version=1, parquet=False, split="train"))
+    ours = pickle.loads((tmp_path / "nuscenes_infos_temporal_train.pkl").read_bytes())["infos"]
+    version = next(p for p in synth_root.iterdir() if (p / "sample.json").is_file())
+    samples = {s["token"]: s for s in json.loads((version / "sample.json").read_text())}
+    scenes = {s["token"]: s["name"] for s in json.loads((version / "scene.json").read_text())}
+    assert len(ours) == len(samples)
+    without = 0
+    for info in ours:
+        sample = samples[info["token"]]
+        assert list(info) == BEVFORMER_KEYS
+        expected = _get_can_bus_info(synth_root, scenes[sample["scene_token"]], sample["timestamp"])
+        np.testing.assert_array_equal(info["can_bus"], expected)
+        without += not expected.any()
+    assert 0 < without < len(ours)

@@ -115,3 +115,12 @@ def test_cli_writes_the_files(synth_out, tmp_path):
     assert sorted(p.name for p in (tmp_path / "o").iterdir()) == ["infos", "nuscenes_infos_train.pkl"]
     assert main(["index", str(synth_out), "--out", str(tmp_path / "p"), "--version", "v1.0-trainval",
                  "--split", "test"]) == 2
+
+
+def test_cameras_given_as_comma_separated_text_are_the_channels_in_that_order():
+    """A library caller may give `cameras` as the CLI's text: "CAM_BACK, CAM_FRONT" is those two channels, in that
+    order (the order of each info's `cams` / `images`), as the tuple gives them."""
+    assert IndexOptions(out="o", cameras="CAM_BACK, CAM_FRONT,").cameras == ("CAM_BACK", "CAM_FRONT")
+    assert IndexOptions(out="o", cameras=("CAM_BACK", "CAM_FRONT")).cameras == ("CAM_BACK", "CAM_FRONT")
+    with pytest.raises(UsageError, match="--cameras must name at least one camera channel"):
+        IndexOptions(out="o", cameras=" , ")

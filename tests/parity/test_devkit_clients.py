@@ -287,3 +287,46 @@ def test_our_pointcloud_in_image_draws_the_lidarseg_predictions_it_is_given(lida
     for render in (ours.render_pointcloud_in_image, ours.explorer.render_pointcloud_in_image):
         drawn = render(sample["token"], show_lidarseg=True, lidarseg_preds_bin_path=str(predictions), verbose=False)
         assert np.array_equal(drawn, expected)
+
+
+def test_our_render_sample_draws_only_the_lidarseg_classes_it_is_asked_for(lidarseg_root, lidarseg_out):
+    """`render_sample(token, show_lidarseg=True, filter_lidarseg_labels=[...])` of our NuScenes is
+    `nuparquet.rendering.single.render_sample` with the same filter (checked against the devkit's pixels in
+    test_single_renders_devkit.py); the filter changes the picture."""
+    import nuparquet
+    from nuparquet.rendering import single
+
+    ours = NuScenes(SYNTH_VERSION, dataroot=str(lidarseg_root), parquet=lidarseg_out, verbose=False)
+    ds = nuparquet.open(lidarseg_out)
+    sample = ours.sample[1]
+    labels = np.fromfile(lidarseg_root / ours.get("lidarseg", sample["data"]["LIDAR_TOP"])["filename"], np.uint8)
+    kept = int(np.bincount(labels).argmax())
+    expected = single.render_sample(ds, sample["token"], show_lidarseg=True, filter_lidarseg_labels=[kept],
+                                    dataroot=lidarseg_root)
+    assert not np.array_equal(expected, single.render_sample(ds, sample["token"], show_lidarseg=True,
+                                                             dataroot=lidarseg_root))
+    drawn = ours.render_sample(sample["token"], show_lidarseg=True, filter_lidarseg_labels=[kept], verbose=False)
+    assert np.array_equal(drawn, expected)
+
+
+def test_the_renderers_not_served_name_the_devkit_call_that_draws_them(synth_root, synth_out):
+    """Each video renderer names the `nuparquet render` command that renders it, and each unserved renderer says
+    that the devkit's explorer, NuScenesExplorer(nusc).<the same method>(...), accepts our object."""
+    from nuparquet.devkit import NotServed
+
+    ours = NuScenes(SYNTH_VERSION, dataroot=str(synth_root), parquet=synth_out, verbose=False)
+    scene = ours.scene[0]["token"]
+    calls = {"render_scene": (scene,), "render_scene_channel": (scene,),
+             "render_scene_channel_lidarseg": (scene, "CAM_FRONT"), "render_scene_lidarseg": (scene,),
+             "render_ego_centric_map": (ours.sample[0]["data"]["CAM_FRONT"],),
+             "render_egoposes_on_map": ("boston-seaport",)}
+    for name, args in calls.items():
+        for owner in (ours, ours.explorer):
+            if not hasattr(owner, name):  # render_ego_centric_map is the explorer's only
+                continue
+            with pytest.raises(NotServed) as caught:
+                getattr(owner, name)(*args)
+            message = str(caught.value)
+            assert f"nuscenes.nuscenes.NuScenesExplorer(nusc).{name}(...) also accepts this object" in message
+            assert message.startswith(f"{name} ")
+            assert ("nuparquet render OUT --scene NAME" in message) == (name != "render_egoposes_on_map")

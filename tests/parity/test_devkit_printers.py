@@ -90,3 +90,7 @@ def test_lidarseg_statistics_of_a_prediction_file_print_what_the_devkits_print(l
     expected = printed(theirs.get_sample_lidarseg_stats, sample["token"], lidarseg_preds_bin_path=str(predictions))
     assert "(predictions)" in expected
     assert printed(ours.get_sample_lidarseg_stats, sample["token"], lidarseg_preds_bin_path=str(predictions)) == expected
+    # the explorer's own method, with every default (sort_by count, the lidarseg ground truth), as the devkit's call
+    expected = printed(theirs.get_sample_lidarseg_stats, sample["token"])
+    assert "(predictions)" not in expected and expected.count("\n") > 3
+    assert printed(ours.explorer.sample_lidarseg_stats, sample["token"]) == expected

@@ -99,7 +99,7 @@ def test_geometry_utils_give_the_devkits_numbers(dk_utils):
                         G.transform_matrix(translation, q, inverse))
     assert_same(geometry_utils.transform_matrix(), G.transform_matrix())
     intrinsic = np.array([[1266.0, 0, 816.5], [0, 1266.0, 491.5], [0, 0, 1]])
-    decided = set()
+    decided, grown = set(), 0
     for center, size, q, *_ in random_boxes(300, seed=5):
         center[2] = center[2] / 2 + 8
         box = data_classes.Box(center, size, Quaternion(q))
@@ -112,7 +112,11 @@ def test_geometry_utils_give_the_devkits_numbers(dk_utils):
         for factor in (1.0, 0.5):
             inside = geometry_utils.points_in_box(box, points, factor)
             assert_same(inside, G.points_in_box(theirs_box, points, factor))
+        inside = geometry_utils.points_in_box(box, points)  # the default wlh_factor, the devkit's 1.0
+        assert_same(inside, G.points_in_box(theirs_box, points))
+        grown += int(G.points_in_box(theirs_box, points, 2.0).sum() > inside.sum())
     assert decided == {(0, True), (0, False), (1, True), (1, False), (2, True)}
+    assert grown > 20  # boxes that a doubled box would give more points: the default factor is seen
     assert [int(v) for v in geometry_utils.BoxVisibility] == [int(v) for v in G.BoxVisibility]
 
 

@@ -227,6 +227,47 @@ def test_lidarseg_from_above_takes_the_class_colours_and_the_filter(nusc, ds, sa
     assert (filtered[px[shown, 1], px[shown, 0]] == colours[shown]).all(axis=1).mean() > 0.98
 
 
+def _keyframe_top_pixels(nusc, token, shape):
+    """The devkit's lidar keyframe `token` as its labelled render_sample_data loads it (`LidarPointCloud.from_file`:
+    every point, in the label file's order) in the flat view's pixels, and which of them lie alone in their 5x5
+    neighbourhood, clear of the caption and the legend (their pixel can only show their own colour)."""
+    from nuscenes.utils.data_classes import LidarPointCloud
+    from nuscenes.utils.geometry_utils import transform_matrix, view_points
+    from pyquaternion import Quaternion
+
+    ref = nusc.get("sample_data", token)
+    pc = LidarPointCloud.from_file(os.path.join(nusc.dataroot, ref["filename"]))
+    cs, pose = nusc.get("calibrated_sensor", ref["calibrated_sensor_token"]), nusc.get("ego_pose", ref["ego_pose_token"])
+    yaw = Quaternion(pose["rotation"]).yaw_pitch_roll[0]
+    flat = np.eye(4)
+    flat[:3, :3] = Quaternion(scalar=np.cos(yaw / 2), vector=[0, 0, np.sin(yaw / 2)]).rotation_matrix @ \
+        Quaternion(pose["rotation"]).inverse.rotation_matrix
+    xy = view_points(pc.points[:3], flat @ transform_matrix(cs["translation"], Quaternion(cs["rotation"])), False)[:2].T
+    px = np.rint(_top_pixels(xy)).astype(int)
+    keep = _inside(px, shape, 3) & _away_from_corners(px, shape)
+    occupancy = np.zeros(shape[:2], np.int32)
+    np.add.at(occupancy, (px[keep, 1], px[keep, 0]), 1)
+    lonely = keep.copy()
+    lonely[keep] = cv2.boxFilter(occupancy.astype(np.float32), -1, (5, 5), normalize=False)[px[keep, 1], px[keep, 0]] == 1
+    return px, lonely
+
+
+def test_panoptic_from_above_takes_the_devkits_panoptic_colours(nusc, ds, sample):
+    """show_panoptic: each point in the colour the devkit's `paint_panop_points_label` gives it (things by
+    instance, stuff by class), from the frame's panoptic label file."""
+    from nuscenes.panoptic.panoptic_utils import paint_panop_points_label
+
+    token = sample["data"]["LIDAR_TOP"]
+    picture = single.render_sample_data(ds, token, with_anns=False, underlay_map=False, show_panoptic=True)
+    labels_file = os.path.join(nusc.dataroot, nusc.get("panoptic", token)["filename"])
+    colours = np.rint(paint_panop_points_label(labels_file, None, nusc.lidarseg_name2idx_mapping, nusc.colormap)[:, :3]
+                      * 255).astype(int)
+    px, lonely = _keyframe_top_pixels(nusc, token, picture.shape)
+    labels = np.load(labels_file)["data"]
+    assert lonely.sum() > 200 and (labels[lonely] % 1000 > 0).sum() > 10  # things among the points checked
+    assert (picture[px[lonely, 1], px[lonely, 0]] == colours[lonely]).all(axis=1).mean() > 0.98
+
+
 # --- sample_data: a camera ----------------------------------------------------------------------------------------
 
 
@@ -326,7 +367,9 @@ def test_pointcloud_in_image_lidarseg_colours_and_filter(nusc, ds, sample):
 def test_sample_with_lidarseg_paints_each_camera_with_the_devkits_lidarseg_points(nusc, ds, sample, synth_root):
     """render_sample(show_lidarseg=True): the devkit draws every camera with `render_pointcloud_in_image` of the
     lidar's lidarseg points (filter_lidarseg_labels applied); the camera tile shows those points in their class
-    colours, hides the filtered ones, and is the raw image elsewhere."""
+    colours, hides the filtered ones, and is the raw image elsewhere; the lidar's view from above likewise."""
+    from nuscenes.lidarseg.lidarseg_utils import paint_points_label
+
     lidar, camera = sample["data"]["LIDAR_TOP"], sample["data"]["CAM_BACK"]
     labels_file = os.path.join(nusc.dataroot, nusc.get("lidarseg", lidar)["filename"])
     kept = int(np.bincount(np.fromfile(labels_file, np.uint8)).argmax())
@@ -359,6 +402,19 @@ def test_sample_with_lidarseg_paints_each_camera_with_the_devkits_lidarseg_point
     assert (tile[px[sel, 1], px[sel, 0]] == expected[sel]).all(axis=1).mean() > 0.98
     assert (np.abs(tile[px[hidden, 1], px[hidden, 0]].astype(int) - raw[px[hidden, 1], px[hidden, 0]])
             .max(axis=1) <= 2).mean() > 0.98
+    # the lidar's view from above (the first of the two in the top row, which is centred over the camera rows;
+    # square, centred in its tile): its kept lidarseg points in their class colours, as the devkit's render_sample
+    # draws the lidar with the labels (the other classes' points lie in the boxes drawn over them here)
+    assert height == SIZE and width > height and picture.shape[1] == 3 * width
+    x0 = (picture.shape[1] - 2 * width) // 2 + (width - height) // 2
+    top = picture[:height, x0:x0 + height]
+    lidar_px, lonely = _keyframe_top_pixels(nusc, lidar, top.shape)
+    labels = np.fromfile(labels_file, np.uint8)
+    colours = np.rint(paint_points_label(labels_file, None, nusc.lidarseg_name2idx_mapping, nusc.colormap)[:, :3]
+                      * 255).astype(int)
+    shown = lonely & (labels == kept)
+    assert shown.sum() > 20
+    assert (top[lidar_px[shown, 1], lidar_px[shown, 0]] == colours[shown]).all(axis=1).mean() > 0.98
 
 
 # --- annotation and instance --------------------------------------------------------------------------------------
@@ -525,6 +581,43 @@ def test_map_patch_fills_each_layers_polygons(ds, nusc_map, sample, nusc):
         assert (np.abs(picture[v[alone], u[alone]] - tint) <= 1).all()
     outside = ~shapely.contains_xy(shapely.union_all(list(polygons.values())).buffer(0.5), probes[:, 0], probes[:, 1])
     assert outside.sum() > 100 and white[outside].all()
+
+
+def test_map_patch_outlines_the_box_in_red_dashes(ds, nusc_map, sample, nusc):
+    """render_egoposes_range: the box's outline is drawn dashed (the devkit's dash-dotted red rectangle), so along
+    its top edge the drawn runs alternate with runs of the map itself."""
+    pose = nusc.get("ego_pose", nusc.get("sample_data", sample["data"]["LIDAR_TOP"])["ego_pose_token"])
+    x, y = pose["translation"][:2]
+    box = (x - 60, y - 40, x + 60, y + 40)
+    drawn = single.render_map_patch(ds, nusc_map.map_name, box, ["drivable_area"], render_legend=False)
+    plain = single.render_map_patch(ds, nusc_map.map_name, box, ["drivable_area"], render_legend=False,
+                                    render_egoposes_range=False)
+    x0, y1 = box[0] - 30, box[3] + 10  # the devkit's margins
+    s = drawn.shape[1] / (box[2] + 30 - x0)
+    u0, u1 = int(round((box[0] - x0) * s)), int(round((box[2] - x0) * s))
+    v = int(round((y1 - box[3]) * s - 0.5))
+    changed = (drawn[v - 2:v + 3, u0 + 20:u1 - 20] != plain[v - 2:v + 3, u0 + 20:u1 - 20]).any(axis=(0, 2))
+    reddish = drawn[v - 2:v + 3, u0 + 20:u1 - 20].astype(int)
+    assert ((reddish[..., 0] - reddish[..., 1]) > 100).any(axis=0)[changed].mean() > 0.8  # red where drawn
+    runs = np.diff(np.flatnonzero(np.diff(changed.astype(int))))
+    assert 0.3 < changed.mean() < 0.8 and len(runs) > 20  # dashes and gaps, not one line
+    assert np.median(runs) >= 4
+
+
+def test_record_picture_names_its_global_and_local_views(ds, nusc_map, monkeypatch):
+    """render_record: the whole map captioned "global view" on the left, the close-up "local view" on the right,
+    each caption in its picture's top-left corner."""
+    from nuparquet.rendering import legend
+
+    captions = []
+    drawn = legend.draw_caption
+    monkeypatch.setattr(legend, "draw_caption", lambda image, text, **kw: (captions.append((image.shape, text, kw)),
+                                                                           drawn(image, text, **kw))[1])
+    picture = single.render_record(ds, nusc_map.map_name, "lane", nusc_map.lane[0]["token"])
+    assert [(text, kw) for _, text, kw in captions] == [("local view", {"corner": "top-left"}),
+                                                       ("global view", {"corner": "top-left"})]
+    local, whole = captions[0][0], captions[1][0]  # the close-up first drawn, the whole map on the left
+    assert local[0] == whole[0] == picture.shape[0] and picture.shape[1] == whole[1] + 6 + local[1]
 
 
 def test_layers_draw_traffic_lights_as_the_devkits_arrows_and_name_the_layers_in_order(ds, nusc_map):

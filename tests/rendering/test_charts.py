@@ -76,3 +76,20 @@ def test_distance_histogram_stacks_the_counts_of_each_category_in_its_colour(tmp
         assert all(np.allclose(p.get_facecolor(), mcolors.to_rgba(colour)) for p in bar.patches)
         bottom += expected
     assert len(bars[-1].patches) == 3 and sum(p.get_height() for p in bars[-1].patches) == totals["c09"] + totals["c10"]
+
+
+def test_class_distribution_bars_and_labels_are_each_categorys_counts(tmp_path, figures):
+    """Categories from the fewest annotations up: an annotations bar over an instances bar per category, each
+    annotations bar labelled with its count at its end, the categories named on the y axis."""
+    distribution = pl.DataFrame({"category_name": ["car", "pedestrian", "barrier", "bus"],
+                                 "num_annotations": [1200, 45, 300, 7], "num_instances": [80, 9, 12, 1]})
+    charts.plot_class_distribution(distribution, tmp_path / "classes.png")
+    ax = figures[-1].axes[0]
+    order = sorted(distribution.to_dicts(), key=lambda r: r["num_annotations"])
+    annotations, instances = ax.containers
+    assert [p.get_width() for p in annotations.patches] == [r["num_annotations"] for r in order]
+    assert [p.get_width() for p in instances.patches] == [r["num_instances"] for r in order]
+    assert [round(p.get_y() + p.get_height() / 2, 6) for p in annotations.patches] == [y + 0.2 for y in range(4)]
+    assert [t.get_text() for t in ax.get_yticklabels()] == [r["category_name"] for r in order]
+    labels = [(t.get_position(), t.get_text()) for t in ax.texts]
+    assert labels == [((r["num_annotations"], y + 0.2), f" {r['num_annotations']:,}") for y, r in enumerate(order)]

@@ -143,3 +143,22 @@ def test_a_missing_sweep_file_is_named(synth_out, tokens, tmp_path, capsys):
     assert _render(synth_out, *flags, "--nsweeps", "3", target=tmp_path / "three.png") == 1
     err = capsys.readouterr().err
     assert "missing point file:" in err and "/sweeps/LIDAR_TOP/" in err and "Traceback" not in err
+
+
+def test_the_map_lies_under_the_views_from_above_unless_told_not_to(synth_out, tokens):
+    """`render_image(sample=...)` and `render_image(sample_data=LIDAR)` (what `render --sample` / `--sample-data`
+    draw) lay the map under the lidar and radar views by default (ImageOptions.underlay_map) and not with
+    underlay_map=False: the views from above differ, the cameras do not."""
+    from nuparquet.rendering.single import render_image
+
+    ds = nuparquet.open(synth_out)
+    with_map = render_image(ds, sample=tokens["sample"], scale=0.2)
+    without = render_image(ds, sample=tokens["sample"], scale=0.2, underlay_map=False)
+    width, height = 1600 // 5, 900 // 5  # the tiles: the synthetic cameras at scale 0.2
+    assert with_map.shape == without.shape == (3 * height, 3 * width, 3)
+    assert np.array_equal(with_map[height:], without[height:])  # the camera rows
+    assert (with_map[:height] != without[:height]).any(axis=2).sum() > 500
+    # and a lidar frame alone (`render --sample-data`), seen from above likewise
+    with_map = render_image(ds, sample_data=tokens["LIDAR_TOP"])
+    without = render_image(ds, sample_data=tokens["LIDAR_TOP"], underlay_map=False)
+    assert with_map.shape == without.shape and (with_map != without).any(axis=2).sum() > 500
