@@ -33,6 +33,8 @@ import polars as pl
 from nuparquet.can_bus.align import neighbours
 from nuparquet.can_bus.blacklists import CAN_BLACKLIST, scene_number
 from nuparquet.columns import to_numpy
+from nuparquet.errors import InputError
+from nuparquet.sources.can_bus import FOLDER
 
 HEAD = ("pos", "orientation")
 
@@ -48,9 +50,11 @@ def can_bus_vectors(samples: pl.DataFrame, poses: pl.DataFrame | None, pose_keys
     if poses is None or poses.height == 0:
         return exact, corrected
     tail = [k for k in pose_keys if k not in ("utime", *HEAD)]
+    for k in (*HEAD, *tail):
+        _check_numbers(poses, k)
     stacked = {k: to_numpy(poses[k], _width(poses, k)) for k in (*HEAD, *tail)}
     if sum(v.shape[1] for v in stacked.values()) != 16:
-        raise ValueError(f"pose messages give {sum(v.shape[1] for v in stacked.values())} values "
+        raise InputError(f"pose messages give {sum(v.shape[1] for v in stacked.values())} values "
                          f"({', '.join(pose_keys)}), not the 16 the converters' vector holds")
     prev_row, next_row = neighbours(samples, poses)
     rows = poses.select("scene_name").with_row_index("_row").group_by("scene_name").agg(
@@ -68,6 +72,19 @@ def can_bus_vectors(samples: pl.DataFrame, poses: pl.DataFrame | None, pose_keys
     corrected[has_poses, :16] = np.concatenate([head, *(stacked[k][last] for k in tail)], axis=1)[has_poses]
     corrected[has_poses, 16:] = 0.0
     return exact, corrected
+
+
+def _check_numbers(poses: pl.DataFrame, column: str) -> None:
+    """The converters `extend` the vector with each field: a list of numbers, or they fail (a number) or write
+    text into it (a string, an object): refused, naming the field and the scenes whose messages hold it."""
+    dtype = poses.schema[column]
+    if isinstance(dtype, (pl.List, pl.Array)) and dtype.inner.is_numeric():
+        return
+    scenes = poses.filter(pl.col(column).is_not_null())["scene_name"].unique(maintain_order=True).to_list()
+    files = ", ".join(f"{FOLDER}/{scene}_pose.json" for scene in scenes[:3])
+    raise InputError(f"{files}{' and others' if len(scenes) > 3 else ''}: pose message field "
+                     f"{column!r} holds {dtype} values, not lists of numbers, so the converters' can_bus vector "
+                     "(sample_can_bus) cannot be formed from them")
 
 
 def _width(frame: pl.DataFrame, column: str) -> tuple[int]:

@@ -12,6 +12,7 @@ import polars as pl
 import pytest
 
 from nuparquet.can_bus.bevformer import can_bus_vectors
+from nuparquet.errors import InputError
 
 KEYS = ["utime", "pos", "orientation", "accel", "rotation_rate", "vel"]  # the pose files' key order
 
@@ -80,6 +81,6 @@ def test_pose_messages_of_another_width_are_refused_naming_the_count_and_the_key
     keys = KEYS[:-1]
     poses = _poses("scene-0001", [_message(1_000, 0.0)]).drop("vel")
     samples = pl.DataFrame({"scene_name": ["scene-0001"], "timestamp": [1_500]})
-    with pytest.raises(ValueError, match=r"^pose messages give 13 values \(utime, pos, orientation, accel, "
+    with pytest.raises(InputError, match=r"^pose messages give 13 values \(utime, pos, orientation, accel, "
                                          r"rotation_rate\), not the 16 the converters' vector holds$"):
         can_bus_vectors(samples, poses, keys)

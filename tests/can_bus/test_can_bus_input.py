@@ -82,6 +82,21 @@ def test_bad_files_are_problems_naming_file_and_message(root, tmp_path, capsys, 
     assert not out.exists() and not list(tmp_path.glob(".out*"))
 
 
+@pytest.mark.parametrize("extra, dtype", [({"kind": "pose"}, "String"), ("estimated", "String"), (1.5, "Float64")])
+def test_pose_fields_the_can_bus_vector_cannot_take_are_refused_naming_file_and_field(root, tmp_path, capsys, extra,
+                                                                                      dtype):
+    """BEVFormer's loop `extend`s its vector with every pose field after pos and orientation: a number fails there
+    (not iterable) and text or an object would put characters or keys into it. Such a field stops the conversion
+    with a message naming the file and the field, not a traceback from deep in polars or numpy."""
+    _edit(root, "pose", lambda records: [{**r, "extra": extra} for r in records])
+    out = tmp_path / "out"
+    assert main(["convert", str(root), "--version", V, "--out", str(out), "--quiet"]) == 1
+    err = capsys.readouterr().err
+    assert (f"can_bus/{SCENE}_pose.json: pose message field 'extra' holds {dtype} values, not lists of numbers"
+            in err), err
+    assert "Traceback" not in err and not out.exists() and not list(tmp_path.glob(".out*"))
+
+
 def _set_point(records, index, value):
     records[index] = value
     return records
