@@ -73,6 +73,7 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED, 
                        + ("must be finite" if f.finite and not f.non_negative else
                           "must be >= 0" if not f.finite else "must be finite and >= 0"))
     problems += _timestamp_units(frames, files)
+    problems += _second_keyframes(frames, files, limit)
     for table, count_field, referring, ref_field in _COUNTS:
         if table not in frames or referring not in frames or not references:
             continue
@@ -81,6 +82,32 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED, 
             pl.col("_actual").fill_null(0)).sort("_idx")
         bad = joined.filter(pl.col(count_field) != pl.col("_actual"))
         report(table, bad, lambda r, c=count_field, ref=referring: f"{c} is {r[c]} but {r['_actual']} {ref} records refer to it")
+    return problems
+
+
+def _second_keyframes(frames: dict[str, pl.DataFrame], files: dict[str, str], limit: int) -> list[Problem]:
+    """A sample holds one keyframe per sensor: the devkit's `sample['data']` keeps one token per channel (the last
+    in file order) and every per-sample pairing here takes that one, so a second keyframe of a sensor in a sample
+    would make them disagree. Each keyframe after the first is a problem naming the first."""
+    if "sample_data" not in frames or "calibrated_sensor" not in frames:
+        return []
+    keyframes = (frames["sample_data"].filter(pl.col("is_key_frame"))
+                 .join(frames["calibrated_sensor"].select(pl.col("token").alias("calibrated_sensor_token"),
+                                                          "sensor_token"),
+                       on="calibrated_sensor_token", how="inner")  # a dangling calibration is reported on its own
+                 .sort("_idx"))
+    if keyframes.select("sample_token", "sensor_token").is_duplicated().not_().all():
+        return []
+    channels = (dict(zip(frames["sensor"]["token"].to_list(), frames["sensor"]["channel"].to_list()))
+                if "sensor" in frames else {})
+    later = (keyframes.with_columns(pl.col("token").first().over("sample_token", "sensor_token").alias("_first"))
+             .filter(pl.col("token") != pl.col("_first")))
+    problems = [Problem(files["sample_data"], f"is a second keyframe of {channels.get(r['sensor_token'], r['sensor_token'])} "
+                        f"for sample {r['sample_token']} (the first is {r['_first']}): a sample holds one keyframe per "
+                        "channel", r["_idx"], r["token"]) for r in later.head(limit).iter_rows(named=True)]
+    if later.height > limit:
+        problems.append(Problem(files["sample_data"], f"{later.height - limit} more like the above",
+                                omitted=later.height - limit))
     return problems
 
 

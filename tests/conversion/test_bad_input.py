@@ -111,6 +111,28 @@ def test_duplicate_token(root, tmp_path, capsys):
     assert code == 1 and f"instance.json[1] token={records[0]['token']}: duplicate token" in message
 
 
+def test_a_second_keyframe_of_a_sensor_in_one_sample_is_refused_naming_both(root, tmp_path, capsys):
+    """A sample holds one keyframe per channel (the devkit's `sample['data']` keeps one token per channel, the last
+    in file order, while a first-in-order pairing would take the other): a sweep of LIDAR_TOP flagged as a
+    keyframe of the sample it names is refused, the later of the two in sample_data.json named, with the first."""
+    records = load(root, "sample_data")
+    sensor = {r["token"]: r["channel"] for r in load(root, "sensor")}
+    channel = {r["token"]: sensor[r["sensor_token"]] for r in load(root, "calibrated_sensor")}
+    lidar = [i for i, r in enumerate(records) if channel[r["calibrated_sensor_token"]] == "LIDAR_TOP"]
+    sweep = next(i for i in lidar[len(lidar) // 2:] if not records[i]["is_key_frame"])
+    keyframe = next(i for i in lidar if records[i]["is_key_frame"]
+                    and records[i]["sample_token"] == records[sweep]["sample_token"])
+    records[sweep]["is_key_frame"] = True
+    save(root, "sample_data", records)
+    first, second = sorted([sweep, keyframe])
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1
+    assert (f"sample_data.json[{second}] token={records[second]['token']}: is a second keyframe of LIDAR_TOP for "
+            f"sample {records[sweep]['sample_token']} (the first is {records[first]['token']}): a sample holds one "
+            "keyframe per channel") in message, message
+    assert message.count("is a second keyframe") == 1  # the other channels' keyframes of that sample are single
+
+
 # Every foreign key the issue lists: (table, field, record index to break).
 FOREIGN_KEYS = [
     ("sample_data", "sample_token"), ("sample_data", "ego_pose_token"), ("sample_data", "calibrated_sensor_token"),
