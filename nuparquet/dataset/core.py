@@ -287,8 +287,9 @@ class Dataset:
         """Radar points from `radar_points/` (convert --sensors radar), selected as `points` selects lidar.
 
         Returns (N, F) float64 of the PCD fields in header order (the devkit's `RadarPointCloud.points`
-        transposed); `filtered=True` keeps only the points the devkit's default filters keep. With `columns`,
-        a polars DataFrame of those columns."""
+        transposed); `filtered=True` keeps only the points the devkit's default filters keep (every point of a file
+        without the devkit's 18 fields, to which they do not apply: as the renderers reading such a file keep). With
+        `columns`, a polars DataFrame of those columns."""
         from nuparquet.frames import points as frame_points
 
         self._check_points_selection(scene, channel, "radar")
@@ -298,7 +299,7 @@ class Dataset:
         table = frame_points.select_points(index, tokens, scene=scene, channel=channel,
                                            columns=list(dict.fromkeys(wanted)))
         if filtered:
-            table = table.filter(table.column("passes_default_filters").fill_null(False))
+            table = table.filter(table.column("passes_default_filters").fill_null(True))
             if not columns or "passes_default_filters" not in columns:
                 table = table.drop_columns(["passes_default_filters"])
         return pl.from_arrow(table) if columns else frame_points.radar_array(table, fields)

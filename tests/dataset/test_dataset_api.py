@@ -317,12 +317,23 @@ def short_radar_out(labelled_root, tmp_path_factory):
     return base / "out"
 
 
-def test_filtered_radar_points_of_files_without_the_devkits_fields_are_none_not_all(short_radar_out):
-    """A PCD of fewer than the devkit's 18 fields has no default-filter flag (null: the rule cannot be applied):
-    `filtered=True` keeps only points known to pass, so none, while every point is read unfiltered."""
+def test_filtered_radar_points_of_files_without_the_devkits_fields_are_every_point_as_read_from_the_files(
+        short_radar_out):
+    """A PCD of fewer than the devkit's 18 fields has no default-filter flag (null: the devkit's filters, by field
+    position, do not apply): `filtered=True` keeps every point, as the renderers' own reading of such a file does
+    (`frame_cloud` without radar_points, `sources.points.passes_default_filters` None), not none of them."""
+    import numpy as np
+
+    from nuparquet.sources.points import passes_default_filters, read_radar_pcd
+
     ds = nuparquet.open(short_radar_out)
     scene = ds.scene_names()[0]
     everything = ds.radar_points(scene=scene, columns=["x", "passes_default_filters"])
     assert everything.height > 0 and everything["passes_default_filters"].null_count() == everything.height
-    assert ds.radar_points(scene=scene, filtered=True).shape == (0, 6)
-    assert ds.radar_points(scene=scene, columns=["x"], filtered=True).height == 0
+    assert ds.radar_points(scene=scene, filtered=True).shape == (everything.height, 6)
+    assert ds.radar_points(scene=scene, columns=["x"], filtered=True)["x"].to_list() == everything["x"].to_list()
+    frame = ds.scan("frames").filter(pl.col("modality").cast(pl.String) == "radar").head(1).collect().row(0, named=True)
+    raw = read_radar_pcd(short_radar_out.parent / "data" / frame["filename"])
+    assert passes_default_filters(raw) is None and len(raw) > 0
+    expected = np.stack([raw[name].astype(np.float64) for name in raw.dtype.names], axis=1)
+    np.testing.assert_array_equal(ds.radar_points(frame["token"], filtered=True), expected)
