@@ -299,3 +299,42 @@ def test_invert_quaternions_equals_pyquaternions_inverse_for_unit_and_other_norm
     np.testing.assert_allclose(ours, expected, rtol=1e-12, atol=0)
     with pytest.raises(ValueError, match=r"q_wxyz must have shape \(\.\.\., 4\), got \(5, 3\)"):
         quaternions.invert_quaternions(np.ones((5, 3)))
+
+
+def test_quaternion_slerp_keeps_q0_when_the_ends_are_exactly_orthogonal_like_pyquaternion():
+    # q0 . q1 == 0 exactly (after normalisation): pyquaternion negates q0 only for dot < 0, so identity to a
+    # half turn about z passes through +90 degrees, not -90 (both arcs are equally short: only the rule decides).
+    q0 = np.array([[1.0, 0.0, 0.0, 0.0], [1.0, 1.0, 0.0, 0.0], [1.0, 1.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0]])
+    q1 = np.array([[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 1.0, -1.0], [1.0, -1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 3.0]])
+    amount = np.array([0.5, 0.25, 0.5, 0.75])
+    expected = np.stack([Quaternion.slerp(Quaternion(a), Quaternion(b), t).q for a, b, t in zip(q0, q1, amount)])
+    np.testing.assert_allclose(expected[0], [np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)], atol=1e-15)  # +90 about z
+    np.testing.assert_allclose(quaternions.quaternion_slerp(q0, q1, amount), expected, rtol=0, atol=1e-12)
+
+
+def test_multiply_quaternions_equals_pyquaternion_product_and_broadcasts(rng):
+    p, q = random_quaternions(rng, 50), random_quaternions(rng, 50)  # norms in [0.5, 2]: no normalisation
+    expected = np.stack([(Quaternion(a) * Quaternion(b)).elements for a, b in zip(p, q)])
+    np.testing.assert_allclose(quaternions.multiply_quaternions(p, q), expected, rtol=1e-12, atol=1e-15)
+    one = p[0]
+    ours = quaternions.multiply_quaternions(one, q.reshape(5, 10, 4))  # one p times a batch of q
+    assert ours.shape == (5, 10, 4)
+    np.testing.assert_allclose(ours.reshape(50, 4), [(Quaternion(one) * Quaternion(b)).elements for b in q],
+                               rtol=1e-12, atol=1e-15)
+    with pytest.raises(ValueError, match=r"p_wxyz must have shape \(\.\.\., 4\), got \(3,\)"):
+        quaternions.multiply_quaternions(np.ones(3), q)
+
+
+def test_vehicle_flat_from_vehicle_equals_the_devkit_render_sample_data_arithmetic(rng):
+    q = random_quaternions(rng, 40)  # tilted, any norm: the devkit's arithmetic, not only the upright case
+    expected = []
+    for row in q:  # nuscenes.py render_sample_data(use_flat_vehicle_coordinates=True), as written
+        ego_yaw = Quaternion(row).yaw_pitch_roll[0]
+        expected.append(np.dot(Quaternion(scalar=np.cos(ego_yaw / 2), vector=[0, 0, np.sin(ego_yaw / 2)]).rotation_matrix,
+                               Quaternion(row).inverse.rotation_matrix))
+    ours = quaternions.vehicle_flat_from_vehicle(q.reshape(4, 10, 4))
+    assert ours.shape == (4, 10, 3, 3)
+    np.testing.assert_allclose(ours.reshape(40, 3, 3), expected, rtol=0, atol=1e-12)
+    yaw = 2.5  # an upright ego: the flat frame is the ego frame
+    upright = [np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]
+    np.testing.assert_allclose(quaternions.vehicle_flat_from_vehicle(upright), np.eye(3), rtol=0, atol=1e-12)
