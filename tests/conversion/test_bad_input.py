@@ -601,6 +601,12 @@ def test_a_missing_version_folder_lists_the_folders_holding_tables(tmp_path):
     with pytest.raises(UsageError) as error:
         version_dir(tmp_path, "v1.0-trainval")
     assert str(error.value) == f"version folder {tmp_path / 'v1.0-trainval'} does not exist; versions found: v1.0-mini"
+    (tmp_path / "v1.0-test").mkdir()  # two versions: listed in name order, separated by a comma
+    (tmp_path / "v1.0-test" / "sample.json").write_text("[]")
+    with pytest.raises(UsageError) as error:
+        version_dir(tmp_path, "v1.0-trainval")
+    assert str(error.value) == (f"version folder {tmp_path / 'v1.0-trainval'} does not exist; "
+                                "versions found: v1.0-mini, v1.0-test")
     with pytest.raises(UsageError) as error:
         version_dir(tmp_path / "maps", "v1.0-trainval")
     assert str(error.value) == f"version folder {tmp_path / 'maps' / 'v1.0-trainval'} does not exist"

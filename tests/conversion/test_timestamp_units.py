@@ -67,6 +67,9 @@ def test_the_unit_guess_at_its_limits():
         "ms": ([low // 100 - 1, low // 100 - 1], "milliseconds"),
         "s": ([low // 100_000 - 1, low // 100_000 - 1], "seconds"),
         "other": ([500_000_000_000_000, 500_000_000_000_000], "another unit"),  # half the lower limit
+        # the bounds themselves belong to neither class: exactly 1e-5 and 1e-2 of the lower limit
+        "s_bound": ([low // 100_000, low // 100_000], "another unit"),
+        "ms_bound": ([low // 100, low // 100], "another unit"),
         "fine": ([low, high], None),
     }
     frames = {name: pl.DataFrame({"timestamp": values}) for name, (values, _) in cases.items()}

@@ -115,3 +115,28 @@ def test_null_in_an_optional_field_is_a_null_value(synth_root, tmp_path):
     assert problems == []
     heights = table.table.column("height").to_pylist()
     assert heights[2] is None and heights[:2] == [r["height"] for r in records[:2]]
+
+
+def test_a_list_element_over_the_field_limit_names_its_record_and_the_first_such_element(tmp_path):
+    """`attribute_tokens` holds at most 4096 bytes per token: a record with an element over it is refused, named
+    by its own index and token (not the element's), with the first too-long element's length; a record whose
+    element is exactly at the limit, or whose list is empty, is read."""
+    limit = table_schemas()["sample_annotation"].field("attribute_tokens").max_bytes
+    assert limit == 4096
+
+    def record(token, attributes):
+        return {"token": token, "sample_token": "s", "instance_token": "i", "visibility_token": "",
+                "attribute_tokens": attributes, "translation": [0, 0, 0], "size": [1, 1, 1], "rotation": [1, 0, 0, 0],
+                "prev": "", "next": "", "num_lidar_pts": 0, "num_radar_pts": 0}
+
+    attributes = [["x" * limit], ["ok", "y" * (limit + 1), "z" * (limit + 900)], [], ["w" * (limit + 4)]]
+    path = tmp_path / "sample_annotation.json"
+    path.write_text(json.dumps([record(f"a{i}", a) for i, a in enumerate(attributes)]))
+    table, problems = read(path, "sample_annotation")
+    assert table is None
+    assert [(p.file, p.index, p.token) for p in problems] == [("sample_annotation.json", 1, "a1"),
+                                                              ("sample_annotation.json", 3, "a3")]
+    for problem, length in zip(problems, (limit + 1, limit + 4)):
+        assert problem.message.startswith(f"field 'attribute_tokens' holds a string of {length:,} bytes, over its "
+                                          f"limit of {limit:,}: ")
+    assert problems[0].message.split(": ", 1)[1].startswith('["ok", "yyy')  # the record's list, as written
