@@ -218,6 +218,28 @@ def test_velocity_is_defined_exactly_where_devkit_box_velocity_answers(devkit):
     assert velocity_defined(ann).tolist() == expected
 
 
+def test_visibility_levels_rank_numeric_ranges_by_their_lower_bound_and_leave_worded_levels_without_one():
+    """nuScenes' levels ("v0-40" .. "v80-100", given in any order, with hash tokens) rank 1..4 by their lower bound
+    (the devkit's tokens "1".."4" are that rank); bounds may be decimals, lack the "v", carry spaces or a "%"; a
+    table with any worded level (T4's "full", "most", ...) ranks none. Expectations by hand."""
+    from nuparquet.conversion.builders.annotations import visibility_levels
+
+    def levels(names):
+        table = pl.DataFrame({"token": [f"h{i}" for i in range(len(names))], "level": names,
+                              "description": [f"about {n}" for n in names]})
+        out = visibility_levels(table)
+        assert out["visibility_token"].to_list() == table["token"].to_list()
+        assert out["visibility_name"].cast(pl.String).to_list() == names
+        assert out["visibility_description"].cast(pl.String).to_list() == [f"about {n}" for n in names]
+        assert out.schema["visibility_level"] == pl.Int8
+        return out["visibility_level"].to_list()
+
+    assert levels(["v60-80", "v0-40", "v80-100", "v40-60"]) == [3, 1, 4, 2]
+    assert levels(["12.5 - 40%", "0-12.5%", "v40-100"]) == [2, 1, 3]
+    assert levels(["full", "most", "partial", "none"]) == [None] * 4
+    assert levels(["v0-40", "most"]) == [None, None]  # one worded level: no ranking at all
+
+
 @pytest.mark.parametrize("dataset", ["frames", "annotations"])
 def test_one_scene_filter_prunes_row_groups(extract_out, dataset):
     """Row groups follow scene boundaries, so statistics exclude every other scene's groups."""
