@@ -171,3 +171,24 @@ def test_every_float_field_but_utime_is_interpolated_whatever_its_name():
     got = aligned(samples, "wild", messages)
     assert got["wild_interp"].to_list() == [{"speed": 1.0, "UTIME": 10.0}, {"speed": 2.0, "UTIME": 15.0},
                                             {"speed": 3.0, "UTIME": 20.0}, None]
+
+
+def test_rows_are_sorted_by_scene_timestamp_and_sample_token_even_for_samples_at_the_same_time(tmp_path):
+    """The documented order (scene_name, timestamp, sample_token): samples of one scene at the same timestamp
+    (nothing refuses them) come in token order whatever their order in sample.json. Expectation: Python's sort of
+    the input records."""
+    from nuparquet.conversion.builder import BuildContext
+    from nuparquet.conversion.builders.sample_can_bus import build
+
+    scenes = {"sc-1": "scene-0002", "sc-2": "scene-0001"}
+    records = [("t-9", "sc-1", 2_000), ("t-7", "sc-1", 2_000), ("t-8", "sc-1", 1_000), ("t-3", "sc-2", 5_000),
+               ("t-2", "sc-2", 5_000), ("t-1", "sc-2", 5_000), ("t-5", "sc-1", 2_000)]
+    tables = {"sample": pl.DataFrame({"token": [r[0] for r in records], "scene_token": [r[1] for r in records],
+                                      "timestamp": [r[2] for r in records]}),
+              "scene": pl.DataFrame({"token": list(scenes), "name": list(scenes.values()), "log_token": ["l", "l"]}),
+              "log": pl.DataFrame({"token": ["l"], "location": ["boston-seaport"]})}
+    ctx = BuildContext(tmp_path, SYNTH_VERSION, None, None, tables, tmp_path / "out")
+    got = build(ctx)
+    expected = sorted((scenes[scene], timestamp, token) for token, scene, timestamp in records)
+    assert list(got.select("scene_name", "timestamp", "sample_token").iter_rows()) == expected
+    assert (got["can_bus"].arr.sum() == 0).all() and got["can_bus_corrected"].is_null().all()  # no CAN bus at all
