@@ -53,6 +53,14 @@ def test_cameras_without_front_or_back_in_their_names_are_laid_out_by_yaw():
     assert channels.camera_layout(cameras, yaws) == (("cam_b", "cam_c"), ("cam_a", "cam_d"))
 
 
+def test_without_yaws_names_put_left_before_plain_before_right_whatever_they_sort_as():
+    """Names alone (no calibrated yaw): LEFT, then a name saying neither side, then RIGHT, in each row. The wide
+    cameras' names sort after the RIGHT ones (W > R), so an order falling back on the names would put them last."""
+    cameras = ["CAM_FRONT_RIGHT", "CAM_BACK_WIDE", "CAM_FRONT_WIDE", "CAM_BACK_LEFT", "CAM_BACK_RIGHT", "CAM_FRONT_LEFT"]
+    assert channels.camera_layout(cameras) == (("CAM_FRONT_LEFT", "CAM_FRONT_WIDE", "CAM_FRONT_RIGHT"),
+                                               ("CAM_BACK_LEFT", "CAM_BACK_WIDE", "CAM_BACK_RIGHT"))
+
+
 def test_default_camera_is_cam_front_else_the_first_front_camera():
     assert channels.default_camera(NUSCENES_CAMERAS) == "CAM_FRONT"
     assert channels.default_camera(["cam_a", "cam_b"], (("cam_b",), ("cam_a",))) == "cam_b"

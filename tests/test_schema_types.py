@@ -78,3 +78,44 @@ def test_a_struct_without_its_opening_bracket_is_refused_saying_what_was_expecte
     with pytest.raises(ValueError) as error:
         parse_type("struct[a: int64>")
     assert str(error.value) == "unknown type in schema file: 'struct[a: int64>' (expected < at token 1)"
+
+
+def test_a_schema_file_s_sort_order_and_metadata_are_read(tmp_path):
+    """`_load` of a schema file (read at test time: the loaders' cache was filled before) keeps the rows' sort
+    order, the file-level metadata and the further-columns text as the JSON gives them, and their defaults when
+    absent; the shipped frames schema's sort order is its file's."""
+    from nuparquet import schemas
+
+    spec = {"name": "layer", "kind": "dataset", "version": 2, "doc": "One row per record.",
+            "sort_by": ["location", "token"], "metadata": {"geo": {"version": "1.1.0"}, "note": "plain text"},
+            "extra": "the record's own fields", "fields": [{"name": "token", "type": "string", "doc": "Its token."}]}
+    (tmp_path / "layer.json").write_text(json.dumps(spec))
+    loaded = schemas._load(tmp_path / "layer.json")
+    assert loaded.sort_by == ("location", "token") and loaded.metadata == spec["metadata"]
+    assert loaded.extra == "the record's own fields" and loaded.names == ["token"]
+    assert json.loads(loaded.arrow_schema().metadata[b"geo"]) == {"version": "1.1.0"}
+    bare = {k: v for k, v in spec.items() if k not in ("sort_by", "metadata", "extra")}
+    (tmp_path / "bare.json").write_text(json.dumps(bare))
+    plain = schemas._load(tmp_path / "bare.json")
+    assert (plain.sort_by, plain.metadata, plain.extra) == ((), {}, "")
+    frames = schemas._schema_dir() / "frames.json"
+    assert schemas._load(frames).sort_by == tuple(json.loads(frames.read_text())["sort_by"])
+
+
+def test_the_schema_docs_list_a_dataset_s_sort_order_and_file_metadata(monkeypatch):
+    """docs_markdown of one dataset with a sort order, file metadata and further columns (no shipped schema has
+    metadata yet): each gets its line after the doc, and the page keeps its title and what came before."""
+    from nuparquet import schemas
+
+    layer = Schema(name="layer", kind="dataset", version=1, doc="One row per record.", sort_by=("location", "token"),
+                   metadata={"geo": {"version": "1.1.0"}, "note": "plain text"}, extra="the record's own fields",
+                   fields=(Field("token", "string", doc="Its token."),))
+    monkeypatch.setattr(schemas, "dataset_schemas", lambda: {"layer": layer})
+    monkeypatch.setattr(schemas, "table_schemas", lambda: {})
+    lines = schemas.docs_markdown().split("\n")
+    assert lines[0] == "# nuparquet datasets" and lines[4:6] == ["## Derived datasets", ""]
+    assert lines[6:16] == ["### `layer`", "", "One row per record.", "",
+                           "Rows sorted by: `location`, `token`.", "",
+                           "File metadata: `geo`, `note`.", "",
+                           "Further columns: the record's own fields", ""]
+    assert lines[16:19] == ["| column | type | description |", "|---|---|---|", "| `token` | `string` | Its token. |"]

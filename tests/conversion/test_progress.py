@@ -8,7 +8,7 @@ import pytest
 
 import nuparquet
 from conftest import SYNTH_VERSION
-from nuparquet.progress import Reporter
+from nuparquet.progress import Progress, Reporter
 
 
 def _events(root, version, out, **options):
@@ -121,3 +121,11 @@ def test_every_event_names_its_task():
     with Reporter(events.append, "render scene-0001 CAM_FRONT", total=2, unit="frame") as reporter:
         reporter.advance()
     assert {(e.task, e.unit) for e in events} == {("render scene-0001 CAM_FRONT", "frame")} and events[-1].finished
+
+
+def test_the_first_event_reports_nothing_done_with_an_empty_step():
+    """A reporter's first event (the bar opens): nothing done, the total if known, and step "" (documented: "" when
+    there is nothing new to say) that a callback may use as text."""
+    events = []
+    Reporter(events.append, "convert", total=3, unit="file")
+    assert events == [Progress("convert", 0, 3, "file", "", False)]

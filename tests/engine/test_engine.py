@@ -63,6 +63,31 @@ def test_resume_skips_completed_units_and_reruns_the_rest(tmp_path):
     assert not any(o.resumed for o in outcomes) and (tmp_path / "a" / "value.txt").read_text() == "1"
 
 
+def test_resumed_units_are_counted_at_once_in_one_progress_step_named_resumed(tmp_path):
+    """With --resume the units an earlier run finished are counted in one event whose step says "resumed" (the
+    bar's text), then each unit run is counted under its name."""
+    units = [WorkUnit("a", 1), WorkUnit("b", 2), WorkUnit("c", 3)]
+    run_units(square_into_part, units[:2], parts_dir=tmp_path, options=EngineOptions(engine="serial"))
+    events = []
+    run_units(square_into_part, units, parts_dir=tmp_path, options=EngineOptions(engine="serial", resume=True),
+              on_progress=events.append, label="scenes")
+    assert [(e.done, e.total, e.step, e.finished) for e in events] == [
+        (0, 3, "", False), (2, 3, "resumed", False), (3, 3, "c", False), (3, 3, "", True)]
+    assert {(e.task, e.unit) for e in events} == {("scenes", "scene")}
+
+
+@pytest.mark.parametrize("engine", ["serial", "process"])
+def test_each_outcome_names_the_process_that_ran_its_unit(engine, tmp_path):
+    """`worker`: the id of the process that ran the unit: this one on the serial engine, a worker on the pool."""
+    outcomes = run_units(square_into_part, [WorkUnit("a", 1), WorkUnit("b", 2)], parts_dir=tmp_path,
+                         options=EngineOptions(engine=engine, workers=1))
+    workers = {o.worker for o in outcomes}
+    if engine == "serial":
+        assert workers == {os.getpid()}
+    else:
+        assert len(workers) == 1 and workers.isdisjoint({0, os.getpid()})  # one worker ran both
+
+
 def test_a_failed_rerun_without_resume_leaves_no_unit_marked_done_without_its_parts(tmp_path):
     """Run 1 finishes a and c (markers written, parts not yet committed). Run 2, without --resume, starts afresh:
     it clears every unit, then stops at its first unit, which fails, so a and c never run again. Run 3 with
@@ -247,9 +272,10 @@ def test_ray_joins_the_cluster_of_ray_address_and_otherwise_starts_a_local_ray_o
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(6)), raising=False)
     joined = _ray_init_arguments(monkeypatch, EngineOptions(engine="ray", ray_address="ray://head:10001"), tmp_path)
     assert joined["address"] == "ray://head:10001" and "num_cpus" not in joined
-    assert joined["log_to_driver"] is False
+    assert joined["log_to_driver"] is False and joined["logging_level"] == "ERROR"  # Ray's own log: errors only
     local = _ray_init_arguments(monkeypatch, EngineOptions(engine="ray", workers=3), tmp_path)
     assert local["num_cpus"] == 3 and "address" not in local
+    assert local["log_to_driver"] is False and local["logging_level"] == "ERROR"
     assert _ray_init_arguments(monkeypatch, EngineOptions(engine="ray", workers=0), tmp_path)["num_cpus"] == 6
     assert _ray_init_arguments(monkeypatch, EngineOptions(engine="ray"), tmp_path)["num_cpus"] == 6
 
