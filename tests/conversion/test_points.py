@@ -328,6 +328,31 @@ def test_pcd_headers_with_an_unknown_line_or_lines_missing_are_refused_naming_bo
         assert (error.value.path, error.value.reason) == ("radar.pcd", reason)
 
 
+def test_pcd_headers_that_disagree_end_early_or_name_an_unknown_type_are_refused_naming_the_file():
+    """Each header problem is a PointFileError naming the file (its `path`) and the problem, not a TypeError or a
+    bare parse error; a header without HEIGHT or POINTS is the unorganised cloud those lines would state (HEIGHT 1,
+    POINTS = WIDTH): the reader takes a missing HEIGHT as 1 and a missing POINTS as WIDTH x HEIGHT."""
+    from nuparquet.sources.points import PointFileError, read_pcd_header
+
+    good = ("VERSION 0.7\nFIELDS x y\nSIZE 4 4\nTYPE F F\nCOUNT 1 1\nWIDTH 3\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\n"
+            "POINTS 3\nDATA binary\n")
+    stated = read_pcd_header("radar.pcd", good.encode())
+    assert (stated.fields, stated.points, stated.dtype) == (("x", "y"), 3, np.dtype([("x", "<f4"), ("y", "<f4")]))
+    for unstated in (good.replace("HEIGHT 1\n", ""), good.replace("POINTS 3\n", ""),
+                     good.replace("HEIGHT 1\n", "").replace("POINTS 3\n", "")):
+        header = read_pcd_header("radar.pcd", unstated.encode())
+        assert (header.fields, header.points, header.dtype, header.data_offset) == \
+            (stated.fields, stated.points, stated.dtype, len(unstated))
+    for header, reason in (
+            (good.removesuffix("DATA binary\n"), "PCD header has no DATA line (not a PCD v0.7 file, or truncated)"),
+            (good.replace("SIZE 4 4", "SIZE 4"), "PCD header has 2 FIELDS but 1 SIZE, 2 TYPE and 2 COUNT values"),
+            (good.replace("SIZE 4 4", "SIZE 4 3"), "PCD SIZE/TYPE 4 3 / F F or WIDTH/HEIGHT/POINTS is not a supported "
+                                                   "combination")):
+        with pytest.raises(PointFileError) as error:
+            read_pcd_header("radar.pcd", header.encode())
+        assert (error.value.path, error.value.reason) == ("radar.pcd", reason)
+
+
 def test_a_radar_pcd_whose_first_point_has_a_nan_passes_no_filter_as_the_devkit_reads_it_empty(tmp_path):
     """The devkit's `RadarPointCloud.from_file` returns an empty cloud when the first point holds a NaN (its sign of
     an empty file), whatever the states; a NaN in a later point does not empty it."""

@@ -173,6 +173,26 @@ def test_unusual_values_come_back_exactly(small_map_root, tmp_path):
     assert json.dumps(again) == json.dumps(data)
 
 
+def test_a_map_without_connectivity_has_an_empty_connectivity_dataset_of_lane_token_lists(small_map_root, tmp_path):
+    """A map file whose connectivity is {} (no lane listed): map/connectivity has no row, and its `incoming` and
+    `outgoing` are still lists of lane tokens (list<string>, as a map with lanes types them), so a reader's query on
+    them works on this dataset as on any other; the file comes back exactly."""
+    import pyarrow as pa
+
+    path = first_map(small_map_root)
+    data = json.loads(path.read_text())
+    assert data["connectivity"]  # the generator's map lists lanes: the change below empties a real layer
+    data["connectivity"] = {}
+    path.write_text(json.dumps(data))
+    convert(small_map_root, SYNTH_VERSION, tmp_path / "out")
+    table = pq.read_table(tmp_path / "out" / "map" / "connectivity")
+    assert table.num_rows == 0
+    assert table.schema.field("incoming").type == table.schema.field("outgoing").type == pa.list_(pa.string())
+    export_json(tmp_path / "out", tmp_path / "back")
+    again = json.loads((tmp_path / "back" / "maps" / "expansion" / path.name).read_text())
+    assert json.dumps(again) == json.dumps(data)
+
+
 @pytest.mark.parametrize("change, expected", [
     (lambda d: d.update(version="1.2"), "map version '1.2' is older than 1.3"),
     (lambda d: d.pop("version"), "map version '1.0' is older than 1.3"),

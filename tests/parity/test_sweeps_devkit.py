@@ -119,3 +119,34 @@ def _radar_dtype(header: bytes) -> np.dtype:
     lines = dict(line.split(" ", 1) for line in header.decode("ascii").splitlines() if " " in line)
     names, sizes, kinds = lines["FIELDS"].split(), lines["SIZE"].split(), lines["TYPE"].split()
     return np.dtype([(n, f"<{k.lower()}{s}") for n, s, k in zip(names, sizes, kinds)])
+
+
+def test_a_radar_file_whose_first_point_holds_a_nan_is_the_devkits_empty_cloud(synth_root, synth_out, tmp_path):
+    """`frame_cloud` reading a radar frame from its file (synth_out has no radar_points/): a NaN in the first point
+    is the devkit's sign of an empty file, and `RadarPointCloud.from_file` returns no point, filters on or off; a NaN
+    in a later point keeps every point (the devkit's shape either way)."""
+    import polars as pl
+    from nuscenes.utils.data_classes import RadarPointCloud
+
+    from nuparquet.frames.sweeps import frame_cloud
+
+    ds = nuparquet.open(synth_out)
+    assert "radar_points" not in ds.datasets  # the cloud is read from the file below
+    row = ds.scan("frames").filter(pl.col("channel").cast(pl.String) == "RADAR_FRONT").head(1).collect() \
+        .row(0, named=True)
+    data = (synth_root / row["filename"]).read_bytes()
+    head = data.index(b"DATA binary\n") + len(b"DATA binary\n")
+    for nan_at in (0, 1):
+        points = np.frombuffer(data[head:-1], dtype=_radar_dtype(data[:head])).copy()
+        assert len(points) > 2
+        points["ambig_state"], points["invalid_state"], points["dyn_prop"] = 3, 0, 1  # every filter passes
+        points["vx"][nan_at] = np.nan
+        path = tmp_path / str(nan_at) / row["filename"]
+        path.parent.mkdir(parents=True)
+        path.write_bytes(data[:head] + points.tobytes() + data[-1:])
+        expected = RadarPointCloud.from_file(str(path)).points.T
+        assert len(expected) == (0 if nan_at == 0 else len(points))
+        for filters in (True, False):
+            ours, names = frame_cloud(ds, row, "radar", tmp_path / str(nan_at), radar_filters=filters)
+            assert ours.shape == expected.shape and len(names) == expected.shape[1], (nan_at, filters)
+            np.testing.assert_array_equal(ours, expected)
