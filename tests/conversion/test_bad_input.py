@@ -272,6 +272,41 @@ def test_allow_dangling_warns_of_each_dangling_reference_and_count_by_file_recor
         (f, i) for f, i, *_ in expected if f != "object_ann.json")
 
 
+def test_allow_dangling_conversion_counts_each_dangling_field_in_the_manifest_and_a_warning_line(root, tmp_path):
+    """`convert(allow_dangling=True)` in the test's process: manifest.json `dangling` counts the findings by table and
+    field, with their totals, as the walk of the JSON in plain Python (`trimmed_shapes.expected_findings`) and the
+    edits made here count them, and one warning line says each count (singular for one)."""
+    from collections import Counter
+
+    import nuparquet
+    from trimmed_shapes import expected_findings
+
+    annotations = load(root, "sample_annotation")
+    for i in (2, 5):
+        annotations[i]["instance_token"] = "f" * 32
+    save(root, "sample_annotation", annotations)
+    sample_data = load(root, "sample_data")
+    sample_data[3]["ego_pose_token"] = ""
+    save(root, "sample_data", sample_data)
+    references, counts = expected_findings(root / V)
+    by_field = {("sample_annotation", "instance_token", "instance"): 2,
+                ("sample_data", "ego_pose_token", "ego_pose"): 1}
+    assert Counter((t, f, target) for t, f, target, *_ in references) == by_field
+    assert counts  # the instances that lost their annotations: their nbr_annotations disagree
+
+    manifest = nuparquet.convert(root, V, tmp_path / "out", allow_dangling=True)
+    reported = manifest["dangling"]
+    assert {(e["table"], e["field"], e["target"]): e["count"] for e in reported["references"]} == by_field
+    assert reported["total_references"] == 3
+    assert {(e["table"], e["field"]): e["count"] for e in reported["count_mismatches"]} == \
+        dict(Counter((t, f) for t, f, *_ in counts))
+    assert reported["total_count_mismatches"] == len(counts)
+    accepted = "(accepted with --allow-dangling; each is listed in findings/)"
+    warnings = manifest["warnings"]
+    assert f"sample_annotation.json: 2 instance_token references name no instance record {accepted}" in warnings
+    assert f"sample_data.json: 1 ego_pose_token reference names no ego_pose record {accepted}" in warnings
+
+
 def test_allow_dangling_still_checks_every_count_when_a_counted_table_is_missing(root):
     """Everything at once: without scene.json the scene count cannot be checked, but the instance count still is;
     both the missing table (a problem) and the wrong nbr_annotations (a warning) are reported."""

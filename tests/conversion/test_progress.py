@@ -67,6 +67,19 @@ def test_the_steps_name_every_table_read_then_the_integrity_check_and_end_with_t
     assert steps[-1] == "write manifest" and steps.count("write manifest") == 1
 
 
+def test_validate_steps_name_every_table_read_then_the_integrity_check(synth_root):
+    """`validate`'s bar (the CLI's `validate` draws it): each table of the version folder read, by its name, then the
+    integrity check, named as the conversion names it, and nothing after it; the bar ends finished."""
+    tables = sorted(path.stem for path in (synth_root / SYNTH_VERSION).glob("*.json"))
+    events = []
+    assert not nuparquet.validate(synth_root, SYNTH_VERSION, on_progress=events.append).problems
+    steps = [e.step for e in events if e.step]
+    reads = steps[:-1]
+    assert all(s.startswith("read ") for s in reads) and sorted(s.removeprefix("read ") for s in reads) == tables
+    assert steps[-1] == "check integrity"
+    assert {e.task for e in events} == {"validate"} and events[-1].finished
+
+
 def test_allow_dangling_on_a_dataset_with_nothing_dangling_counts_no_batch_of_rows_of_no_scene(tmp_path):
     """`--allow-dangling` looks for per-sample rows of no scene in every per-sample table (samples by their token,
     the others by sample_token): a clean dataset has none, so its total is the same as without the option."""

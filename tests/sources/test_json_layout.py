@@ -81,3 +81,16 @@ def test_the_generator_tables_come_back_byte_for_byte(synth_root, synth_out, tmp
     version = json.loads(version.read_text())["source"]["version"]
     for path in sorted((synth_root / version).glob("*.json")):
         assert (tmp_path / "back" / version / path.name).read_bytes() == path.read_bytes(), path.name
+
+
+def test_a_file_whose_last_bytes_begin_inside_a_utf8_character_is_detected(tmp_path):
+    """Text written unescaped (`ensure_ascii=False`, as tools outside Python's defaults write names and descriptions)
+    can put the start of the last 16 bytes, which `detect` reads for the closing bracket, inside a multi-byte
+    character: the layout is still that of the first record and the closing bracket, not a UnicodeDecodeError."""
+    records = [{"token": "a", "description": "plain"},
+               {"token": "b", "description": "Stra\u00dfe \u00e9\u00e9\u00e9\u00e9\u00e9!"}]
+    text = json.dumps(records, indent=2, ensure_ascii=False) + "\n"
+    data = text.encode("utf-8")
+    assert data[-16] & 0xC0 == 0x80  # the 16th byte from the end continues a character
+    (tmp_path / "t.json").write_bytes(data)
+    assert json_layout.detect(tmp_path / "t.json") == {"indent": 2, "newline": True}

@@ -53,8 +53,11 @@ def test_each_record_keeps_its_key_order():
 
 def test_null_list_elements_stay_null():
     records = [{"v": [1.0, None]}, {"v": [0.5, 2.0]}]
-    _, back = round_trip(records)
+    columns, back = round_trip(records)
     assert back == records
+    # every list as long (2): a fixed-size list as without the null (test_types_and_exact_round_trip), the null kept
+    assert columns.table.schema.field("v").type == pa.list_(pa.float64(), 2)
+    assert columns.table.column("v").to_pylist() == [[1.0, None], [0.5, 2.0]]
 
 
 @pytest.mark.parametrize("records, message, index", [
@@ -67,6 +70,16 @@ def test_values_that_cannot_convert_are_problems(records, message, index):
     columns, problems = to_columns(records, Located(["can_bus/x.json"], [0]), "message")
     assert columns is None and problems
     assert problems[0].file == "can_bus/x.json" and message in problems[0].message and problems[0].index == index
+
+
+def test_every_field_with_an_integer_outside_int64_is_named_not_only_the_first():
+    records = [{"a": 1, "b": 2.5, "c": 3}, {"a": 2**63, "b": "x", "c": -2**63 - 1}, {"a": 2, "b": 1.0, "c": 4}]
+    columns, problems = to_columns(records, Located(["f.json"], [0]), "message")
+    assert columns is None
+    assert [(p.index, p.message) for p in problems] == [
+        (1, f"message field 'a': integer {2**63} is outside int64"),
+        (1, "message field 'b' is a str where the others hold float values"),
+        (1, f"message field 'c': integer {-2**63 - 1} is outside int64")]
 
 
 def test_integers_and_floats_count_as_one_kind_against_the_others():
