@@ -179,6 +179,30 @@ def test_every_input_file_comes_back_byte_for_byte_whatever_its_shape(tmp_path):
         assert again == source, path
 
 
+def test_export_json_of_a_file_kind_it_cannot_write_refuses_naming_the_kind_and_the_kinds_it_knows(synth_out, tmp_path):
+    """A manifest listing a file of a kind this nuparquet does not know (written by a newer one): refused before
+    anything is written, naming the kind, every kind it can write back and the fix."""
+    from nuparquet.errors import FormatError
+
+    converted = tmp_path / "converted"
+    converted.mkdir()
+    for child in synth_out.iterdir():
+        if child.name != "manifest.json":
+            (converted / child.name).symlink_to(child, target_is_directory=child.is_dir())
+    manifest = json.loads((synth_out / "manifest.json").read_text())
+    manifest["files"].append({"path": "radar_tracks/scene-0001.json", "kind": "radar_tracks", "dataset": "tables/scene"})
+    (converted / "manifest.json").write_text(json.dumps(manifest))
+    with pytest.raises(FormatError, match=r"lists files of kind radar_tracks, which this nuparquet cannot write back "
+                                          r"\(known: .*\); upgrade nuparquet$") as error:
+        export_json(converted, tmp_path / "back")
+    known = str(error.value).split("(known: ")[1].split(")")[0].split(", ")
+    # the kinds the conversion writes (docs/CONTRACTS.md, conversion/pipeline.py and the CAN bus and map builders)
+    assert sorted(known) == sorted(["table", "table_inferred", "can_bus_messages", "can_bus_meta", "can_bus_route",
+                                    "map_expansion"])
+    assert {f["kind"] for f in manifest["files"]} - {"radar_tracks"} <= set(known)
+    assert not (tmp_path / "back").exists()
+
+
 def test_export_json_into_the_converted_dataset_is_refused_naming_it(synth_out):
     from nuparquet.errors import UsageError
 

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import polars as pl
 import pytest
@@ -142,12 +143,28 @@ def test_frames_given_by_token_must_exist_and_keep_their_order(synth_out):
     ds = nuparquet.open(synth_out)
     tokens = ds.scan("frames").select("token").head(3).collect()["token"].to_list()[::-1]
     assert ds.frame_rows(tokens).collect()["token"].to_list() == tokens
+    assert ds.frame_rows(tokens[1]).collect()["token"].to_list() == [tokens[1]]  # one token, not its characters
     with pytest.raises(UsageError, match="no frame \\(sample_data\\) 'nope'"):
         ds.boxes([tokens[0], "nope"])
+    missing = [f"missing-{i}" for i in range(6)]  # six missing: the first five named, then "..."
+    with pytest.raises(UsageError, match=r"^no frame \(sample_data\) 'missing-0', 'missing-1', 'missing-2', "
+                                         r"'missing-3', 'missing-4' \.\.\. in "):
+        ds.frame_rows([tokens[0], *missing])
     with pytest.raises(ValueError, match="visibility must be one of any, all, none"):
         ds.boxes(tokens, visibility="some")
     with pytest.raises(ValueError, match="at must be one of global, ego, sensor"):
         ds.boxes(tokens, at="camera")
+
+
+def test_annotations_in_file_order_are_the_annotations_in_sample_annotation_json_record_order(synth_root, synth_out):
+    """The devkit lists a sample's boxes in sample_annotation.json's record order; the annotations dataset itself is
+    sorted by scene and time, so the order comes from the source table."""
+    records = json.loads((synth_root / SYNTH_VERSION / "sample_annotation.json").read_text())
+    ds = nuparquet.open(synth_out)
+    ours = ds.annotations_in_file_order().collect()
+    assert ours["token"].to_list() == [r["token"] for r in records]
+    assert ours["token"].to_list() != ds.scan("annotations").select("token").collect()["token"].to_list()
+    assert ours.columns == ds.scan("annotations").collect_schema().names()  # the annotations' own columns
 
 
 def test_the_map_of_a_location_is_read_once_and_refuses_unknown_lanes(synth_out):

@@ -166,6 +166,7 @@ def test_track_stats_equal_python_walk_of_each_instance(case):
             (instance["nbr_annotations"], duration_s, length_m))
     ours = rows_by(queries.track_stats(ds).collect(), "category_name")
     assert set(ours) == set(per_category)
+    assert list(ours) == sorted(per_category)  # one row per category, by name
     for category, tracks in per_category.items():
         row = ours[category]
         assert row["num_tracks"] == len(tracks)
@@ -174,6 +175,17 @@ def test_track_stats_equal_python_walk_of_each_instance(case):
             assert row[f"{name}_mean"] == pytest.approx(statistics.fmean(values), abs=1e-9)
             assert row[f"{name}_median"] == pytest.approx(statistics.median(values), abs=1e-9)
             assert row[f"{name}_max"] == pytest.approx(max(values), abs=1e-9)
+
+
+def test_track_stats_by_scene_count_each_instance_in_the_scene_of_its_first_annotation_sorted(case):
+    source, ds = case
+    annotation = source.by_token["sample_annotation"]
+    expected = Counter((source.scene_of_sample[annotation[i["first_annotation_token"]]["sample_token"]]["name"],
+                        source.category_of_instance[i["token"]]) for i in source.t["instance"])
+    ours = queries.track_stats(ds, by_scene=True).collect()
+    assert ours.select("scene_name", "category_name").rows() == sorted(expected)  # by scene, then category
+    assert dict(zip(zip(ours["scene_name"], ours["category_name"]), ours["num_tracks"])) == expected
+    assert len({scene for scene, _ in expected}) > 1
 
 
 def test_scene_summary_equals_python_walk_of_each_scene(case):

@@ -1,6 +1,7 @@
 """The lidarseg / panoptic queries of nuparquet.queries.points against numpy over the label files themselves
 (`lidarseg/*.bin`: one uint8 class index a point; `panoptic/*.npz`: one uint16 `index * 1000 + instance id`), on
-the labelled synthetic set's cached conversion, in the test's process. The devkit comparisons of the same
+the labelled synthetic set's cached conversion, in the test's process; and points_in_boxes against the
+devkit's points_in_box over the same lidar keyframes. The devkit comparisons of the same
 queries are in tests/parity/test_points_queries_devkit.py (on a conversion of their own)."""
 
 from __future__ import annotations
@@ -125,3 +126,38 @@ def test_panoptic_instance_stats_and_per_frame_equal_numpy(ds, source):
     assert panoptic_instances_per_frame(ds).collect().row(0) == pytest.approx((per_frame.mean(), per_frame.std()),
                                                                               rel=1e-12)
     assert per_frame.std() > 0
+
+
+def test_points_in_boxes_are_the_devkits_points_in_box_over_each_annotations_lidar_keyframe(ds, labelled_root):
+    """`points_in_boxes` (not a label query, but a query of the same points): one row per annotation, counted in the
+    LIDAR_TOP keyframe of its sample, as the devkit counts it: `points_in_box` of the box moved into the sensor
+    frame (`get_sample_data`'s moves, with the keyframe's ego pose and calibration) over `LidarPointCloud.from_file`."""
+    from nuscenes.utils.data_classes import Box, LidarPointCloud
+    from nuscenes.utils.geometry_utils import points_in_box
+    from pyquaternion import Quaternion
+
+    from nuparquet.queries.points import points_in_boxes
+
+    def table(name):
+        return {r["token"]: r for r in json.loads((labelled_root / SYNTH_VERSION / f"{name}.json").read_text())}
+
+    sensor, calibration, pose = table("sensor"), table("calibrated_sensor"), table("ego_pose")
+    keyframe = {sd["sample_token"]: sd for sd in table("sample_data").values() if sd["is_key_frame"]
+                and sensor[calibration[sd["calibrated_sensor_token"]]["sensor_token"]]["channel"] == "LIDAR_TOP"}
+    clouds = {}
+    expected = {}
+    for token, annotation in table("sample_annotation").items():
+        sd = keyframe[annotation["sample_token"]]
+        if sd["token"] not in clouds:
+            clouds[sd["token"]] = LidarPointCloud.from_file(str(labelled_root / sd["filename"])).points[:3]
+        box = Box(annotation["translation"], annotation["size"], Quaternion(annotation["rotation"]))
+        for moved in (pose[sd["ego_pose_token"]], calibration[sd["calibrated_sensor_token"]]):
+            box.translate(-np.array(moved["translation"]))
+            box.rotate(Quaternion(moved["rotation"]).inverse)
+        expected[token] = (sd["token"], int(points_in_box(box, clouds[sd["token"]]).sum()), annotation["num_lidar_pts"])
+    ours = points_in_boxes(ds)
+    assert ours.columns == ["annotation_token", "sample_data_token", "category_name", "points_in_box", "num_lidar_pts"]
+    assert sorted(ours["annotation_token"].to_list()) == sorted(expected)  # one row per annotation, no sweep
+    got = {row[0]: (row[1], row[3], row[4]) for row in ours.iter_rows()}
+    assert got == expected
+    assert sum(n for _, n, _ in expected.values()) > 0 and len(clouds) > 3
