@@ -734,3 +734,87 @@ def test_point_colours_and_legend_classes_are_the_devkits(nusc, ds, sample):
         else:  # panoptic: the stuff classes, of the filter when one is given
             assert legend_classes(labels, mode, None, names) == stuff_cat_ids(len(nusc.lidarseg_name2idx_mapping))
             assert legend_classes(labels, mode, [17, 24, 25], names) == [24, 25]
+
+
+# --- map drawing details --------------------------------------------------------------------------------------------
+
+# the devkit draws map lines with plt.plot's default width (rcParams lines.linewidth: 1.5 pt), 2.08 px at matplotlib's
+# default 100 dpi, on a figure about as many pixels wide as the pictures here (render_centerlines: canvas_edge / 200
+# inches at 100 dpi, 1000 px for a 2 km map). OpenCV's anti-aliased lines ink wider than their thickness (1: 1.35 px,
+# 2: 3.4 px, 3: 5.4 px); the pictures' lines must be at least as visible as the devkit's and at most twice as wide.
+DEVKIT_LINE_PX = 1.5 * 100 / 72
+
+
+def _line_width_px(image_rgb: np.ndarray, length_px: float) -> float:
+    """The mean width of the one line drawn over white in `image_rgb`: its ink (each pixel's share of the line's
+    colour, the darkest pixel's, anti-aliasing included) over its length."""
+    total = image_rgb.astype(np.float64).sum(axis=2)
+    ink = (765 - total) / (765 - total.min())
+    return float(ink.sum() / length_px)
+
+
+def test_map_lines_and_centrelines_are_at_least_as_wide_as_the_devkits_line_and_at_most_twice(ds, nusc_map):
+    """A lane divider (draw_layers, as render_map_patch and render_layers draw line layers) and a lane's centreline
+    (render_centerlines) are each drawn at least as wide as the devkit's plt.plot line and at most twice as wide."""
+    import shapely
+
+    from nuparquet.rendering.map_canvas import MapCanvas
+    from nuparquet.rendering.map_views import draw_layers
+
+    divider = max(nusc_map.lane_divider, key=lambda r: nusc_map.extract_line(r["line_token"]).length)
+    line = nusc_map.extract_line(divider["line_token"])
+    cx, cy = np.asarray(line.interpolate(0.5, normalized=True).coords)[0]
+    canvas = MapCanvas.create((cx - 2, cy - 2, cx + 2, cy + 2), 400)  # 100 px/m
+    draw_layers(canvas, ds.map(nusc_map.map_name), ["lane_divider"], 1.0, tokens=[divider["token"]])
+    length_px = line.intersection(canvas.box).length * canvas.px_per_m
+    assert length_px > 300
+    assert DEVKIT_LINE_PX <= _line_width_px(canvas.image, length_px) <= 2 * DEVKIT_LINE_PX
+
+    lanes = [p[:, :2] for p in nusc_map.discretize_centerlines(0.5) if len(p) > 4]
+    centre = max(lanes, key=len)
+    cx, cy = centre[len(centre) // 2]
+    extent = (cx - 1, cy - 1, cx + 1, cy + 1)  # 2 m square: no other lane's centreline (lanes are ~3.5 m apart)
+    picture = single.render_centerlines(ds, nusc_map.map_name, extent=extent, size_px=400)  # 200 px/m
+    drawn = [shapely.LineString(p).intersection(shapely.box(*extent)).length for p in lanes]
+    assert sum(d > 0 for d in drawn) == 1
+    assert DEVKIT_LINE_PX <= _line_width_px(picture, max(drawn) * 200) <= 2 * DEVKIT_LINE_PX
+
+
+def test_a_layer_without_records_has_no_shapes(ds, nusc_map):
+    """A map with no record of a layer (a location without walkways): layer_geometries gives no shape, as for a box
+    no record meets; the records of a layer that has them are the devkit's, in file order."""
+    import shapely
+
+    from nuparquet.map.lookup import _Layer
+    from nuparquet.map.queries import MapLayers
+    from nuparquet.rendering.map_canvas import layer_geometries
+
+    def wkt(geometry) -> str:
+        return shapely.to_wkt(shapely.normalize(geometry), rounding_precision=3)
+
+    layers = MapLayers.open(ds, nusc_map.map_name)  # a map of its own: ds.map's is shared with the other tests
+    assert [wkt(g) for g in layer_geometries(layers, "walkway")] == [
+        wkt(nusc_map.extract_polygon(r["polygon_token"])) for r in nusc_map.walkway]
+    far = shapely.box(-1e6, -1e6, -1e6 + 1, -1e6 + 1)
+    assert len(layer_geometries(layers, "walkway", far)) == 0
+    layers.layers["walkway"] = _Layer(np.empty(0, object), np.empty(0, object))
+    for box in (None, far):
+        shapes = layer_geometries(layers, "walkway", box)
+        assert shapes.shape == (0,), box
+
+
+def test_clipping_behind_the_camera_is_the_devkits(nusc):
+    """clip_behind_camera walks a polygon's edges as the devkit's _clip_points_behind_camera: points behind the near
+    plane dropped, each crossing edge ending on it; a polygon wholly behind gives no point, as a (3, 0) array."""
+    from nuscenes.map_expansion.map_api import NuScenesMapExplorer
+
+    from nuparquet.rendering.map_in_image import NEAR_PLANE_M, clip_behind_camera
+
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        points = np.c_[rng.uniform(-5, 5, (6, 2)), rng.uniform(-3, 6, 6)].T  # (3, 6), some behind the camera
+        expected = NuScenesMapExplorer._clip_points_behind_camera(points, NEAR_PLANE_M)
+        np.testing.assert_allclose(clip_behind_camera(points), expected, atol=1e-12)
+    behind = np.array([[0.0, 1.0, 1.0], [0.0, 0.0, 1.0], [-1.0, -2.0, -0.5]])
+    assert NuScenesMapExplorer._clip_points_behind_camera(behind, NEAR_PLANE_M).size == 0
+    assert clip_behind_camera(behind).shape == (3, 0)

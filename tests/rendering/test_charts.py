@@ -93,3 +93,32 @@ def test_class_distribution_bars_and_labels_are_each_categorys_counts(tmp_path, 
     assert [t.get_text() for t in ax.get_yticklabels()] == [r["category_name"] for r in order]
     labels = [(t.get_position(), t.get_text()) for t in ax.texts]
     assert labels == [((r["num_annotations"], y + 0.2), f" {r['num_annotations']:,}") for y, r in enumerate(order)]
+
+
+def test_points_per_box_prints_each_categorys_share_of_empty_boxes_above_its_box(tmp_path, figures):
+    """One box per category (by name), whiskers at p5/p95, box p25-p75, median line; above each box, centred on it
+    and above the highest whisker, the share of its boxes with no point, as a whole percentage."""
+    rows = [("vehicle.car", [0, 1, 3, 8, 20, 55], 5.0, 0.25), ("human.pedestrian.adult", [0, 0, 0, 2, 4, 9], 1.5, 0.5),
+            ("movable_object.barrier", [2, 4, 6, 9, 14, 30], 8.0, 0.0)]
+    stats = {"category_name": [name for name, *_ in rows]}
+    for k, key in enumerate(("p05", "p25", "p50", "p75", "p95", "max")):
+        stats[f"lidar_{key}"] = [float(p[k]) for _, p, _, _ in rows]
+    stats["lidar_mean"] = [mean for _, _, mean, _ in rows]
+    stats["lidar_zero_share"] = [share for *_, share in rows]
+    charts.plot_points_per_box(pl.DataFrame(stats), tmp_path / "points.png")
+    ax = figures[-1].axes[0]
+    by_name = sorted(rows)
+    assert [t.get_text() for t in ax.get_xticklabels()] == [name for name, *_ in by_name]
+    top = max(p[4] for _, p, _, _ in rows)  # the highest p95
+    texts = [(t.get_position(), t.get_text(), t.get_horizontalalignment()) for t in ax.texts]
+    assert texts == [((x, top * 1.6), f"{round(100 * share)}%", "center")
+                     for x, (*_, share) in enumerate(by_name, start=1)]
+    assert ax.get_ylim()[1] == top * 3  # room for the shares
+
+
+def test_lidarseg_counts_without_labelled_points_say_so(tmp_path, figures):
+    """Classes with no point are left out; when no class has a point the chart says "no labelled points"."""
+    counts = pl.DataFrame({"index": [0, 17], "name": ["noise", "vehicle.car"], "points": [0, 0]})
+    charts.plot_lidarseg_counts(counts, tmp_path / "lidarseg.png")
+    ax = figures[-1].axes[0]
+    assert [t.get_text() for t in ax.texts] == ["no labelled points"] and not ax.patches

@@ -94,3 +94,12 @@ def test_the_caption_text_lies_inside_its_darkened_band_in_every_corner():
         assert _changed_box(image) == band, corner
         white_rows = np.nonzero(_white(image).any(axis=1))[0]
         assert band[0] + 2 <= white_rows.min() and white_rows.max() < band[1] - 2, corner  # a margin inside the band
+
+
+def test_a_legend_without_a_corner_sits_top_left():
+    """draw_legend's default corner is the top-left one, 6 px in from both edges (the corners asked for sit alike)."""
+    entries = [("vehicle.car", (255, 158, 0)), ("flat.driveable_surface", (0, 207, 191))]
+    image = draw_legend(_picture(), entries, font_scale=0.5)
+    top, bottom, left, right = _changed_box(image)
+    assert (top, left) == (6, 6) and bottom < 120 and right < 200
+    assert np.array_equal(image, draw_legend(_picture(), entries, corner="top-left", font_scale=0.5))

@@ -275,3 +275,17 @@ def test_clip_mode_keeps_every_box_the_devkit_mode_draws(synth_out):
     devkit = build_overlay(_tile_cameras(loaded, size), _boxes(loaded))
     assert np.all(np.diff(clipped.row_start) >= np.diff(devkit.row_start))
     assert np.isfinite(clipped.segments_px[clipped.keep]).all()
+
+
+def test_boxes_are_antialiased_unless_told_not_to():
+    """draw_boxes' default (antialias=True) draws OpenCV's anti-aliased lines: a slanted edge in pure red on black
+    leaves pixels of partial red; antialias=False draws hard 8-connected lines, every pixel red or black."""
+    corners = np.array([[[20, 30], [170, 60], [180, 170], [30, 150]] * 2], dtype=float)  # slanted edges
+    segments = draw.box_segments_px(corners)
+    smooth = draw.draw_boxes(np.zeros((200, 200, 3), np.uint8), segments, [(255, 0, 0)])
+    hard = draw.draw_boxes(np.zeros((200, 200, 3), np.uint8), segments, [(255, 0, 0)], antialias=False)
+    for image in (smooth, hard):
+        assert (image[..., :2] == 0).all() and (image[..., 2] == 255).sum() > 300  # red (BGR) lines on black
+    assert set(np.unique(hard[..., 2]).tolist()) == {0, 255}
+    partial = (smooth[..., 2] > 0) & (smooth[..., 2] < 255)
+    assert partial.sum() > 200
