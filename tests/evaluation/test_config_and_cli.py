@@ -190,8 +190,7 @@ def test_tp_curves_are_drawn_where_the_devkits_are(devkit):
     import matplotlib.pyplot as plt
     import numpy as np
     from nuscenes.eval.common.config import config_factory
-    from nuscenes.eval.detection.data_classes import DetectionMetricData, DetectionMetricDataList
-    from nuscenes.eval.detection.data_classes import DetectionMetrics as TheirMetrics
+    from nuscenes.eval.detection import data_classes as their
     from nuscenes.eval.detection.render import class_tp_curve as their_curve
 
     from nuparquet.evaluation.metrics import DetectionMetrics, MetricData
@@ -207,18 +206,19 @@ def test_tp_curves_are_drawn_where_the_devkits_are(devkit):
                   "confidence": np.where(np.arange(101) <= reached, np.linspace(1, 0.01, 101), 0.0),
                   **{m: rng.uniform(0.05, 1.5, 101) for m in errors}}
         assert (round(100 * config.min_recall) <= reached) == (name == "barrier")  # the two cases
-        theirs = TheirMetrics(their_config)
+        theirs = their.DetectionMetrics(their_config)
         for metric, value in errors.items():
             theirs.add_label_tp(name, metric, value)
-        md_list = DetectionMetricDataList()
-        md_list.set(name, config.dist_th_tp, DetectionMetricData(**arrays))
+        md_list = their.DetectionMetricDataList()
+        md_list.set(name, config.dist_th_tp, their.DetectionMetricData(**arrays))
         drawn = []
-        for draw in (lambda ax: class_tp_curve(ax, MetricData(**arrays), DetectionMetrics(config, {}, {name: errors}),
-                                               name, config.min_recall),
-                     lambda ax: their_curve(md_list, theirs, name, their_config.min_recall, their_config.dist_th_tp,
-                                            ax=ax)):
+        for ours in (True, False):
             fig, ax = plt.subplots()
-            draw(ax)
+            if ours:
+                class_tp_curve(ax, MetricData(**arrays), DetectionMetrics(config, {}, {name: errors}), name,
+                               config.min_recall)
+            else:
+                their_curve(md_list, theirs, name, their_config.min_recall, their_config.dist_th_tp, ax=ax)
             drawn.append(([(line.get_xydata().tolist(), line.get_label()) for line in ax.get_lines()], ax.get_ylim()))
             plt.close(fig)
         assert drawn[0] == drawn[1]
