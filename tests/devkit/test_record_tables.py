@@ -90,6 +90,10 @@ def test_token_index_finds_rows_and_refuses_what_is_not_there():
         with pytest.raises(KeyError):
             index.find(missing)
     assert index.find_all(np.array([b"b" * 32, b"x" * 32, b"c" * 32])).tolist() == [2, -1, 0]
+    empty = TokenIndex(token_bytes(pa.array([], pa.string())))  # a table with no rows: every token is absent
+    with pytest.raises(KeyError):
+        empty.find("a" * 32)
+    assert empty.find_all(np.array([b"a" * 32, b"b" * 32])).tolist() == [-1, -1]
     varied = token_bytes(pa.chunked_array([pa.array(["ab", "c"]), pa.array(["defg"])]))
     assert varied.tolist() == [b"ab", b"c", b"defg"]
 

@@ -149,3 +149,78 @@ def test_a_split_missing_from_splits_json_is_refused_listing_the_splits_it_has(t
     (folder / "splits.json").write_text(json.dumps(["scene-0001"]))
     with pytest.raises(UsageError, match=r"\(it lists: none\)"):
         split_scene_names("rain", dataroot=str(tmp_path), version="v1.0-custom")
+
+
+@pytest.mark.parametrize("field, value, accepted", [
+    ("min_recall", 0, True), ("min_recall", 1, True), ("min_recall", -0.01, False), ("min_recall", 1.01, False),
+    ("min_precision", 0, True), ("min_precision", 0.99, True), ("min_precision", -0.01, False),
+])
+def test_the_clips_are_accepted_within_the_devkits_bounds(field, value, accepted):
+    """min_recall in [0, 1] and min_precision in [0, 1): the devkit's calc_ap asserts exactly these bounds
+    (`0 <= min_recall <= 1`, `0 <= min_precision < 1`), so a file it evaluates is not refused here."""
+    from nuparquet.evaluation.config import DetectionConfig
+
+    content = {**_cvpr(), field: value}
+    if accepted:
+        assert getattr(DetectionConfig.from_dict(content), field) == value
+    else:
+        with pytest.raises(UsageError, match=f"{field} must be in"):
+            DetectionConfig.from_dict(content)
+
+
+def test_evaluate_takes_an_opened_dataset_as_it_takes_its_path(submissions, eval_out):
+    """`evaluate(dataset, ...)` with a `Dataset` from nuparquet.open gives what `evaluate(path, ...)` gives."""
+    import nuparquet
+
+    by_path = evaluate(eval_out, results=submissions["noisy"], split="val", plots=False)
+    opened = evaluate(nuparquet.open(eval_out), results=submissions["noisy"], split="val", plots=False)
+    assert {k: v for k, v in opened.summary.items() if k != "eval_time"} == \
+        {k: v for k, v in by_path.summary.items() if k != "eval_time"}
+    assert opened.details == by_path.details
+
+
+def test_tp_curves_are_drawn_where_the_devkits_are(devkit):
+    """`class_tp_curve` draws on an Axes what the devkit's `render.class_tp_curve` draws: a curve per TP metric up to
+    the highest recall reached, none (label "n/a") for a metric undefined for the class (barrier: vel_err,
+    attr_err are NaN), and none (label "nan") for every metric when the recall never reached min_recall (the devkit's
+    calc_tp then gives 1.0, a number): the same lines, labels and y limit."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from nuscenes.eval.common.config import config_factory
+    from nuscenes.eval.detection import data_classes as their
+    from nuscenes.eval.detection.render import class_tp_curve as their_curve
+
+    from nuparquet.evaluation.metrics import DetectionMetrics, MetricData
+    from nuparquet.evaluation.plots import class_tp_curve
+
+    config, their_config = named_config("detection_cvpr_2019"), config_factory("detection_cvpr_2019")
+    rng = np.random.default_rng(5)
+    for name, reached, errors in (("barrier", 60, {"trans_err": 0.3, "scale_err": 0.2, "orient_err": 0.1,
+                                                   "vel_err": np.nan, "attr_err": np.nan}),
+                                  ("car", 7, dict.fromkeys(("trans_err", "vel_err", "scale_err", "orient_err",
+                                                            "attr_err"), 1.0))):
+        arrays = {"recall": np.linspace(0, 1, 101), "precision": rng.uniform(0, 1, 101),
+                  "confidence": np.where(np.arange(101) <= reached, np.linspace(1, 0.01, 101), 0.0),
+                  **{m: rng.uniform(0.05, 1.5, 101) for m in errors}}
+        assert (round(100 * config.min_recall) <= reached) == (name == "barrier")  # the two cases
+        theirs = their.DetectionMetrics(their_config)
+        for metric, value in errors.items():
+            theirs.add_label_tp(name, metric, value)
+        md_list = their.DetectionMetricDataList()
+        md_list.set(name, config.dist_th_tp, their.DetectionMetricData(**arrays))
+        drawn = []
+        for ours in (True, False):
+            fig, ax = plt.subplots()
+            if ours:
+                class_tp_curve(ax, MetricData(**arrays), DetectionMetrics(config, {}, {name: errors}), name,
+                               config.min_recall)
+            else:
+                their_curve(md_list, theirs, name, their_config.min_recall, their_config.dist_th_tp, ax=ax)
+            drawn.append(([(line.get_xydata().tolist(), line.get_label()) for line in ax.get_lines()], ax.get_ylim()))
+            plt.close(fig)
+        assert drawn[0] == drawn[1]
+        curves = [xy for xy, label in drawn[0][0] if not label.startswith("_")]  # not the max-recall line
+        assert len(curves) == 5 and sum(len(xy) > 0 for xy in curves) == (3 if name == "barrier" else 0)

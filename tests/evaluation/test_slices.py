@@ -194,3 +194,25 @@ def test_slice_labels_follow_the_bins_in_order(sliced):
     assert distance == ["0-10m", "10-20m", "20-30m", "30-40m", "40-50m"]
     points = sliced["num_lidar_pts"][0].slices["slice"].to_list()
     assert points == ["0-5", "5-20", "20+"]
+
+
+def test_a_slice_holding_only_predictions_is_listed():
+    """A distance bin that no ground-truth box falls in but a prediction does (a false positive 25 m away) is a
+    slice of its own: its predictions count against it (AP 0), so it is listed, in the bins' order; a prediction
+    charged to every slice (EVERY_SLICE) names no slice, and nor does a box before the first edge (None)."""
+    from nuparquet.evaluation.slices import EVERY_SLICE, dimension
+
+    common = {"gt_annotations": pl.DataFrame(), "gt_attribute": np.array([], object),
+              "pred_attribute": np.array([], object), "gt_sample": np.zeros(2, np.int64),
+              "pred_sample": np.zeros(3, np.int64), "sample_scene": pl.DataFrame(),
+              "pred_matched_gt": np.array([0, -1, -1])}
+    distance = dimension("distance", gt_ego_distance_m=np.array([5.0, 3.0]),
+                         pred_ego_distance_m=np.array([5.5, 25.0, 2.0]), bins=None, **common)
+    assert distance.labels == ("0-10m", "20-30m")
+    later = dimension("distance", gt_ego_distance_m=np.array([15.0, 15.0]),
+                      pred_ego_distance_m=np.array([15.0, 12.0, 4.0]), bins=(10.0, 20.0, 30.0), **common)
+    assert later.labels == ("10-20m",) and later.pred_label[2] is None  # 4 m is before the first edge
+    gt_annotations = pl.DataFrame({"vehicle": ["van", "van"]})
+    vehicle = dimension("vehicle", gt_ego_distance_m=np.zeros(2), pred_ego_distance_m=np.zeros(3),
+                        bins=None, **{**common, "gt_annotations": gt_annotations})
+    assert vehicle.labels == ("van",) and vehicle.pred_label.tolist() == ["van", EVERY_SLICE, EVERY_SLICE]

@@ -124,3 +124,19 @@ def test_cameras_given_as_comma_separated_text_are_the_channels_in_that_order():
     assert IndexOptions(out="o", cameras=("CAM_BACK", "CAM_FRONT")).cameras == ("CAM_BACK", "CAM_FRONT")
     with pytest.raises(UsageError, match="--cameras must name at least one camera channel"):
         IndexOptions(out="o", cameras=" , ")
+
+
+@pytest.mark.parametrize("fields, parquet_step", [({}, True), ({"parquet": False}, False),
+                                                  ({"info_version": 1}, False)])
+def test_progress_counts_the_steps_it_names(synth_out, tmp_path, fields, parquet_step):
+    """The progress total is the number of steps reported, known from the start: reading, computing and splitting,
+    then per split the pickle and, for v2 infos with `parquet` (the default), the Parquet rows. v1 infos write no
+    Parquet whatever `parquet` says, so they have no such step (a bar that ends at 4 of 5 would look stuck)."""
+    events = []
+    build_index(synth_out, IndexOptions(out=str(tmp_path / "o"), version="v1.0-test", **fields),
+                on_progress=events.append)
+    steps = [e.step for e in events if e.step]
+    assert steps == ["read tables", "compute", "splits", *(["parquet test"] if parquet_step else []), "write test"]
+    assert {e.total for e in events} == {len(steps)}
+    assert events[-1].finished and events[-1].done == len(steps)
+    assert (tmp_path / "o" / "infos").exists() == parquet_step

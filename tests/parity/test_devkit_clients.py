@@ -330,3 +330,35 @@ def test_the_renderers_not_served_name_the_devkit_call_that_draws_them(synth_roo
             assert f"nuscenes.nuscenes.NuScenesExplorer(nusc).{name}(...) also accepts this object" in message
             assert message.startswith(f"{name} ")
             assert ("nuparquet render OUT --scene NAME" in message) == (name != "render_egoposes_on_map")
+
+
+def test_our_render_sample_data_takes_the_devkits_arguments_in_order_and_shows_by_default(synth_root, synth_out,
+                                                                                          monkeypatch):
+    """`render_sample_data` of our NuScenes and its explorer take the devkit's arguments positionally (token,
+    with_anns, box_vis_level, ...), draw what `nuparquet.rendering.single` draws with them, and, as the devkit's
+    `verbose=True` default does, show the figure when called with no out_path or ax (plt.show once per call)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import nuparquet
+    from nuparquet.rendering import single
+
+    ours = NuScenes(SYNTH_VERSION, dataroot=str(synth_root), parquet=synth_out, verbose=False)
+    ds = nuparquet.open(synth_out)
+    camera = ours.sample[1]["data"]["CAM_FRONT"]
+    without = single.render_sample_data(ds, camera, with_anns=False, dataroot=synth_root)
+    with_boxes = single.render_sample_data(ds, camera, dataroot=synth_root)
+    assert not np.array_equal(without, with_boxes)  # the synthetic camera sees boxes: with_anns matters
+    shown = []
+    monkeypatch.setattr(plt, "show", lambda *args, **kwargs: shown.append(plt.gcf().number))
+    try:
+        for owner in (ours, ours.explorer):
+            assert np.array_equal(owner.render_sample_data(camera, False, "any", verbose=False), without)
+            assert not shown
+            assert np.array_equal(owner.render_sample_data(camera), with_boxes)  # verbose=True: shown
+            assert len(shown) == 1
+            shown.clear()
+    finally:
+        plt.close("all")

@@ -290,3 +290,33 @@ def test_map_pointcloud_to_image_gives_the_devkits_points(request, devkit):
                 assert_same([ours[0], ours[1], ours[2].size], [theirs[0], theirs[1], theirs[2].size])
                 seen += ours[0].shape[1]
     assert seen > 1000
+
+
+def test_point_clouds_render_their_height_and_intensity_as_the_devkits(dk_utils):
+    """`PointCloud.render_height` / `render_intensity` scatter the points through `view`, coloured by z (row 2) and
+    by intensity (row 3), with the devkit's limits: the same offsets, colour values and axis limits as the devkit's
+    on the same (4, N) lidar points (intensity unlike z, so the two colourings differ)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    D = dk_utils["data_classes"]
+    rng = np.random.default_rng(8)
+    points = np.vstack([rng.uniform(-25, 25, (2, 40)), rng.uniform(-2, 3, (1, 40)),
+                        rng.uniform(0, 255, (1, 40))]).astype(np.float32)
+    view = np.array([[0.5, 0.2, 0, 1], [-0.2, 0.5, 0, -2], [0, 0, 1, 0], [0, 0, 0, 1]])
+    drawn = {}
+    for cls in (data_classes.LidarPointCloud, D.LidarPointCloud):
+        for method, kwargs in (("render_height", {}), ("render_intensity", {}),
+                               ("render_intensity", {"view": view, "x_lim": (-5, 8), "y_lim": (-9, 4),
+                                                     "marker_size": 3})):
+            fig, ax = plt.subplots()
+            getattr(cls(points.copy()), method)(ax, **kwargs)
+            (scatter,) = ax.collections
+            drawn.setdefault(cls, []).append((scatter.get_offsets().tolist(), np.asarray(scatter.get_array()).tolist(),
+                                              scatter.get_sizes().tolist(), ax.get_xlim(), ax.get_ylim()))
+            plt.close(fig)
+    ours, theirs = drawn[data_classes.LidarPointCloud], drawn[D.LidarPointCloud]
+    assert ours == theirs
+    assert ours[0][1] == points[2].tolist() and ours[1][1] == points[3].tolist()
