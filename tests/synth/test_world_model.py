@@ -17,7 +17,7 @@ from pyquaternion import Quaternion
 
 from conftest import SYNTH_VERSION
 from nuparquet.synth import road, synthesize, world
-from nuparquet.synth.rigid import quat_from_matrix, quat_to_matrix
+from nuparquet.synth.rigid import box_corners, quat_from_matrix, quat_to_matrix
 
 
 def _tables(root, *names):
@@ -63,6 +63,57 @@ def test_can_bus_yaw_rates_follow_the_heading_of_the_ego_poses(tmp_path):
             checked += len(records)
             fastest = max(fastest, float(np.abs(expected).max()))
     assert checked > 400 and fastest > 0.2  # the scenes turn: the rates are not all near zero
+
+
+# The real CAN bus files' field names, in the order they write them (sorted), as read from the nuScenes extract's
+# scene-0523 and scene-0916 files (checked against them by the next test where ../shared is present): the devkit's
+# NuScenesCanBus and nuparquet's reader take these names as they are, so a generator's key in another case would be
+# another field (another column) for every reader.
+REAL_FIELDS = {
+    "pose": ["accel", "orientation", "pos", "rotation_rate", "utime", "vel"],
+    "ms_imu": ["linear_accel", "q", "rotation_rate", "utime"],
+    "steeranglefeedback": ["utime", "value"],
+    "vehicle_monitor": ["available_distance", "battery_level", "brake", "brake_switch", "gear_position",
+                        "left_signal", "rear_left_rpm", "rear_right_rpm", "right_signal", "steering",
+                        "steering_speed", "throttle", "utime", "vehicle_speed", "yaw_rate"],
+}
+
+
+def test_real_can_bus_files_have_the_fields_the_generator_is_held_to(extract_root):
+    for path in sorted((extract_root / "can_bus").glob("scene-*_*.json")):
+        message = path.stem.split("_", 1)[1]
+        if message in REAL_FIELDS:
+            assert all(list(r) == REAL_FIELDS[message] for r in json.loads(path.read_text())), path.name
+
+
+def test_can_bus_messages_have_the_real_files_field_names_in_their_order(tmp_path):
+    """The module's promise: the real files' field names and key order, case included, in every message."""
+    root = _turning_dataset(tmp_path)
+    checked = 0
+    for path in sorted((root / "can_bus").glob("scene-*_*.json")):
+        message = path.stem.split("_", 1)[1]
+        if message in REAL_FIELDS:
+            records = json.loads(path.read_text())
+            assert records and all(list(r) == REAL_FIELDS[message] for r in records), path.name
+            checked += 1
+    assert checked == 2 * len(REAL_FIELDS)  # two scenes of three have CAN bus data
+
+
+def test_the_accelerator_pedal_is_released_while_the_car_slows_down(tmp_path):
+    """zoe_veh_info's pedal_cc (accelerator pedal position) and the drive torques follow the car's longitudinal
+    acceleration, as in a real car: released (0) in every message where the car slows down (longitudinal_accel < 0),
+    pressed in some where it speeds up; regenerative braking (regen) only while it slows down."""
+    root = _turning_dataset(tmp_path)
+    slowing = speeding = 0
+    for path in sorted((root / "can_bus").glob("scene-*_zoe_veh_info.json")):
+        for r in json.loads(path.read_text()):
+            if r["longitudinal_accel"] < 0:
+                slowing += 1
+                assert r["pedal_cc"] == 0 and r["meanEffTorque"] == 0 and r["requestedTorqueAfterProc"] == 0, r
+            else:
+                assert r["regen"] == 0, r
+                speeding += r["pedal_cc"] > 0
+    assert slowing > 100 and speeding > 100
 
 
 # -- logs -------------------------------------------------------------------------------------------------------
@@ -143,6 +194,27 @@ def test_objects_of_a_row_do_not_overlap_seen_from_above(row):
         assert np.all((s_m >= 50.0) & (s_m <= 50.0 + length_m)), (row.name, length_m, s_m)
 
 
+def test_every_annotation_lies_within_the_annotation_radius_of_the_ego_car_at_its_sample(tmp_path):
+    """The module's promise: an object is annotated at the samples where it is within its annotation radius (at most
+    ANNOTATION_RADIUS_M[1]) of the ego car. Measured on the written tables, in the ground plane, from the ego pose of
+    the sample's LIDAR_TOP keyframe (taken at the sample's time); the scenes' cars move, so a sample's ego position
+    is not the scene's first or last."""
+    root = _turning_dataset(tmp_path)
+    t = _tables(root, "sample", "sample_data", "ego_pose", "sample_annotation", "calibrated_sensor", "sensor")
+    lidar = {s["token"] for s in t["sensor"] if s["channel"] == "LIDAR_TOP"}
+    lidar_calibrations = {c["token"] for c in t["calibrated_sensor"] if c["sensor_token"] in lidar}
+    poses = {p["token"]: p for p in t["ego_pose"]}
+    ego_at = {sd["sample_token"]: np.array(poses[sd["ego_pose_token"]]["translation"][:2]) for sd in t["sample_data"]
+              if sd["is_key_frame"] and sd["calibrated_sensor_token"] in lidar_calibrations}
+    assert len(ego_at) == len(t["sample"])
+    distance = np.array([np.linalg.norm(np.array(a["translation"][:2]) - ego_at[a["sample_token"]])
+                         for a in t["sample_annotation"]])
+    assert distance.size > 300 and distance.max() <= world.ANNOTATION_RADIUS_M[1] + 0.01, distance.max()
+    first = [ego_at[s["token"]] for s in t["sample"] if s["prev"] == ""]
+    last = [ego_at[s["token"]] for s in t["sample"] if s["next"] == ""]
+    assert max(np.linalg.norm(a - b) for a, b in zip(first, last)) > 30.0  # a car drives tens of metres
+
+
 class _Draws:
     """Stands in for the generator's rng in `_tracks`: hands out the given uniform draws in the order asked (cut
     or not, a cut track's new start, its new end, single or not), each broadcast to the number of objects."""
@@ -215,6 +287,21 @@ def test_quat_from_matrix_equals_pyquaternion_in_every_branch_and_at_diagonal_ti
         assert abs(np.linalg.norm(ours) - 1.0) < 1e-12 and ours[0] >= 0.0
         np.testing.assert_allclose(quat_to_matrix(ours), m, atol=1e-12)
     assert ties > 20
+
+
+def test_box_corners_are_the_devkits_box_corners():
+    """`box_corners` gives the devkit's `Box.corners()`, in its order, for boxes of every shape (sizes from 0.3 m
+    cones to 18 m buses, wider than long, flat and tall) and random rotations."""
+    from nuscenes.utils.data_classes import Box
+
+    rng = np.random.default_rng(53)
+    center = rng.uniform(-50, 50, (60, 3))
+    wlh = rng.uniform(0.3, 18.0, (60, 3))
+    q = rng.normal(size=(60, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    ours = box_corners(center, wlh, q)
+    for c, size, rotation, corners in zip(center, wlh, q, ours):
+        np.testing.assert_allclose(corners, Box(c, size, Quaternion(rotation)).corners().T, atol=1e-9)
 
 
 def test_a_barrier_stands_along_its_row():
