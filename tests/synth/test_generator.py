@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from pyquaternion import Quaternion
 
 from nuparquet.errors import UsageError
 from nuparquet.synth import synthesize
@@ -134,6 +135,24 @@ def test_prev_next_links_resolve_within_their_table_and_are_mutual(tables):
                 assert records[r["prev"]]["next"] == r["token"], name
             if r["next"]:
                 assert records[r["next"]]["prev"] == r["token"], name
+
+
+def test_a_readings_next_is_the_following_reading_of_its_channel_and_scene(tmp_path):
+    """sample_data's prev and next link each reading to the one just before and after it in time among the readings
+    of its channel in its scene ('' at both ends), the chain the devkit walks. Generated in the test (tables only,
+    ~0.1 s) rather than read from a session fixture: mutation runs map a generator function to the tests it runs in."""
+    root = synthesize(tmp_path / "data", scenes=2, samples_per_scene=3, seed=9, version=SYNTH_VERSION)
+    t = load_tables(root)
+    scene_of = {s["token"]: s["scene_token"] for s in t["sample"]}
+    channel_of = {c["token"]: c["sensor_token"] for c in t["calibrated_sensor"]}
+    readings = defaultdict(list)
+    for sd in t["sample_data"]:
+        readings[(scene_of[sd["sample_token"]], channel_of[sd["calibrated_sensor_token"]])].append(sd)
+    assert len(readings) == 2 * len(NUSCENES_CHANNELS)
+    for chain in readings.values():
+        chain.sort(key=lambda sd: sd["timestamp"])
+        tokens = ["", *(sd["token"] for sd in chain), ""]
+        assert [sd["prev"] for sd in chain] == tokens[:-2] and [sd["next"] for sd in chain] == tokens[2:]
 
 
 def test_scene_and_sample_chains_are_consistent(tables):
@@ -264,6 +283,50 @@ def test_ego_moves_smoothly_at_plausible_speeds(tables):
         t_s = np.array([lidar[t]["timestamp"] for t in tokens]) / 1e6
         speed = np.linalg.norm(np.diff(xy, axis=0), axis=1) / np.diff(t_s)
         assert np.all(speed <= 15.5)
+
+
+def test_lidar_points_lie_on_faces_that_face_the_sensor_none_in_a_box_around_it():
+    """The sensors module's promise: num_lidar_pts points on the sensor-facing faces of each box. A bus standing over
+    the lidar (the sensor inside it: no face faces the sensor) gets none of its 150, and no ground return falls under
+    it; a car 12 m ahead gets its 150, on its faces that face the sensor (rear and top). Checked in the box frames
+    with pyquaternion, from the lidar keyframe's ego pose and calibration."""
+    import dataclasses
+
+    from nuparquet.synth.plan import make_rig
+    from nuparquet.synth.sensors import SceneSensors
+    from nuparquet.synth.timeline import make_timeline
+    from nuparquet.synth.world import build_scene
+
+    rng = np.random.default_rng(79)
+    rig = make_rig(rng)
+    timeline = make_timeline(rng, 1_532_402_927_647_951, 2, rig.channels)
+    scene = build_scene(rng, timeline, True)
+    lidar = [c.name for c in rig.channels].index("LIDAR_TOP")
+    frame = int(np.flatnonzero((timeline.frame_channel == lidar) & timeline.frame_is_key_frame
+                               & (timeline.frame_sample_index == 0))[0])
+    ego = Quaternion(scene.ego_rotation[frame])
+    sensor_m = scene.ego_translation_m[frame] + ego.rotate(rig.ego_from_sensor_translation_m[lidar])
+    ahead_m = scene.ego_translation_m[frame] + ego.rotate([12.0, 0.0, 0.0])
+    centers = np.array([[sensor_m[0], sensor_m[1], 2.0], [ahead_m[0], ahead_m[1], 0.8]])
+    sizes = np.array([[3.0, 12.0, 4.0], [1.9, 4.6, 1.6]])  # a bus 4 m high over the 1.8 m high lidar; a car
+    rotations = np.array([scene.ego_rotation[frame]] * 2)
+    scene = dataclasses.replace(
+        scene, instance_category=scene.instance_category[:2], instance_first_annotation=np.arange(2),
+        instance_n_annotations=np.ones(2, dtype=np.int64), annotation_instance=np.arange(2),
+        annotation_sample=np.zeros(2, dtype=np.int64), annotation_translation_m=centers, annotation_size_m=sizes,
+        annotation_rotation=rotations, annotation_attribute=np.full(2, -1), annotation_visibility=np.full(2, 4),
+        annotation_num_lidar_pts=np.full(2, 150), annotation_num_radar_pts=np.zeros(2, dtype=np.int64))
+    points = SceneSensors(scene, rig, 79, 0).lidar_points(frame)[:, :3]
+    calibration = Quaternion(rig.ego_from_sensor_rotation[lidar])
+    global_m = np.array([ego.rotate(calibration.rotate(p)) for p in points]) + sensor_m
+    local = [np.array([Quaternion(r).inverse.rotate(p - c) for p in global_m]) for c, r in zip(centers, rotations)]
+    half = [np.array([size[1], size[0], size[2]]) / 2 for size in sizes]  # x along the length, y the width
+    inside = [np.all(np.abs(lo) <= h + 1e-6, axis=1) for lo, h in zip(local, half)]
+    assert not inside[0].any()
+    assert inside[1].sum() == 150
+    car = local[1][inside[1]] / half[1]
+    on_rear, on_top = np.isclose(car[:, 0], -0.97, atol=1e-4), np.isclose(car[:, 2], 0.97, atol=1e-4)
+    assert np.all(on_rear | on_top) and on_rear.any() and on_top.any()
 
 
 # -- API and CLI ----------------------------------------------------------------------------------------------

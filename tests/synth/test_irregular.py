@@ -65,23 +65,39 @@ def test_terrain_is_not_flat(t):
     assert np.ptp([a["translation"][2] - a["size"][2] / 2 for a in t["sample_annotation"]]) > 0.3
 
 
-def test_boxes_stand_between_five_centimetres_and_one_and_a_half_metres_in_front_of_cam_front(t):
+def _depths_in_front_of_cam_front(t, sample) -> list[float]:
+    """Depths (cm-rounded) of the sample's boxes within 1 m of CAM_FRONT's optical axis and 2 m in front of it, in
+    the frame of the sample's CAM_FRONT keyframe (pyquaternion on the tables)."""
     channel = channel_of(t)
     pose, calib = by_token(t["ego_pose"]), by_token(t["calibrated_sensor"])
+    sd = next(sd for sd in t["sample_data"] if sd["sample_token"] == sample["token"] and sd["is_key_frame"]
+              and channel[sd["token"]] == "CAM_FRONT")
+    ego, cam = pose[sd["ego_pose_token"]], calib[sd["calibrated_sensor_token"]]
     depths = []
-    for sample in t["sample"]:
-        sd = next(sd for sd in t["sample_data"] if sd["sample_token"] == sample["token"] and sd["is_key_frame"]
-                  and channel[sd["token"]] == "CAM_FRONT")
-        ego, cam = pose[sd["ego_pose_token"]], calib[sd["calibrated_sensor_token"]]
-        for a in t["sample_annotation"]:
-            if a["sample_token"] != sample["token"]:
-                continue
-            p = np.array(a["translation"]) - ego["translation"]
-            p = Quaternion(ego["rotation"]).inverse.rotate(p) - cam["translation"]
-            p = Quaternion(cam["rotation"]).inverse.rotate(p)
-            if abs(p[0]) < 1 and abs(p[1]) < 1 and 0 < p[2] < 2:
-                depths.append(round(float(p[2]), 2))
+    for a in t["sample_annotation"]:
+        if a["sample_token"] != sample["token"]:
+            continue
+        p = np.array(a["translation"]) - ego["translation"]
+        p = Quaternion(ego["rotation"]).inverse.rotate(p) - cam["translation"]
+        p = Quaternion(cam["rotation"]).inverse.rotate(p)
+        if abs(p[0]) < 1 and abs(p[1]) < 1 and 0 < p[2] < 2:
+            depths.append(round(float(p[2]), 2))
+    return depths
+
+
+def test_boxes_stand_between_five_centimetres_and_one_and_a_half_metres_in_front_of_cam_front(t):
+    depths = [d for sample in t["sample"] for d in _depths_in_front_of_cam_front(t, sample)]
     assert {0.05, 0.5, 0.8, 1.2, 1.5} <= set(depths)
+
+
+def test_a_two_sample_scene_has_the_near_boxes_at_both_keyframes(tmp_path):
+    """The module's promise: near boxes at two keyframes per scene (sample 1 and the one before last), which in a
+    scene of two samples are its two samples: each of them holds the five depths in front of CAM_FRONT."""
+    synthesize(tmp_path, scenes=1, samples_per_scene=2, seed=3, version="v", profile="irregular", with_can_bus=False)
+    t = load(tmp_path, "v")
+    assert len(t["sample"]) == 2
+    for sample in t["sample"]:
+        assert {0.05, 0.5, 0.8, 1.2, 1.5} <= set(_depths_in_front_of_cam_front(t, sample)), sample["timestamp"]
 
 
 def test_camera_sweeps_fall_on_ten_hertz_clock_ticks_and_the_first_cam_front_frame_comes_late(t):
