@@ -242,7 +242,11 @@ GROUPS: dict[str, Group] = {
         keyword="not extract", cache_conversions=True),
     "cli": Group(
         ("nuparquet/cli/*.py",),
-        ("tests/cli/", "tests/rendering/test_single_cli.py", "tests/conversion/test_convert.py"),
+        ("tests/cli/", "tests/rendering/test_single_cli.py", "tests/conversion/test_convert.py",
+         # the commands whose CLI tests live beside their library's: eval's printout, one scene's export, the report
+         "tests/evaluation/test_config_and_cli.py::test_the_printout_is_the_devkits_main_for_the_same_summary",
+         "tests/mcap/test_export.py::test_cli_writes_the_file_and_names_bad_input",
+         "tests/site/test_report.py::test_scenes_subset_and_no_videos"),
         keyword="not extract"),
     "synth": Group(  # the generator makes every fixture: its own mutants must make theirs
         ("nuparquet/synth/*.py",),

@@ -381,6 +381,30 @@ def test_stats_table_shows_scenes_visibility_and_lidar_points_per_box_as_counted
             assert row[f"{sensor} zero"] == f"{(counts == 0).mean():.1%}"
 
 
+def test_stats_only_a_section_outside_the_default_prints_its_table_of_annotations_and_instances(run, synth_root,
+                                                                                              synth_out):
+    """--only class_distribution_by_scene (a section a plain `stats` does not compute) prints the categories of
+    each scene: annotations, and instances (distinct instance tokens), counted from the JSON, under the headers
+    'annotations' and 'instances'."""
+    folder = synth_root / SYNTH_VERSION
+    code, stdout, _ = run("stats", synth_out, "--only", "class_distribution_by_scene")
+    assert code == 0
+    scene_name = {s["token"]: s["name"] for s in load(folder, "scene")}
+    sample_scene = {s["token"]: scene_name[s["scene_token"]] for s in load(folder, "sample")}
+    category = {c["token"]: c["name"] for c in load(folder, "category")}
+    category_of = {i["token"]: category[i["category_token"]] for i in load(folder, "instance")}
+    annotations, instances = Counter(), {}
+    for a in load(folder, "sample_annotation"):
+        key = (sample_scene[a["sample_token"]], category_of[a["instance_token"]])
+        annotations[key] += 1
+        instances.setdefault(key, set()).add(a["instance_token"])
+    rows = section(table_sections(stdout), "Categories per scene")
+    assert list(rows[0])[:4] == ["scene_name", "category_name", "annotations", "instances"]
+    assert {(r["scene_name"], r["category_name"]): (int(r["annotations"]), int(r["instances"])) for r in rows} == {
+        key: (n, len(instances[key])) for key, n in annotations.items()}
+    assert len(scene_name) > 1 and any(len(tokens) > 1 for tokens in instances.values())
+
+
 def test_stats_table_counts_annotations_of_unknown_visibility_in_a_v_question_mark_column(run, layouts_root,
                                                                                             layouts_out):
     """An empty visibility token (derived datasets write them) has no level: the terminal table counts such boxes in

@@ -22,6 +22,22 @@ def test_booleans_print_as_true_and_false_and_nulls_as_blank():
     assert table.splitlines() == ["key_frame  n", "---------  -", "true       1", "false      2", "           3"]
 
 
+def test_a_float_column_has_one_precision_set_by_its_largest_finite_magnitude():
+    """3 decimals below 10, 2 from 10 up to 10,000, 1 from 10,000 up (a negative value counts by its size; NaN and
+    infinity do not count), each column on its own. Expected cells written by hand."""
+    df = pl.DataFrame({
+        "small": [1.23456, 9.5, float("nan")],
+        "ten": [10.0, 0.126, 1.0],
+        "below_10k": [9999.5, 0.5, 2.25],
+        "at_10k": [10_000.0, 0.26, 3.0],
+        "negative": [-20_000.26, 1.0, float("inf")],
+    })
+    rows = [line.split() for line in format_table(df).splitlines()[2:]]
+    assert rows == [["1.235", "10.00", "9999.50", "10000.0", "-20000.3"],
+                    ["9.500", "0.13", "0.50", "0.3", "1.0"],
+                    ["nan", "1.00", "2.25", "3.0", "inf"]]
+
+
 @dataclass(frozen=True)
 class _Options:
     scale: float = 1.0

@@ -94,6 +94,42 @@ def test_cli_writes_the_devkits_files_and_plots(submissions, eval_out, tmp_path,
     assert not (out / "plots").exists() and not list(tmp_path.glob(".eval.*"))
 
 
+def test_the_printout_is_the_devkits_main_for_the_same_summary(tmp_path, capsys):
+    """`nuparquet eval` prints what `DetectionEval.main` prints: the devkit's own printing code is run (its
+    evaluation replaced by the summary), so headers, names, formats and column order are compared, not restated.
+    Every number differs, so a swapped or dropped error shows; NaN as the devkit prints the undefined errors."""
+    from nuscenes.eval.detection.evaluate import DetectionEval
+
+    from nuparquet.cli.eval import print_summary
+    from nuparquet.evaluation.classes import TP_METRICS, UNDEFINED_TP_METRICS
+
+    names = ["car", "pedestrian", "traffic_cone", "barrier"]
+    errors = {name: {metric: (float("nan") if metric in UNDEFINED_TP_METRICS.get(name, ()) else
+                              0.1 * (i + 1) + 0.01 * (j + 1) + 0.0004) for j, metric in enumerate(TP_METRICS)}
+              for i, name in enumerate(names)}
+    summary = {"mean_dist_aps": {name: 0.9 - 0.13 * i for i, name in enumerate(names)},
+               "label_tp_errors": errors, "mean_ap": 0.51234, "nd_score": 0.60125, "eval_time": 12.34,
+               "tp_errors": {metric: 0.2 + 0.05 * j for j, metric in enumerate(TP_METRICS)}}
+
+    class Serialized:
+        def __init__(self, value):
+            self.value = value
+
+        def serialize(self):
+            return dict(self.value)
+
+    devkit = DetectionEval.__new__(DetectionEval)  # only main's printing and files: no dataset to load
+    devkit.output_dir, devkit.verbose, devkit.meta = str(tmp_path), False, {}
+    devkit.evaluate = lambda: (Serialized(summary), Serialized({}))
+    capsys.readouterr()
+    devkit.main(render_curves=False)
+    expected = capsys.readouterr().out
+    print_summary(summary)
+    printed = capsys.readouterr().out
+    assert "AOE" in expected and "nan" in expected and f"{errors['car']['attr_err']:.3f}" in expected
+    assert printed == expected
+
+
 def test_cli_names_the_bad_sample_and_exits_1(submissions, eval_out, tmp_path, capsys):
     data = json.loads(submissions["noisy"].read_text())
     token = next(iter(data["results"]))
