@@ -350,8 +350,10 @@ def test_the_map_reaches_the_margin_on_every_side_of_the_route_and_stops_there(s
     bounds = shapely.total_bounds(np.array([g for geoms in geometry.values() for g in geoms], dtype=object))
     assert bounds[0] < box[0] and bounds[1] < box[1] and bounds[2] > box[2] and bounds[3] > box[3]
     out = tmp_path / "map.mcap"
-    export_mcap(synth_points_out, SCENE, McapOptions(out=out, map_margin_m=margin_m, without=(
+    result = export_mcap(synth_points_out, SCENE, McapOptions(out=out, map_margin_m=margin_m, without=(
         "images", "points", "boxes", "can_bus", "transforms")))
+    # every other content left out (no /tf without transforms); the cameras' calibrations stay
+    assert set(result.messages) == {"/map", *(f"/{c}/camera_info" for c in CAMERAS)}
     (item,) = read_messages(out)["/map"]
     points = _assert_map_is_the_json_map_clipped_to(item.message, tables, box)
     np.testing.assert_allclose([*points.min(axis=0), *points.max(axis=0)], box, rtol=0, atol=1e-6)
@@ -388,6 +390,10 @@ def test_lz4_and_keyframe_boxes_and_contents_left_out(synth_points_out, tables, 
     messages = read_messages(out)
     assert [m.log_time_ns // 1000 for m in messages["/markers/annotations"]] == sorted(
         s["timestamp"] for s in tables.samples)
+    # keyframe boxes are the annotations as they are: each box says it is not interpolated
+    flags = [{kv.key: kv.value for kv in e.metadata}["interpolated"] for m in messages["/markers/annotations"]
+             for e in m.message.entities]
+    assert len(flags) == len(tables.annotations) and set(flags) == {"false"}
 
 
 def test_a_missing_file_is_skipped_and_named_or_stops_the_export(synth_points_out, synth_root, tmp_path):

@@ -112,3 +112,6 @@ def test_missing_files_are_counted_in_the_summary_and_warned(synth_root, synth_p
     assert "1 sensor file(s) missing" in capsys.readouterr().err
     entry = json.loads((out_dir / SUMMARY_NAME).read_text())["scenes"]["scene-0001"]
     assert entry["missing"] == 1 and entry["first_missing"] == [str(broken / filename)]
+    # the scene's file is DIR/<scene>.mcap, named so in the summary; nothing else is left in the folder
+    assert sorted(p.name for p in out_dir.iterdir()) == sorted(["scene-0001.mcap", SUMMARY_NAME])
+    assert entry["file"] == "scene-0001.mcap"

@@ -36,7 +36,7 @@ VOID = {"meta", "link", "img", "input", "br", "hr", "source"}
 
 class Page(HTMLParser):
     """Every URL a page refers to (href, src), its tables as lists of rows of cell texts (by table id or the id of
-    the <details> around it), the texts of its headings and paragraphs (`texts["h2"]`, `texts["p"]`), and
+    the <details> around it) and their class attributes (`table_classes`, by the same keys), the texts of its headings and paragraphs (`texts["h2"]`, `texts["p"]`), and
     `problems`: what makes it malformed (an end tag that closes no open element, an element left open, text
     outside any element or directly inside a container)."""
 
@@ -44,6 +44,7 @@ class Page(HTMLParser):
         super().__init__()
         self.urls: list[str] = []
         self.tables: dict[str, list[list[str]]] = {}
+        self.table_classes: dict[str, str] = {}
         self.texts: dict[str, list[str]] = {"h1": [], "h2": [], "p": []}
         self.problems: list[str] = []
         self._open: list[str] = []
@@ -69,8 +70,9 @@ class Page(HTMLParser):
             self._context.append(attrs["id"])
         if tag == "table":
             self._table = []
-            self.tables[attrs.get("id") or (self._context[-1] if self._context else f"table{len(self.tables)}")] = \
-                self._table
+            key = attrs.get("id") or (self._context[-1] if self._context else f"table{len(self.tables)}")
+            self.tables[key] = self._table
+            self.table_classes[key] = attrs.get("class") or ""
         if tag == "tr" and self._table is not None:
             self._table.append([])
         if tag in ("td", "th") and self._table is not None:
@@ -110,6 +112,7 @@ class Tables:
         def table(name):
             return json.loads((root / VERSION / f"{name}.json").read_text())
 
+        self.root = root
         self.scene = {s["name"]: s for s in table("scene")}
         self.log = {lg["token"]: lg for lg in table("log")}
         self.samples = table("sample")
@@ -223,6 +226,18 @@ def test_dataset_facts_count_the_json_tables_and_leave_samples_blank_without_the
     assert without["samples (keyframes)"] == ""
     assert {k: v for k, v in without.items() if k not in ("samples (keyframes)", "datasets")} == \
         {k: v for k, v in facts.items() if k not in ("samples (keyframes)", "datasets")}
+    # the sensors by modality, from sensor.json; "none" for a modality the dataset lacks
+    sensors = json.loads((tables.root / VERSION / "sensor.json").read_text())
+    for modality in ("camera", "lidar", "radar"):
+        expected = {s["channel"] for s in sensors if s["modality"] == modality}
+        assert expected and set(facts[f"{modality}s"].split(", ")) == expected, modality
+    manifest = copy.deepcopy(dataset.manifest)
+    manifest["channels"]["radars"] = []
+    assert dict(dataset_facts(Dataset(dataset.root, manifest)))["radars"] == "none"
+    # the datasets' count and the size of their Parquet files, summed from the folder itself
+    parquet_bytes = sum(p.stat().st_size for p in Path(synth_points_out).rglob("*.parquet"))
+    assert parquet_bytes > 1e5
+    assert facts["datasets"] == f"{len(dataset.manifest['datasets'])} ({parquet_bytes / 1e6:,.1f} MB of Parquet)"
 
 
 def test_statistics_tables_are_the_canned_queries(synth_report, tables):
@@ -339,9 +354,29 @@ def test_scenes_subset_and_no_videos(synth_points_out, tables, tmp_path, capsys)
                                                                         log["date_captured"])
     assert not (out / "videos").exists() and not list((out / "scenes").rglob("*.jpg"))
     assert "no video" in (out / "scenes" / "scene-0002.html").read_text()
+    # report.js sorts the tables of class "sortable": every table of rows (the scene table, each statistics table,
+    # the scene's categories) is one; the facts tables (label, value) are not
+    assert page.table_classes == {"table0": "facts", "table1": "sortable"} and len(page.tables["table1"]) > 1
+    assert index.table_classes["table0"] == "facts" and len(index.table_classes) > 3
+    assert {k: c for k, c in index.table_classes.items() if k != "table0"} == \
+        {k: "sortable" for k in index.table_classes if k != "table0"}
     # no CAN bus: no speed or steering chart (its ego-pose speeds alone are not charted)
     assert not list((out / "scenes" / "scene-0002").glob("*.png"))
     assert "no CAN bus messages for this scene" in (out / "scenes" / "scene-0002.html").read_text()
+
+
+def test_a_report_without_videos_still_charts_the_can_bus(synth_points_out, tables, tmp_path):
+    """--no-videos leaves out the videos and the keyframe renderings, not the CAN bus: scene-0001 (the generator
+    wrote its CAN bus files) gets its speed and steering charts, shown on its page. Built in this test's process."""
+    scene = "scene-0001"
+    assert scene in tables.can_bus
+    result = build_report(synth_points_out, ReportOptions(out=tmp_path / "report", scenes=(scene,), videos=False))
+    charts = sorted((result.out / "scenes" / scene).iterdir())
+    assert [p.name for p in charts] == ["can_speed.png", "steering.png"]
+    assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in charts)
+    page = Page((result.out / "scenes" / f"{scene}.html").read_text())
+    assert sorted(u for u in page.urls if u.endswith(".png")) == [f"{scene}/can_speed.png", f"{scene}/steering.png"]
+    assert "no CAN bus messages" not in (result.out / "scenes" / f"{scene}.html").read_text()
 
 
 def test_existing_output_unknown_scene_and_missing_dataroot_are_refused(synth_points_out, tmp_path, capsys):
@@ -354,6 +389,7 @@ def test_existing_output_unknown_scene_and_missing_dataroot_are_refused(synth_po
     assert main(["report", str(synth_points_out), "--out", str(tmp_path / "r"), "--scenes", "scene-9999"]) == 2
     assert "unknown scene 'scene-9999'; valid scenes: scene-0001, scene-0002" in capsys.readouterr().err
     assert main(["report", str(synth_points_out), "--out", str(synth_points_out / "r")]) == 2
+    assert "/r is inside the converted dataset " in capsys.readouterr().err  # not written into the Parquet's folder
     with pytest.raises(UsageError, match="--no-videos"):
         build_report(synth_points_out, ReportOptions(out=tmp_path / "r", dataroot=tmp_path / "nowhere"))
     assert main(["report", str(synth_points_out), "--out", str(out), "--no-videos", "--quiet", "--overwrite"]) == 0
