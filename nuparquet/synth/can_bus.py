@@ -14,6 +14,10 @@ pose has a gap of exactly 1 s, steeranglefeedback one of 1 s + 1 µs, vehicle_mo
 meta file as the real ones are: keys in mixed case that are not the file names (`SteerAngleFeedback`,
 `ZoeSensors`), `var_stats` with `utime` statistics (integer min/max), an object for ZOE_VEH_INFO and, in scenes of
 odd number, for VEHICLE_MONITOR (null in the others, as in the real extract).
+
+A scene too short for two messages of every stream (vehicle_monitor's 2 Hz: under about 0.54 s of keyframes, so
+one or two samples; twice that with `wild=True`, one of its messages being dropped) gets no CAN bus files, as a
+scene the expansion does not cover.
 """
 
 from __future__ import annotations
@@ -33,6 +37,9 @@ WILD_RATES_HZ = {"zoesensors": 500.0}  # real files: ~958 Hz; halved to keep the
 # Gaps cut into the streams of the wild files (messages dropped): exactly this long, or None for one message missing.
 WILD_GAPS_US = {"pose": 1_000_000, "steeranglefeedback": 1_000_001, "vehicle_monitor": None}
 # The real meta files' keys, in their order: mixed case, not the file names.
+# Messages start this many microseconds after the first sample and end this many before the last ([low, high)).
+START_DELAY_US = (2_000, 15_000)
+END_EARLY_US = (0, 20_000)
 META_KEYS = {"ms_imu": "MS_IMU", "pose": "POSE", "steeranglefeedback": "SteerAngleFeedback",
              "vehicle_monitor": "VEHICLE_MONITOR", "zoe_veh_info": "ZOE_VEH_INFO", "zoesensors": "ZoeSensors"}
 
@@ -94,11 +101,14 @@ def write_scene_can_bus(dataroot: Path, scene_name: str, rng: np.random.Generato
                         *, wild: bool = False) -> None:
     """Write every CAN bus file of one scene into `dataroot/can_bus/` (`wild`: the real files' other shapes, see the
     module's docstring)."""
+    first_us = int(sample_times_us[min(1, len(sample_times_us) - 1)] if wild else sample_times_us[0])
+    slowest_period_us = 1e6 / min(RATES_HZ.values())
+    if int(sample_times_us[-1]) - first_us - START_DELAY_US[1] - END_EARLY_US[1] < slowest_period_us * (2 if wild else 1):
+        return  # too short for two messages of every stream (see the module's docstring)
     folder = dataroot / "can_bus"
     folder.mkdir(exist_ok=True)
-    first_us = int(sample_times_us[min(1, len(sample_times_us) - 1)] if wild else sample_times_us[0])
-    start_us = first_us + int(rng.integers(2_000, 15_000))
-    end_us = int(sample_times_us[-1]) - int(rng.integers(0, 20_000))
+    start_us = first_us + int(rng.integers(*START_DELAY_US))
+    end_us = int(sample_times_us[-1]) - int(rng.integers(*END_EARLY_US))
     messages: dict[str, list[dict]] = {}
     stats: dict[str, dict] = {}
     odd_scene = int(scene_name.rsplit("-", 1)[-1]) % 2 == 1

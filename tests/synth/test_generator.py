@@ -366,3 +366,31 @@ def test_palette_is_the_devkit_colormap():
     assert category_rgb("vehicle.car") == (255, 158, 0)
     unknown = category_rgb("lyft.other_vehicle")
     assert unknown == category_rgb("lyft.other_vehicle") and all(40 <= c <= 215 for c in unknown)
+
+
+@pytest.mark.parametrize("samples", [1, 2])
+def test_scenes_too_short_for_every_can_bus_stream_get_no_can_bus_and_convert(tmp_path, samples):
+    """vehicle_monitor's 2 Hz needs 0.5 s between the first message (2-15 ms after the first sample) and the last
+    (0-20 ms before the last sample) for two messages: scenes of one or two keyframes (0 or 0.5 s) get no CAN bus
+    files (they ended the generator in a numpy error), and convert with the CAN bus skipped."""
+    from nuparquet.conversion import convert
+
+    root = tmp_path / "data"
+    synthesize(root, scenes=1, samples_per_scene=samples, seed=4, version=SYNTH_VERSION)
+    assert not (root / "can_bus").exists()
+    assert len(load_tables(root)["sample"]) == samples
+    manifest = convert(root, SYNTH_VERSION, tmp_path / "out")
+    assert manifest["skipped"]["can_bus"] == "no can_bus/ folder in the dataroot"
+
+
+def test_the_shortest_scene_with_can_bus_has_two_vehicle_monitor_messages(tmp_path):
+    """Three keyframes span 1 s: between 0.965 and 0.998 s of messages, two of vehicle_monitor's (every 0.5 s) and
+    50 or so of pose's, each stream strictly inside the keyframes."""
+    root = tmp_path / "data"
+    synthesize(root, scenes=1, samples_per_scene=3, seed=4, version=SYNTH_VERSION)
+    samples = sorted(r["timestamp"] for r in load_tables(root)["sample"])
+    monitor = json.loads((root / "can_bus" / "scene-0001_vehicle_monitor.json").read_text())
+    pose = json.loads((root / "can_bus" / "scene-0001_pose.json").read_text())
+    assert len(monitor) == 2 and 48 <= len(pose) <= 50
+    for messages in (monitor, pose):
+        assert samples[0] < messages[0]["utime"] and messages[-1]["utime"] <= samples[-1]
