@@ -179,19 +179,24 @@ def test_every_input_file_comes_back_byte_for_byte_whatever_its_shape(tmp_path):
         assert again == source, path
 
 
+def _with_manifest(converted: Path, manifest: dict, where: Path) -> Path:
+    """`converted` linked into `where`, but for its manifest: `manifest` instead."""
+    where.mkdir()
+    for child in converted.iterdir():
+        if child.name != "manifest.json":
+            (where / child.name).symlink_to(child, target_is_directory=child.is_dir())
+    (where / "manifest.json").write_text(json.dumps(manifest))
+    return where
+
+
 def test_export_json_of_a_file_kind_it_cannot_write_refuses_naming_the_kind_and_the_kinds_it_knows(synth_out, tmp_path):
     """A manifest listing a file of a kind this nuparquet does not know (written by a newer one): refused before
     anything is written, naming the kind, every kind it can write back and the fix."""
     from nuparquet.errors import FormatError
 
-    converted = tmp_path / "converted"
-    converted.mkdir()
-    for child in synth_out.iterdir():
-        if child.name != "manifest.json":
-            (converted / child.name).symlink_to(child, target_is_directory=child.is_dir())
     manifest = json.loads((synth_out / "manifest.json").read_text())
     manifest["files"].append({"path": "radar_tracks/scene-0001.json", "kind": "radar_tracks", "dataset": "tables/scene"})
-    (converted / "manifest.json").write_text(json.dumps(manifest))
+    converted = _with_manifest(synth_out, manifest, tmp_path / "converted")
     with pytest.raises(FormatError, match=r"lists files of kind radar_tracks, which this nuparquet cannot write back "
                                           r"\(known: .*\); upgrade nuparquet$") as error:
         export_json(converted, tmp_path / "back")
@@ -220,14 +225,9 @@ def test_export_json_of_a_manifest_without_its_file_list_writes_the_tables_under
     written (its tables would otherwise land at the filesystem's root)."""
     from nuparquet.errors import FormatError
 
-    converted = tmp_path / "converted"
-    converted.mkdir()
-    for child in synth_out.iterdir():
-        if child.name != "manifest.json":
-            (converted / child.name).symlink_to(child, target_is_directory=child.is_dir())
     manifest = json.loads((synth_out / "manifest.json").read_text())
     del manifest["files"]
-    (converted / "manifest.json").write_text(json.dumps(manifest))
+    converted = _with_manifest(synth_out, manifest, tmp_path / "converted")
     written = export_json(converted, tmp_path / "back")
     expected = sorted(p.relative_to(synth_root) for p in (synth_root / SYNTH_VERSION).glob("*.json"))
     assert len(expected) > 10 and sorted(p.relative_to(tmp_path / "back") for p in written) == expected

@@ -187,32 +187,15 @@ def test_boxes_from_above_in_the_sensor_frame_lie_on_the_devkits_sensor_boxes(nu
 
 def test_lidarseg_from_above_takes_the_class_colours_and_the_filter(nusc, ds, sample):
     from nuscenes.lidarseg.lidarseg_utils import paint_points_label
-    from nuscenes.utils.data_classes import LidarPointCloud
 
     token = sample["data"]["LIDAR_TOP"]
     picture = single.render_sample_data(ds, token, with_anns=False, underlay_map=False, show_lidarseg=True)
     _, _, _ = _devkit_flat_view(nusc, token, 1)
-    pc = LidarPointCloud.from_file(os.path.join(nusc.dataroot, nusc.get("sample_data", token)["filename"]))
-    from nuscenes.utils.geometry_utils import transform_matrix, view_points
-    from pyquaternion import Quaternion
-
-    ref = nusc.get("sample_data", token)
-    cs, pose = nusc.get("calibrated_sensor", ref["calibrated_sensor_token"]), nusc.get("ego_pose", ref["ego_pose_token"])
-    yaw = Quaternion(pose["rotation"]).yaw_pitch_roll[0]
-    flat = np.eye(4)
-    flat[:3, :3] = Quaternion(scalar=np.cos(yaw / 2), vector=[0, 0, np.sin(yaw / 2)]).rotation_matrix @ \
-        Quaternion(pose["rotation"]).inverse.rotation_matrix
-    xy = view_points(pc.points[:3], flat @ transform_matrix(cs["translation"], Quaternion(cs["rotation"])), False)[:2].T
     labels_file = os.path.join(nusc.dataroot, nusc.get("lidarseg", token)["filename"])
     colours = np.rint(paint_points_label(labels_file, None, nusc.lidarseg_name2idx_mapping, nusc.colormap)[:, :3]
                       * 255).astype(int)
-    px = np.rint(_top_pixels(xy)).astype(int)
-    keep = _inside(px, picture.shape, 3) & _away_from_corners(px, picture.shape)
-    # points alone in their 3x3 neighbourhood: their pixel shows their own class colour
-    occupancy = np.zeros(picture.shape[:2], np.int32)
-    np.add.at(occupancy, (px[keep, 1], px[keep, 0]), 1)
-    lonely = keep.copy()
-    lonely[keep] = cv2.boxFilter(occupancy.astype(np.float32), -1, (5, 5), normalize=False)[px[keep, 1], px[keep, 0]] == 1
+    # points alone in their 5x5 neighbourhood: their pixel shows their own class colour
+    px, lonely = _keyframe_top_pixels(nusc, token, picture.shape)
     assert lonely.sum() > 200
     assert (picture[px[lonely, 1], px[lonely, 0]] == colours[lonely]).all(axis=1).mean() > 0.98
     # filter_lidarseg_labels keeps the classes asked for, hides the others
