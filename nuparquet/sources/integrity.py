@@ -73,7 +73,8 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED, 
                        + ("must be finite" if f.finite and not f.non_negative else
                           "must be >= 0" if not f.finite else "must be finite and >= 0"))
     problems += _timestamp_units(frames, files)
-    problems += _second_keyframes(frames, files, limit)
+    report("sample_data", _second_keyframes(frames), lambda r: f"is a second keyframe of {r['_channel']} for sample "
+           f"{r['sample_token']} (the first is {r['_first']}): a sample holds one keyframe per channel")
     for table, count_field, referring, ref_field in _COUNTS:
         if table not in frames or referring not in frames or not references:
             continue
@@ -85,30 +86,26 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED, 
     return problems
 
 
-def _second_keyframes(frames: dict[str, pl.DataFrame], files: dict[str, str], limit: int) -> list[Problem]:
-    """A sample holds one keyframe per sensor: the devkit's `sample['data']` keeps one token per channel (the last
-    in file order) and every per-sample pairing here takes that one, so a second keyframe of a sensor in a sample
-    would make them disagree. Each keyframe after the first is a problem naming the first."""
+def _second_keyframes(frames: dict[str, pl.DataFrame]) -> pl.DataFrame:
+    """The keyframes after a sample's first of the same sensor (_idx, token, sample_token, _channel, _first).
+
+    A sample holds one keyframe per sensor: the devkit's `sample['data']` keeps one token per channel (the last in
+    file order) and every per-sample pairing here takes that one, so a second keyframe would make them disagree."""
     if "sample_data" not in frames or "calibrated_sensor" not in frames:
-        return []
+        return pl.DataFrame()
     keyframes = (frames["sample_data"].filter(pl.col("is_key_frame"))
                  .join(frames["calibrated_sensor"].select(pl.col("token").alias("calibrated_sensor_token"),
                                                           "sensor_token"),
                        on="calibrated_sensor_token", how="inner")  # a dangling calibration is reported on its own
                  .sort("_idx"))
     if keyframes.select("sample_token", "sensor_token").is_duplicated().not_().all():
-        return []
-    channels = (dict(zip(frames["sensor"]["token"].to_list(), frames["sensor"]["channel"].to_list()))
-                if "sensor" in frames else {})
-    later = (keyframes.with_columns(pl.col("token").first().over("sample_token", "sensor_token").alias("_first"))
-             .filter(pl.col("token") != pl.col("_first")))
-    problems = [Problem(files["sample_data"], f"is a second keyframe of {channels.get(r['sensor_token'], r['sensor_token'])} "
-                        f"for sample {r['sample_token']} (the first is {r['_first']}): a sample holds one keyframe per "
-                        "channel", r["_idx"], r["token"]) for r in later.head(limit).iter_rows(named=True)]
-    if later.height > limit:
-        problems.append(Problem(files["sample_data"], f"{later.height - limit} more like the above",
-                                omitted=later.height - limit))
-    return problems
+        return pl.DataFrame()
+    channel = (keyframes.join(frames["sensor"].select(pl.col("token").alias("sensor_token"), pl.col("channel")),
+                              on="sensor_token", how="left", maintain_order="left")["channel"]
+               if "sensor" in frames else keyframes["sensor_token"])
+    return (keyframes.with_columns(channel.fill_null(keyframes["sensor_token"]).alias("_channel"),
+                                   pl.col("token").first().over("sample_token", "sensor_token").alias("_first"))
+            .filter(pl.col("token") != pl.col("_first")))
 
 
 def _out_of_range(df: pl.DataFrame, f) -> pl.DataFrame:
