@@ -11,12 +11,13 @@ Conventions follow nuscenes-devkit and pyquaternion exactly, so results can be c
 
 Modules: `quaternions` (pyquaternion's semantics over arrays), `rigid` (transforms), `boxes` (cuboid corners,
 points in boxes), `projection` (view_points, perspective projection, pixel scaling, the box_in_image rule),
-`camera` (`Cameras`: many pinhole cameras at once), `interpolation` (between two samples, as `get_boxes`).
+`camera` (`Cameras`: many pinhole cameras at once), `cuboids` (`Cuboids`: the one box type), `interpolation` (between two samples, as `get_boxes`).
 The names below are the package's public face.
 """
 
 from nuparquet.geometry.boxes import box_corners, box_half_axes, corners_from_half_axes, count_points_in_boxes
 from nuparquet.geometry.camera import Cameras
+from nuparquet.geometry.cuboids import Cuboids, CuboidRows
 from nuparquet.geometry.interpolation import interp_two_points, slerp_amount
 from nuparquet.geometry.projection import (
     CORNER_MIN_DEPTH_M, NEAR_PLANE_M, box_visibility, perspective, pixels_in_image, scale_intrinsic, scale_pixels,
@@ -29,7 +30,7 @@ from nuparquet.geometry.quaternions import (
 from nuparquet.geometry.rigid import invert_rigid, rigid_transforms, transform_points
 
 __all__ = [
-    "CORNER_MIN_DEPTH_M", "Cameras", "NEAR_PLANE_M", "box_corners", "box_half_axes", "box_visibility",
+    "CORNER_MIN_DEPTH_M", "Cameras", "CuboidRows", "Cuboids", "NEAR_PLANE_M", "box_corners", "box_half_axes", "box_visibility",
     "corners_from_half_axes", "count_points_in_boxes", "heading_from_quaternions", "interp_two_points",
     "invert_quaternions", "invert_rigid", "multiply_quaternions", "normalise_quaternions", "perspective", "pixels_in_image", "quaternion_slerp", "rigid_transforms",
     "rotation_matrices", "scale_intrinsic", "scale_pixels", "slerp_amount", "transform_points",
