@@ -41,7 +41,7 @@ IMAGE_KEYS = ["file_name", "id", "token", "cam2ego_rotation", "cam2ego_translati
 def _both(tmp_path_factory, root, folder, out, version):
     """(our output directory, the re-stated converter's) for the dataroot `root`/`folder` converted to `out`."""
     ours = tmp_path_factory.mktemp("legacy-ours")
-    build_index(out, IndexOptions(out=str(ours), version=version, format="mmdet3d-legacy"))
+    build_index(out, str(ours), IndexOptions(version=version, format="mmdet3d-legacy"))
     return ours, run_restated(tmp_path_factory.mktemp("legacy-ref"), root, folder, version, "v017") / "v017"
 
 
@@ -118,7 +118,7 @@ def test_the_mono3d_file_written_in_chunks_is_still_the_converters_bytes(synthet
     ids counted on across chunks, a last partial chunk): the bytes of the file written in one chunk."""
     ref, _ = synthetic
     monkeypatch.setattr(legacy, "COCO_CHUNK", 7)
-    build_index(lidarseg_out, IndexOptions(out=str(tmp_path), version="v1.0-trainval", format="mmdet3d-legacy"))
+    build_index(lidarseg_out, str(tmp_path), IndexOptions(version="v1.0-trainval", format="mmdet3d-legacy"))
     for split in ("train", "val"):
         name = f"nuscenes_infos_{split}_mono3d.coco.json"
         theirs = (ref / name).read_text()
@@ -131,7 +131,7 @@ def test_the_quirks_are_there(synthetic, lidarseg_root, lidarseg_out, tmp_path):
     """What the byte-for-byte comparison covers, spelled out on the synthetic set (each a plausible slip)."""
     ours, _ = synthetic
     v1_dir = tmp_path / "v1"
-    build_index(lidarseg_out, IndexOptions(out=str(v1_dir), version="v1.0-trainval", info_version=1))
+    build_index(lidarseg_out, str(v1_dir), IndexOptions(version="v1.0-trainval", info_version=1))
     tables = lidarseg_root / SYNTH_VERSION
     size: dict[str, list] = {}
     for ann in json.loads((tables / "sample_annotation.json").read_text()):  # sample['anns'] order
@@ -229,7 +229,7 @@ def test_image_file_names_follow_the_converters_split_on_data_nuscenes(lidarseg_
     the infos' paths keep the prefix, the annotations' file names are the table's."""
     for prefix, relative in (("/mnt/data/nuscenes", True), ("/data/sets/nuscenes", False)):
         out = tmp_path / prefix.replace("/", "_")
-        build_index(lidarseg_out, IndexOptions(out=str(out), version="v1.0-trainval", format="mmdet3d-legacy",
+        build_index(lidarseg_out, str(out), IndexOptions(version="v1.0-trainval", format="mmdet3d-legacy",
                                                data_prefix=prefix, split="val"))
         coco = json.loads((out / "nuscenes_infos_val_mono3d.coco.json").read_text())
         info = pickle.loads((out / "nuscenes_infos_val.pkl").read_bytes())["infos"][0]

@@ -33,8 +33,8 @@ def reference_dir(extract_root) -> Path:
 @pytest.fixture(scope="session")
 def built(extract_out, tmp_path_factory):
     out = tmp_path_factory.mktemp("index")
-    v1 = build_index(extract_out, IndexOptions(out=str(out / "v1"), info_version=1))
-    v2 = build_index(extract_out, IndexOptions(out=str(out / "v2"), info_version=2, corrected=True))
+    v1 = build_index(extract_out, str(out / "v1"), IndexOptions(info_version=1))
+    v2 = build_index(extract_out, str(out / "v2"), IndexOptions(info_version=2, corrected=True))
     return v1, v2
 
 
