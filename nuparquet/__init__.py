@@ -22,7 +22,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-__version__ = "0.1.0"
+from nuparquet.version import __version__  # noqa: F401 - nuparquet.__version__
 
 # name -> (module, attribute): the public face, loaded on first use.
 _PUBLIC = {

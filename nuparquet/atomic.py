@@ -1,7 +1,10 @@
 """Atomic outputs, one convention for every writer: an output (a converted dataset, a JSON export, a video, a
-frames folder, an info file, an index folder) is written as `.<name>.partial-<pid>` beside its target and renamed
-into place only when complete, so a failed or interrupted run never leaves a complete-looking output and never
-touches an existing one unless asked to replace it (`atomic_directory`, `atomic_file`, `write_text_atomic`).
+frames folder, an info file, an index folder, an evaluation, a picture, an MCAP file) is written as
+`.<name>.partial-<pid>` beside its target and renamed into place only when complete, so a failed or interrupted
+run never leaves a complete-looking output and never touches an existing one unless asked to replace it
+(`atomic_directory`, `atomic_file`, `write_text_atomic`, and `move_into_place` for writers that hold their partial
+open themselves: the video and MCAP writers, the frames folder, the engine's commit). This module is the only one
+that renames outputs (`tests/test_architecture.py` checks it).
 
 A run killed with SIGKILL cannot clean up, so the next run for the same target removes what dead processes left
 (`remove_stale`); a live process's partial (another run writing the same target right now) is never touched.
@@ -22,6 +25,15 @@ from nuparquet.errors import EnvironmentFault, UsageError
 def partial_path(target: Path) -> Path:
     """This process's hidden partial for `target`."""
     return target.parent / f".{target.name}.partial-{os.getpid()}"
+
+
+def move_into_place(source: Path, target: Path) -> None:
+    """Rename `source` (a finished partial, or a committed part file) to `target`, replacing a file there: one
+    rename on one file system, so `target` is either the old file or the new one, never a half."""
+    try:
+        os.replace(source, target)
+    except OSError as exc:
+        raise EnvironmentFault(f"{target}: {exc.strerror or exc}") from exc
 
 
 def write_text_atomic(target: Path, text: str) -> None:
@@ -100,9 +112,11 @@ def check_target(out: Path | str, *, overwrite: bool) -> Path:
 
 
 @contextlib.contextmanager
-def atomic_directory(out: Path, *, overwrite: bool) -> Iterator[Path]:
-    """Yield a temporary sibling of `out` to write into; on success it replaces `out` by renames."""
-    out = check_target(out, overwrite=overwrite)
+def atomic_directory(out: Path, *, overwrite: bool, checked: bool = False) -> Iterator[Path]:
+    """Yield a temporary sibling of `out` to write into; on success it replaces `out` by renames. `checked`: the
+    caller refused an unwanted existing `out` itself (an empty folder may be written into, as `eval --out`)."""
+    out = Path(out).absolute() if checked else check_target(out, overwrite=overwrite)
+    overwrite = overwrite or checked
     out.parent.mkdir(parents=True, exist_ok=True)
     remove_stale(out)  # what killed runs left (SIGKILL cannot clean up); a live run's partial stays
     tmp = partial_path(out)

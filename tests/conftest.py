@@ -233,7 +233,7 @@ def synth_report(synth_points_out, tmp_path_factory):
     """`nuparquet report` of every scene of `synth_points_out` (videos and keyframe renderings, one process), and
     its progress events."""
     from nuparquet.engine import EngineOptions
-    from nuparquet.site import ReportOptions, build_report
+    from nuparquet.site import build_report
 
     out = tmp_path_factory.mktemp("report") / "report"
     events = []

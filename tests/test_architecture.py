@@ -116,6 +116,59 @@ def test_the_import_rules_hold():
             assert not {i for i in imported if i.startswith("nuparquet.synth")}, name  # the generator is input
 
 
+ROOT = {"errors", "options", "progress", "problems", "format", "version", "columns", "schemas", "splits", "channels",
+        "atomic"}
+
+
+def _layer(module: str) -> str:
+    """The row of the import table a module belongs to: its package, or "root" for a root module."""
+    parts = module.split(".")
+    if len(parts) == 1:
+        return "nuparquet"
+    return "root" if parts[1] in ROOT else parts[1]
+
+
+def _allowed_imports() -> dict[str, set[str]]:
+    """docs/ARCHITECTURE.md's table: package -> the packages it may import besides the root ("*": any)."""
+    text = (REPO / "docs" / "ARCHITECTURE.md").read_text()
+    table = text[text.index("| package | may import"):].split("\n\n")[0]
+    rows = [line.strip("|").split("|") for line in table.splitlines()[2:]]
+    return {name.strip(): {p.strip() for p in allowed.split(",") if p.strip()} for name, allowed in rows}
+
+
+def test_every_import_follows_an_arrow_of_the_architecture_table():
+    """Every import between packages (functions included) is an arrow of docs/ARCHITECTURE.md's table, and the
+    table names every package of the tree (a new package gets its row, so its arrows are a decision)."""
+    allowed = _allowed_imports()
+    packages = {p.name for p in PACKAGE.iterdir() if p.is_dir() and (p / "__init__.py").exists()}
+    assert sorted(packages - set(allowed)) == [], "packages without a row in docs/ARCHITECTURE.md's import table"
+    wrong = []
+    for name, imported in _graph().items():
+        layer = _layer(name)
+        rule = allowed[layer]
+        for target in imported:
+            other = _layer(target)
+            if other == layer or other == "root" or "*" in rule:
+                continue
+            if other not in rule:
+                wrong.append(f"{name} -> {target}")
+    assert wrong == [], "imports no arrow of docs/ARCHITECTURE.md allows"
+
+
+def test_outputs_are_renamed_into_place_only_by_the_atomic_module():
+    """One convention for atomic outputs (nuparquet/atomic.py): no other module renames files itself, so none
+    invents its own partial names that the stale-partial sweep would not know."""
+    offenders = []
+    for path in PACKAGE.rglob("*.py"):
+        if path.name == "atomic.py" and path.parent == PACKAGE:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and \
+                    node.func.attr in ("replace", "rename") and ast.unparse(node.func.value) == "os":
+                offenders.append(f"{path.relative_to(REPO)}:{node.lineno}")
+    assert offenders == []
+
+
 def test_geometry_imports_numpy_and_nothing_else_but_numba_in_its_compiled_kernels():
     for path in sorted((PACKAGE / "geometry").glob("*.py")):
         tree = ast.parse(path.read_text())

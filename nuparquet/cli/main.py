@@ -9,7 +9,7 @@ import argparse
 import importlib
 import sys
 
-from nuparquet import __version__
+from nuparquet.version import __version__
 from nuparquet.errors import NuparquetError
 
 # Subcommand modules, in the order `--help` lists them.

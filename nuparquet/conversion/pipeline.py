@@ -17,7 +17,7 @@ from typing import Any
 import polars as pl
 import pyarrow as pa
 
-from nuparquet import __version__
+from nuparquet.version import __version__
 from nuparquet.atomic import atomic_directory, check_apart, check_target
 from nuparquet.channels import channel_facts
 from nuparquet.conversion.builder import BuildContext

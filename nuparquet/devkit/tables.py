@@ -17,7 +17,6 @@ binary search and the record's construction; a record already built is one dict 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from nuparquet.devkit.columns import Columns, RecordColumns, nested, read_table

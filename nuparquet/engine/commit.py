@@ -8,10 +8,10 @@ way; a builder then writes its manifest, the render its summary.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from nuparquet.atomic import move_into_place
 from nuparquet.engine.units import UnitOutcome, forget, part_dir
 
 
@@ -34,7 +34,7 @@ def move_parts(outcomes: Sequence[UnitOutcome], parts_dir: Path, dest_dir: Path,
         folder = part_dir(parts_dir, outcome.name)
         for source in sorted(folder.iterdir()) if folder.is_dir() else []:
             target = dest_dir / name(index, outcome.name, source.name)
-            os.replace(source, target)
+            move_into_place(source, target)
             committed.append(target)
         forget(parts_dir, outcome.name)
     return committed

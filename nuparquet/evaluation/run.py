@@ -14,9 +14,7 @@ metrics, slices, outputs) reads top to bottom here; each step's work is in its o
 from __future__ import annotations
 
 import json
-import os
 import re
-import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -286,17 +284,11 @@ def _write_json(path: Path, content: dict) -> None:
 
 def _write(out: Path, result: EvalResult, whole: Evaluation, config: DetectionConfig, *, plots: bool,
            reporter: Reporter) -> None:
-    """Everything into a hidden sibling of `out`, then renamed into place (an existing `out` is replaced)."""
-    from nuparquet.atomic import partial_path, remove_stale
+    """Everything into a hidden sibling of `out`, then renamed into place (`atomic_directory`; `_check_out` refused an
+    `out` holding files without --overwrite)."""
+    from nuparquet.atomic import atomic_directory
 
-    out = out.absolute()
-    out.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale(out)
-    partial = partial_path(out)
-    if partial.exists():
-        shutil.rmtree(partial)
-    partial.mkdir()
-    try:
+    with atomic_directory(out, overwrite=True, checked=True) as partial:
         _write_json(partial / SUMMARY_NAME, result.summary)
         _write_json(partial / DETAILS_NAME, result.details)
         for name, table in (("predictions", result.predictions), ("ground_truth", result.ground_truth)):
@@ -314,13 +306,3 @@ def _write(out: Path, result: EvalResult, whole: Evaluation, config: DetectionCo
             from nuparquet.evaluation.plots import write_plots
 
             write_plots(partial / "plots", whole.data, whole.metrics, config)
-        if out.exists():
-            replaced = out.with_name(f".{out.name}.replaced-{os.getpid()}")
-            os.replace(out, replaced)
-            os.replace(partial, out)
-            shutil.rmtree(replaced, ignore_errors=True)
-        else:
-            os.replace(partial, out)
-    except BaseException:
-        shutil.rmtree(partial, ignore_errors=True)
-        raise

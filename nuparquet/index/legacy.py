@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
+from nuparquet.atomic import atomic_file
 from nuparquet.dataset import Dataset
 from nuparquet.index.cam_instances import CamInstances
 from nuparquet.index.compute import Computed, offsets
@@ -113,8 +114,7 @@ def write_mono3d_coco(path: Path, c: Computed, ci: CamInstances, samples: np.nda
     picked, _ = gather_segments(offsets(ci.sample * n_cam + ci.camera, len(c.inputs.sample_token) * n_cam),
                                 segments)
     categories = [{"id": i, "name": name} for i, name in enumerate(CLASSES)]
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    try:
+    with atomic_file(path) as tmp:
         with open(tmp, "w") as f:
             f.write('{"annotations": [')
             for lo in range(0, len(picked), COCO_CHUNK):
@@ -126,7 +126,4 @@ def write_mono3d_coco(path: Path, c: Computed, ci: CamInstances, samples: np.nda
             f.write('], "categories": ')
             f.write(json.dumps(categories))
             f.write("}")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
     return len(picked)

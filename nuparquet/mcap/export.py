@@ -22,7 +22,7 @@ import numpy as np
 
 from nuparquet.channels import default_camera
 from nuparquet.dataset import as_dataset
-from nuparquet.errors import InputError, UsageError
+from nuparquet.errors import InputError
 from nuparquet.mcap.options import McapOptions, check_target
 from nuparquet.mcap.scene import can_bus_messages, load_scene
 from nuparquet.options import resolve

@@ -10,14 +10,13 @@ host), so the same scene gives the same bytes on every engine.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
-from nuparquet import __version__
-from nuparquet.atomic import partial_path, remove_stale
+from nuparquet.version import __version__
+from nuparquet.atomic import move_into_place, partial_path, remove_stale
 
 _COMPRESSION = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
 LIBRARY = f"nuparquet {__version__}"
@@ -89,7 +88,7 @@ class McapFile:
         self._writer.finish()
         self._stream.close()
         self._stream = None
-        os.replace(self.partial, self.path)
+        move_into_place(self.partial, self.path)
         return self.path.stat().st_size
 
     def abort(self) -> None:

@@ -12,12 +12,11 @@ beside the video.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import polars as pl
 
-from nuparquet.atomic import partial_path, remove_stale
+from nuparquet.atomic import atomic_file
 
 INDEX_NAME = "frames.parquet"
 # Only `sample_data_token` and `timestamp` are ever null (no frame matched the tile).
@@ -38,8 +37,6 @@ def write_index(rows: list[dict], path: Path) -> Path:
     40-frame render."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale(path)
-    partial = partial_path(path)
-    pl.DataFrame(rows, schema=SCHEMA).write_parquet(partial)
-    os.replace(partial, path)
+    with atomic_file(path) as partial:
+        pl.DataFrame(rows, schema=SCHEMA).write_parquet(partial)
     return path

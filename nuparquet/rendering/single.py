@@ -19,13 +19,12 @@ single.save_image(image, "picture.png")
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from nuparquet.atomic import partial_path, remove_stale
+from nuparquet.atomic import atomic_file
 from nuparquet.dataset import as_dataset
 from nuparquet.errors import EnvironmentFault, UsageError
 from nuparquet.options import resolve
@@ -52,16 +51,13 @@ def save_image(image_rgb: np.ndarray, path) -> Path:
     """Write an (H, W, 3) RGB picture as PNG or JPEG (by the suffix), atomically (a hidden partial, then renamed)."""
     path = check_image_path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale(path)
-    partial = partial_path(path)
     ok, data = cv2.imencode(path.suffix.lower(), np.ascontiguousarray(np.asarray(image_rgb)[..., ::-1]))
     if not ok:
         raise EnvironmentFault(f"could not encode {path}")
     try:
-        partial.write_bytes(data.tobytes())
-        os.replace(partial, path)
+        with atomic_file(path) as partial:
+            partial.write_bytes(data.tobytes())
     except OSError as exc:
-        partial.unlink(missing_ok=True)
         raise EnvironmentFault(f"{path}: {exc.strerror or exc}") from exc
     return path
 

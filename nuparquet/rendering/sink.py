@@ -3,7 +3,6 @@ the frame index (`frame_index`) beside the video and in the folder."""
 
 from __future__ import annotations
 
-import os
 import shutil
 
 from concurrent.futures import Executor, Future
@@ -11,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nuparquet.atomic import partial_path, remove_stale
+from nuparquet.atomic import move_into_place, partial_path, remove_stale
 from nuparquet.rendering.decode import write_image
 from nuparquet.rendering.frame_index import INDEX_NAME, index_for_video, write_index
 from nuparquet.rendering.options import existing_frames
@@ -70,13 +69,13 @@ class FrameSink:
         if self._frames_partial is not None:
             self._frames_partial, partial = None, self._frames_partial
             if not self.frames_dir.exists():
-                os.rename(partial, self.frames_dir)
+                move_into_place(partial, self.frames_dir)
                 return
             for old in existing_frames(self.frames_dir):  # --overwrite was given (options.check refuses otherwise)
                 old.unlink()
             (self.frames_dir / INDEX_NAME).unlink(missing_ok=True)
             for new in sorted(partial.iterdir()):
-                os.replace(new, self.frames_dir / new.name)
+                move_into_place(new, self.frames_dir / new.name)
             partial.rmdir()
 
     def abort(self) -> None:

@@ -6,7 +6,6 @@ taking the whole (N, H, W, 3) video as one array, and with `movflags` set on the
 
 from __future__ import annotations
 
-import os
 from fractions import Fraction
 from pathlib import Path
 
@@ -14,7 +13,7 @@ import av
 import cv2
 import numpy as np
 
-from nuparquet.atomic import partial_path, remove_stale
+from nuparquet.atomic import move_into_place, partial_path, remove_stale
 from nuparquet.rendering.options import DEFAULT_CRF, DEFAULT_PRESET
 
 
@@ -105,7 +104,7 @@ class VideoWriter:
         finally:
             self._container.close()
             self._container = None
-        os.replace(self.partial, self.path)
+        move_into_place(self.partial, self.path)
 
     def abort(self) -> None:
         """Close without flushing and delete the partial file."""

@@ -24,7 +24,6 @@ import numpy as np
 import polars as pl
 
 from nuparquet.errors import InputError, UsageError
-from nuparquet.frames.points import FramesNotConverted
 from nuparquet.sources.points import LIDAR_FIELDS
 
 POINTS_DATASETS = {"lidar": "lidar_points", "radar": "radar_points"}
@@ -98,6 +97,8 @@ class SensorReader:
         have = self.converted_columns(modality)
         if not have:
             return None
+        from nuparquet.frames.points import FramesNotConverted  # pyarrow: only when points are converted
+
         read = self.dataset.points if modality == "lidar" else self.dataset.radar_points
         try:  # only columns the dataset has: an unknown column must not read as "frame not converted"
             return read(token, columns=[c for c in columns if c in have])

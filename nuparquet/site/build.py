@@ -23,7 +23,6 @@ when complete (`--overwrite` replaces an existing one).
 from __future__ import annotations
 
 import json
-import shutil
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path

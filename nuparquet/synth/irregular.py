@@ -24,12 +24,12 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import shutil
 from pathlib import Path
 
 import numpy as np
 
+from nuparquet.atomic import move_into_place
 from nuparquet.synth.plan import Rig
 from nuparquet.synth.rigid import rigid_matrix
 from nuparquet.synth.taxonomy import CATEGORY_INDEX, KEYFRAME_INTERVAL_US
@@ -190,5 +190,5 @@ def write_empty_annotation_version(dataroot: Path, version: str) -> str:
         (partial / table.name).write_text(json.dumps([]) if empty else table.read_text())
     if target.exists():
         shutil.rmtree(target)
-    os.replace(partial, target)
+    move_into_place(partial, target)
     return name

@@ -12,7 +12,7 @@ import pytest
 from pyquaternion import Quaternion
 
 from mcap_files import point_fields, read_messages, validate
-from nuparquet.mcap import McapOptions, export_mcap
+from nuparquet.mcap import export_mcap
 
 SYNTH_VERSION = "v1.0-synth"
 REAL_SCENE = "scene-0916"
