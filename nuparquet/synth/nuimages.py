@@ -165,7 +165,7 @@ def _polygon(rng: np.random.Generator, centre, radius) -> np.ndarray:
 def _paint(image_bgr: np.ndarray, polygon: np.ndarray, name: str) -> np.ndarray:
     mask = np.zeros((HEIGHT, WIDTH), np.uint8)
     cv2.fillPoly(mask, [polygon], 1)
-    r, g, b = CATEGORY_RGB.get(name, (128, 128, 128))
+    r, g, b = (int(0.6 * v) for v in CATEGORY_RGB.get(name, (128, 128, 128)))  # darker: an overlay shows on it
     image_bgr[mask == 1] = (b, g, r)
     return mask
 
