@@ -10,7 +10,8 @@ nuparquet.render(ds, "scene-0061", out="scene-0061.mp4", channel="all")
 
 The verbs are the CLI's commands under the same names, with the same defaults: `convert`, `validate`,
 `export_json` (export-json), `synthesize` (synth), `render` and `render_scenes` (render), `build_index` (index),
-`evaluate` (eval), `export_mcap` and `export_mcap_scenes` (export-mcap), `report` (report).
+`evaluate` (eval), `export_mcap` and `export_mcap_scenes` (export-mcap), `report` (report), `export_coco`
+(export-coco: a nuImages conversion's COCO file).
 Each takes its options as an options object (`ConvertOptions`, ...) or as keyword fields. Everything loads on
 first use, so `import nuparquet` (and the CLI) stays light. The packages that hold the verbs are named for what
 they hold (`conversion/`, `rendering/`, ...), never like a verb: importing `nuparquet.render` would otherwise
@@ -38,6 +39,8 @@ _PUBLIC = {
     "export_mcap": ("nuparquet.mcap.export", "export_mcap"),
     "export_mcap_scenes": ("nuparquet.mcap.batch", "export_scenes"),
     "report": ("nuparquet.site.build", "build_report"),
+    "export_coco": ("nuparquet.export.coco", "export_coco"),
+    "CocoOptions": ("nuparquet.export.coco_options", "CocoOptions"),
     "ConvertOptions": ("nuparquet.conversion.options", "ConvertOptions"),
     "EngineOptions": ("nuparquet.engine.options", "EngineOptions"),
     "EvalOptions": ("nuparquet.evaluation.options", "EvalOptions"),
@@ -59,8 +62,8 @@ _PUBLIC = {
 
 __all__ = [
     "open", "Dataset", "convert", "validate", "export_json", "synthesize", "render", "render_scenes", "build_index",
-    "evaluate", "export_mcap", "export_mcap_scenes", "report",
-    "ConvertOptions", "EngineOptions", "EvalOptions", "IndexOptions", "McapOptions", "RenderOptions", "ReportOptions",
+    "evaluate", "export_mcap", "export_mcap_scenes", "report", "export_coco",
+    "CocoOptions", "ConvertOptions", "EngineOptions", "EvalOptions", "IndexOptions", "McapOptions", "RenderOptions", "ReportOptions",
     "SceneSelection", "SynthOptions",
     "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError", "EnvironmentFault", "ProblemsFound",
     "UnitsFailed",
@@ -98,6 +101,8 @@ if TYPE_CHECKING:  # for readers and type checkers; at run time the names load o
     from nuparquet.evaluation.options import EvalOptions
     from nuparquet.evaluation.run import evaluate
     from nuparquet.errors import EnvironmentFault, FormatError, InputError, NuparquetError, QueryError, UsageError
+    from nuparquet.export.coco import export_coco
+    from nuparquet.export.coco_options import CocoOptions
     from nuparquet.export.json_files import export_json
     from nuparquet.index.build import build_index
     from nuparquet.index.options import IndexOptions

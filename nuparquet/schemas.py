@@ -207,6 +207,19 @@ def table_schemas() -> dict[str, Schema]:
     return {s.name: s for s in sorted(schemas, key=lambda s: (s.optional, s.name))}
 
 
+# Source tables of other dataset families, by family: `schemas/<family>/tables/*.json` (the formats of
+# `nuparquet.conversion.formats` that are not nuScenes-shaped: nuImages).
+FAMILIES = ("nuimages",)
+
+
+@functools.cache
+def family_table_schemas(family: str) -> dict[str, Schema]:
+    """The source tables of a dataset family other than nuScenes (`FAMILIES`), by name."""
+    if family not in FAMILIES:
+        raise KeyError(f"no source tables for {family!r} (known: {', '.join(FAMILIES)})")
+    return {s.name: s for s in (_load(p) for p in sorted((_schema_dir() / family / "tables").glob("*.json")))}
+
+
 @functools.cache
 def dataset_schemas() -> dict[str, Schema]:
     """The derived datasets (frames, annotations, scenes, instances, sample_can_bus, points, the map), by name
@@ -262,7 +275,10 @@ def docs_markdown() -> str:
     """Schema documentation, generated from the schema files."""
     out = ["# nuparquet datasets", "", f"Generated from `schemas/` (format version {FORMAT_VERSION}) by "
            "`python -m nuparquet.schemas --docs`. Do not edit by hand.", ""]
-    for title, group in (("Derived datasets", dataset_schemas()), ("Source tables (`tables/<name>`)", table_schemas())):
+    groups = [("Derived datasets", dataset_schemas()), ("Source tables (`tables/<name>`)", table_schemas())]
+    groups += [(f"{family} source tables (`tables/<name>` of a {family} conversion)", family_table_schemas(family))
+               for family in FAMILIES]
+    for title, group in groups:
         out += [f"## {title}", ""]
         for s in group.values():
             out += [f"### `{s.name}`", "", s.doc, ""]

@@ -227,7 +227,8 @@ def test_the_front_door_lists_the_face_and_every_name_resolves():
 
     assert nuparquet.__all__ == [
         "open", "Dataset", "convert", "validate", "export_json", "synthesize", "render", "render_scenes",
-        "build_index", "evaluate", "export_mcap", "export_mcap_scenes", "report", "ConvertOptions", "EngineOptions",
+        "build_index", "evaluate", "export_mcap", "export_mcap_scenes", "report", "export_coco", "CocoOptions",
+        "ConvertOptions", "EngineOptions",
         "EvalOptions", "IndexOptions", "McapOptions", "RenderOptions", "ReportOptions", "SceneSelection", "SynthOptions",
         "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError",
         "EnvironmentFault", "ProblemsFound", "UnitsFailed"]

@@ -29,7 +29,18 @@ def test_every_nuscenes_table_and_derived_dataset_has_a_schema():
                                     "lidarseg", "panoptic"}
     assert set(dataset_schemas()) == {"frames", "annotations", "scenes", "instances", "lidar_points", "radar_points",
                                       "sample_can_bus", "map/<layer>", "map/<lane layer>", "map/lane_centerlines",
-                                      "findings"}
+                                      "findings", "objects", "surfaces"}
+
+
+def test_every_nuimages_table_has_a_schema_and_its_references_name_one():
+    from nuparquet.schemas import family_table_schemas
+
+    schemas = family_table_schemas("nuimages")
+    assert set(schemas) == {"attribute", "calibrated_sensor", "category", "ego_pose", "log", "object_ann", "sample",
+                            "sample_data", "sensor", "surface_ann"}
+    for schema in schemas.values():
+        for field in schema.fields:
+            assert field.ref is None or field.ref in schemas, f"{schema.name}.{field.name}"
 
 
 def test_schema_for_finds_a_manifest_name_s_schema():

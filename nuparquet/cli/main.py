@@ -14,7 +14,7 @@ from nuparquet.errors import NuparquetError
 
 # Subcommand modules, in the order `--help` lists them.
 COMMANDS = ["convert", "validate", "export_json", "synth", "info", "stats", "sql", "render", "index", "eval",
-            "export_mcap", "report"]
+            "export_mcap", "report", "export_coco"]
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:

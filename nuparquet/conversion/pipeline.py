@@ -19,9 +19,9 @@ import pyarrow as pa
 
 from nuparquet.version import __version__
 from nuparquet.atomic import atomic_directory, check_apart, check_target
-from nuparquet.channels import channel_facts
 from nuparquet.conversion.builder import BuildContext
 from nuparquet.conversion.options import ConvertOptions
+from nuparquet.conversion.formats import AUTO, NUSCENES, SourceFormat, detect_format
 from nuparquet.conversion.registry import BUILDERS
 from nuparquet.conversion.run import build_datasets, count_steps, to_schema
 from nuparquet.conversion.write import utc_now, write_manifest, write_parquet
@@ -32,10 +32,8 @@ from nuparquet.format import FORMAT_NAME, FORMAT_VERSION
 from nuparquet.options import resolve, split_fields
 from nuparquet.problems import Problem, ProblemsFound, split_warnings
 from nuparquet.progress import OnProgress, Reporter
-from nuparquet.schemas import dataset_schemas, fingerprint, table_schemas
+from nuparquet.schemas import dataset_schemas, fingerprint
 from nuparquet.sources import dangling, json_layout
-from nuparquet.sources.integrity import check_integrity
-from nuparquet.sources.tables import read_tables
 
 __all__ = ["ConvertOptions", "Validation", "convert", "validate"]
 
@@ -55,16 +53,17 @@ class Validation:
 
 
 def validate(dataroot: Path | str, version: str, *, on_progress: OnProgress | None = None,
-             allow_dangling: bool = False) -> Validation:
+             allow_dangling: bool = False, source_format: str = AUTO) -> Validation:
     """Parse and check `dataroot/version` without converting: every problem and warning found, all at once.
     `allow_dangling`: the references that name no record and the count fields that disagree are warnings
-    (`nuparquet.sources.dangling`), as `convert --allow-dangling` accepts them."""
-    with Reporter(on_progress, "validate", total=len(table_schemas()) + 1) as reporter:
-        result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"))
+    (`nuparquet.sources.dangling`), as `convert --allow-dangling` accepts them. `source_format`: as `convert`'s."""
+    fmt = detect_format(dataroot, version, source_format)
+    with Reporter(on_progress, "validate", total=fmt.steps + 1) as reporter:
+        result = fmt.read(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"))
         reporter.advance(step="check integrity")
         tables = {name: pl.from_arrow(source.table) for name, source in result.tables.items()}
-        found = result.problems + check_integrity(tables, references=not allow_dangling)
-        if allow_dangling:
+        found = result.problems + fmt.check(tables, references=not allow_dangling)
+        if allow_dangling and fmt.name == "nuscenes":
             found += dangling.warnings(dangling.find(tables))
         problems, warnings = split_warnings(found)
         return Validation(problems, warnings, {name: frame.height for name, frame in tables.items()})
@@ -89,7 +88,8 @@ def convert(dataroot: Path | str, version: str, out: Path | str, options: Conver
     if opts.sensors:
         check_engine(engine)  # Ray installed: say so before the tables are converted, not after
     try:
-        return _convert(dataroot, version, out, opts, engine, on_progress)
+        fmt = detect_format(dataroot, version, opts.source_format)
+        return _convert(dataroot, version, out, opts, engine, on_progress, fmt)
     except OSError as exc:  # the machine refused (read-only folder, full disk): the partial output is already gone
         where = str(exc.filename or out)
         if Path(where).name.startswith(f".{Path(out).name}.partial-"):  # the hidden folder is ours; name what the user gave
@@ -98,7 +98,7 @@ def convert(dataroot: Path | str, version: str, out: Path | str, options: Conver
 
 
 def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertOptions, engine: EngineOptions,
-             on_progress: OnProgress | None) -> dict:
+             on_progress: OnProgress | None, fmt: SourceFormat) -> dict:
     # The total is unknown while the tables are read (which tables a version folder holds, how many scenes); it is
     # set once they are, counting every unit still to come, and never changes after.
     with Reporter(on_progress, "convert") as reporter, \
@@ -110,8 +110,8 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
                                "frame": _one_chunk(pl.from_arrow(source.table))}
             source.table = None  # the polars copy is all we need from here on
 
-        result = read_tables(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"),
-                             finish=finish)
+        result = fmt.read(dataroot, version, on_table=lambda name: reporter.advance(step=f"read {name}"),
+                          finish=finish)
         datasets: dict[str, dict] = {}
         files: list[dict] = []
         tables: dict[str, pl.DataFrame] = {}
@@ -127,23 +127,26 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
             tables[name] = source.finished.pop("frame")
         pa.default_memory_pool().release_unused()  # the reader's Arrow tables are gone: give their pages back
         reporter.advance(step="check integrity")
-        problems, warnings = split_warnings(result.problems + check_integrity(tables, references=not opts.allow_dangling))
+        problems, warnings = split_warnings(result.problems + fmt.check(tables, references=not opts.allow_dangling))
         if problems:
             raise ProblemsFound(problems)
         ctx = BuildContext(Path(dataroot), version, opts, engine, tables, tmp, reporter)
         # every builder's units and the manifest (each table was written by the thread that read it)
-        reporter.set_total(reporter.done + count_steps(ctx, BUILDERS) + 1)
-        findings = dangling.find(tables) if opts.allow_dangling else None
+        # nuScenes' builders are the registry's, read here at each run (a test may replace them)
+        builders = BUILDERS if fmt.name == NUSCENES.name else fmt.builders
+        reporter.set_total(reporter.done + count_steps(ctx, builders) + 1)
+        findings = dangling.find(tables) if opts.allow_dangling and fmt.name == "nuscenes" else None
         if findings is not None:  # before the scene batches release sample_data
             datasets[dangling.DATASET] = _write_findings(findings, tmp)
-        channels = _channel_facts(tables)
-        built, skipped = build_datasets(ctx, BUILDERS)
+        channels = fmt.channels(tables)
+        built, skipped = build_datasets(ctx, builders)
         manifest = {
             "format": FORMAT_NAME,
             "format_version": FORMAT_VERSION,
             "nuparquet_version": __version__,
             "created_utc": utc_now(),
-            "source": {"dataroot": str(Path(dataroot).resolve()), "version": version, "files": result.files},
+            "source": {"dataroot": str(Path(dataroot).resolve()), "version": version, "format": fmt.name,
+                       "files": result.files},
             "options": _recorded_options(opts, engine),
             "datasets": datasets | built,
             "skipped": skipped,
@@ -183,13 +186,3 @@ def _write_findings(findings: pl.DataFrame, root: Path) -> dict:
     size = write_parquet(table, root / dangling.DATASET)
     return {"path": dangling.DATASET, "rows": table.num_rows, "schema_fingerprint": fingerprint(table.schema),
             "bytes": size, "parts": 1}
-
-
-def _channel_facts(tables: dict[str, pl.DataFrame]) -> dict:
-    """The dataset's channels (`nuparquet.channels.channel_facts`): names, modalities, one calibration's yaw each."""
-    sensors = tables["sensor"]
-    calibrations = (tables["calibrated_sensor"].join(sensors.select(pl.col("token").alias("sensor_token"), "channel"),
-                                                on="sensor_token")
-                    .sort("channel", "token").unique("channel", keep="first", maintain_order=True))
-    rotations = dict(zip(calibrations["channel"].to_list(), calibrations["rotation"].to_list()))
-    return channel_facts(sensors["channel"].to_list(), sensors["modality"].to_list(), rotations)

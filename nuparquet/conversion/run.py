@@ -58,10 +58,9 @@ def count_steps(ctx: BuildContext, builders: tuple[Builder, ...]) -> int:
     per scene batch (and the batch of rows of no scene, when there are any), one per "whole" builder it will run
     and the units those report themselves (`Builder.units`)."""
     active, _ = _select(ctx, builders)
-    n_scenes = ctx.tables["scene"].height
     batches = 0
-    if any(b.scope == "scenes" for b in active):
-        batches = -(-n_scenes // ctx.options.scenes_per_batch) + _has_orphans(ctx)
+    if any(b.scope == "scenes" for b in active):  # (a format without scenes, nuImages, has only "whole" builders)
+        batches = -(-ctx.tables["scene"].height // ctx.options.scenes_per_batch) + _has_orphans(ctx)
     return batches + sum(1 + (b.units(ctx) if b.units else 0) for b in active if b.scope == "whole")
 
 

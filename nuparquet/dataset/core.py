@@ -297,6 +297,18 @@ class Dataset:
         order = self.scan("tables/sample_annotation").select("token").with_row_index("_file_order")
         return self.scan("annotations").join(order, on="token", how="left").sort("_file_order").drop("_file_order")
 
+    @property
+    def source_format(self) -> str:
+        """The dataset family converted: "nuscenes" (also Lyft, T4) or "nuimages" (`nuparquet.conversion.formats`)."""
+        return self.manifest.get("source", {}).get("format", "nuscenes")
+
+    def masks(self, tokens: str | Sequence[str]):
+        """nuImages: the masks of object_ann / surface_ann `tokens` as (N, H, W) uint8 ((H, W) for one token), pixel
+        for pixel as the devkit's `mask_decode` (`nuparquet.nuimages.masks.masks`)."""
+        from nuparquet.nuimages.masks import masks
+
+        return masks(self, tokens)
+
     def map(self, location: str) -> MapLayers:
         """The map expansion of `location` (`nuparquet.map.queries.MapLayers`: `layers_on_point`,
         `records_in_patch`, `closest_lane`, `map_mask`, `discretize_lanes`), read once and kept."""

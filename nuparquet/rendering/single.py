@@ -88,6 +88,11 @@ def render_image(dataset, options: ImageOptions | None = None, **fields) -> np.n
         return render_sample(dataset, options.sample, options.box_vis_level, options.nsweeps, **sized,
                              axes_limit=options.axes_limit, underlay_map=options.underlay_map,
                              **labelled)
+    if options.sample_data is not None and dataset.source_format == "nuimages":  # an image with boxes and masks
+        from nuparquet.rendering.nuimages import render_nuimage
+
+        return render_nuimage(dataset, options.sample_data, with_category=labels != "none",
+                              render_scale=scale, dataroot=dataroot)
     if options.sample_data is not None:
         return render_sample_data(dataset, options.sample_data, box_vis_level=options.box_vis_level,
                                   axes_limit=options.axes_limit, nsweeps=options.nsweeps,

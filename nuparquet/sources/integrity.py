@@ -9,7 +9,7 @@ from __future__ import annotations
 import polars as pl
 
 from nuparquet.problems import MAX_REPORTED, Problem, echo
-from nuparquet.schemas import table_schemas
+from nuparquet.schemas import Schema, table_schemas
 
 QUATERNION_NORM_TOLERANCE = 1e-6
 # Norms this close to 1 are accepted with a warning: quaternions written to 4 decimals (norm 0.99997) are unit
@@ -25,14 +25,17 @@ _COUNTS = [("scene", "nbr_samples", "sample", "scene_token"),
            ("instance", "nbr_annotations", "sample_annotation", "instance_token")]
 
 
-def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED, *, references: bool = True) -> list[Problem]:
+def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED, *, references: bool = True,
+                    schemas: dict[str, Schema] | None = None) -> list[Problem]:
     """All problems across the parsed tables (by table name): unique tokens, resolving foreign keys
     (including every non-empty prev/next), count fields, and finite unit quaternions. At most `limit`
     problems per check, plus a count of the rest. `references=False` leaves out the foreign keys and count fields
-    (`--allow-dangling`: `nuparquet.sources.dangling` finds those in full)."""
+    (`--allow-dangling`: `nuparquet.sources.dangling` finds those in full). `schemas`: the tables' schemas, when not
+    nuScenes' (`nuparquet.schemas.family_table_schemas`)."""
+    schemas = table_schemas() if schemas is None else schemas
     # Extra tables (typed by inference, no schema) have no declared keys to check.
-    frames = {name: df.with_row_index("_idx") for name, df in tables.items() if name in table_schemas()}
-    files = {name: table_schemas()[name].source for name in frames}
+    frames = {name: df.with_row_index("_idx") for name, df in tables.items() if name in schemas}
+    files = {name: schemas[name].source for name in frames}
     problems: list[Problem] = []
 
     def report(table: str, rows: pl.DataFrame, message, warning: bool = False) -> None:
@@ -43,7 +46,7 @@ def check_integrity(tables: dict[str, pl.DataFrame], limit: int = MAX_REPORTED, 
                                     omitted=rows.height - limit, warning=warning))
 
     for name, df in frames.items():
-        schema = table_schemas()[name]
+        schema = schemas[name]
         if df["token"].n_unique() < df.height:  # (counting is ~3x faster than marking every row: mark only then)
             report(name, df.filter(pl.col("token").is_duplicated()), lambda r: "duplicate token")
         for f in schema.fields:

@@ -49,6 +49,8 @@ def synthesize(out, options: SynthOptions | None = None, *, on_progress: OnProgr
     profile: "regular", or "irregular" for the test cases regular data lacks (gapped tracks, hills, boxes
     just in front of a camera, clock ties, a late first camera frame, and a `<version>-test` folder with empty
     annotation tables; `synth.irregular`).
+    family: "nuscenes", or "nuimages" for a nuImages dataroot (`synth.nuimages`: `scenes` logs of
+    `samples_per_scene` annotated images; images always written, the nuScenes-only options ignored).
     on_progress receives a `nuparquet.progress.Progress` event per scene written (None: silent).
 
     The tables are written to a hidden partial beside `out/<version>` and renamed into place when complete
@@ -58,6 +60,10 @@ def synthesize(out, options: SynthOptions | None = None, *, on_progress: OnProgr
     scenes, samples_per_scene, seed, version = options.scenes, options.samples_per_scene, options.seed, options.version
     dataroot = Path(out)
     dataroot.mkdir(parents=True, exist_ok=True)
+    if options.family == "nuimages":  # another family's tables (synth.nuimages)
+        from nuparquet.synth.nuimages import synthesize_nuimages
+
+        return synthesize_nuimages(dataroot, scenes, samples_per_scene, seed, version)
     scene_duration_s = (samples_per_scene - 1) * KEYFRAME_INTERVAL_US / 1e6
     logs = plan_logs(seed, scenes, scene_duration_s, RIGS[options.rig])
     roads: dict[str, list] = {}  # location -> the roads of its scenes (for the map expansion)
