@@ -117,7 +117,7 @@ def test_the_import_rules_hold():
 
 
 ROOT = {"errors", "options", "progress", "problems", "format", "version", "columns", "schemas", "splits", "channels",
-        "atomic"}
+        "atomic", "rle"}
 
 
 def _layer(module: str) -> str:

@@ -78,7 +78,7 @@ def coco_instances(dataset_or_path, options: CocoOptions | None = None, **fields
     return {"images": images.to_dicts(), "annotations": annotations, "categories": categories}
 
 
-def export_coco(dataset_or_path, out: Path | str, options: CocoOptions | None = None, **fields: Any) -> Path:
+def export_coco(dataset, out: Path | str, options: CocoOptions | None = None, **fields: Any) -> Path:
     """Write the COCO instances file of a nuImages conversion to `out` (atomically); returns `out`."""
     options = resolve(CocoOptions, options, fields)
     out = Path(out)
@@ -86,7 +86,7 @@ def export_coco(dataset_or_path, out: Path | str, options: CocoOptions | None = 
         raise UsageError(f"{out} already exists; pass --overwrite to replace it")
     if out.is_dir():
         raise UsageError(f"{out} is a directory; name the JSON file to write")
-    instances = coco_instances(dataset_or_path, options)
+    instances = coco_instances(dataset, options)
     out.parent.mkdir(parents=True, exist_ok=True)
     with atomic_file(out) as partial:
         partial.write_text(json.dumps(instances))

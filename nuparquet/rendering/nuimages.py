@@ -12,7 +12,6 @@ masks' alpha, 191, over a white figure); this returns the RGB channels, opaque, 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -58,9 +57,9 @@ def rectangle(image_rgb: np.ndarray, bbox: Sequence[int], color_rgb, width: int)
 def render_nuimage(dataset_or_path, sd_token: str, *, annotation_type: str = "all", with_category: bool = False,
                    with_attributes: bool = False, object_tokens: Sequence[str] | None = None,
                    surface_tokens: Sequence[str] | None = None, render_scale: float = 1.0,
-                   box_line_width: int = -1, dataroot: str | Path | None = None) -> np.ndarray:
+                   box_line_width: int = -1) -> np.ndarray:
     """(H, W, 3) uint8 RGB of image `sd_token` with its annotations (the devkit's `render_image` arguments, without
-    `font_size` and `out_path`); `dataroot`: where the images are (default: the converted dataroot)."""
+    `font_size` and `out_path`) (the image is read through the dataset's sensor reader: its `dataroot`)."""
     ds = as_dataset(dataset_or_path)
     if annotation_type not in ANNOTATION_TYPES:
         raise UsageError(f"annotation_type must be one of {', '.join(ANNOTATION_TYPES)}, got {annotation_type!r}")
@@ -76,8 +75,7 @@ def render_nuimage(dataset_or_path, sd_token: str, *, annotation_type: str = "al
         raise UsageError(f"no sample_data {sd_token!r}")
     if not frame["is_key_frame"][0] and (annotation_type != "none" or with_attributes):
         raise UsageError(f"sample_data {sd_token} is not a keyframe: draw it with annotation_type 'none'")
-    root = Path(dataroot if dataroot is not None else ds.dataroot or ".")
-    path = root / frame["filename"][0]
+    path = ds.sensors.path(frame["filename"][0])
     image_bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if image_bgr is None:
         raise InputError(f"{path}: missing or not an image (sample_data {sd_token})")

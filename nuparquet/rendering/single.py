@@ -92,7 +92,7 @@ def render_image(dataset, options: ImageOptions | None = None, **fields) -> np.n
         from nuparquet.rendering.nuimages import render_nuimage
 
         return render_nuimage(dataset, options.sample_data, with_category=labels != "none",
-                              render_scale=scale, dataroot=dataroot)
+                              render_scale=options.scale or 1.0)
     if options.sample_data is not None:
         return render_sample_data(dataset, options.sample_data, box_vis_level=options.box_vis_level,
                                   axes_limit=options.axes_limit, nsweeps=options.nsweeps,
