@@ -239,3 +239,27 @@ def test_image_file_names_follow_the_converters_split_on_data_nuscenes(lidarseg_
         assert image["file_name"] == (table_name if relative else f"{prefix}/{table_name}")
         names = {a["file_name"] for a in coco["annotations"]}
         assert names and all(name.startswith("samples/CAM_") for name in names)
+
+
+def test_the_mono3d_file_is_written_by_the_atomic_convention_and_a_failed_write_leaves_nothing(lidarseg_out, tmp_path,
+                                                                                                 monkeypatch):
+    """The COCO file goes through `atomic.atomic_file` (its own `.tmp-<pid>` files were never swept): a partial a
+    killed run left (a dead pid) is removed by the next run, and a write that fails half way leaves neither the
+    file nor a partial."""
+    out = tmp_path / "o"
+    out.mkdir()
+    name = "nuscenes_infos_train_mono3d.coco.json"
+    dead = out / f".{name}.partial-999999999"  # no such process
+    dead.write_text("half")
+    build_index(lidarseg_out, out, IndexOptions(version="v1.0-trainval", format="mmdet3d-legacy"))
+    assert (out / name).is_file() and not dead.exists()
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]
+
+    def fail(*args, **kwargs):
+        raise RuntimeError("disk gone")
+
+    monkeypatch.setattr(legacy, "_images", fail)
+    again = tmp_path / "again"
+    with pytest.raises(RuntimeError, match="disk gone"):
+        build_index(lidarseg_out, again, IndexOptions(version="v1.0-trainval", format="mmdet3d-legacy"))
+    assert not (again / name).exists() and not [p for p in again.iterdir() if name in p.name]
