@@ -100,9 +100,13 @@ def _run_many(args, selection: SceneSelection) -> int:
         raise UsageError("a many-scene export writes DIR/<scene>.mcap: leave out --out")
     if not selection.many:
         raise UsageError("--out-dir: say which scenes to take (--all-scenes, --scenes A,B or --where SQL)")
+    from nuparquet.engine.run import check_engine
+
+    engine = options_from(args, EngineOptions)
+    check_engine(engine)  # Ray installed: say so before the dataset is opened
     try:
-        result = export_scenes(opened(args), selection, args.out_dir, options_from(args, McapOptions),
-                               engine=options_from(args, EngineOptions), on_progress=bars(not args.quiet))
+        result = export_scenes(opened(args), selection, args.out_dir, options_from(args, McapOptions), engine=engine,
+                               on_progress=bars(not args.quiet))
     except UnitsFailed as exc:
         done = [o for o in exc.outcomes if o is not None and o.ok]
         if done and args.keep_going:

@@ -59,8 +59,12 @@ def register(sub) -> None:
 def run(args) -> int:
     from nuparquet.site.build import build_report
 
+    from nuparquet.engine.run import check_engine
+
+    engine = options_from(args, EngineOptions)
+    check_engine(engine)  # Ray installed: say so before the dataset is opened
     result = build_report(opened(args), options_from(args, SceneSelection), args.out, options_from(args, ReportOptions),
-                          engine=options_from(args, EngineOptions), on_progress=bars(not args.quiet))
+                          engine=engine, on_progress=bars(not args.quiet))
     print(f"wrote the report of {len(result.scenes)} scene(s) -> {result.index}")
     for scene, reason in result.problems.items():
         print(f"warning: {scene}: {reason}", file=sys.stderr)

@@ -36,11 +36,20 @@ def wait_or_fail(unit: WorkUnit, part: Path) -> str:
     return unit.name
 
 
-def scene_file(unit: WorkUnit, part: Path) -> dict:
-    """A many-scene job's task (`engine.scene_files`): writes `<scene>.txt` (the dataset root it was given) into
-    its part folder and returns the scene's summary entry; a scene whose name starts with "bad" raises ValueError."""
-    root, _storage_options, _options = unit.args
-    if unit.name.startswith("bad"):
-        raise ValueError(f"scene {unit.name} failed on purpose")
-    (part / f"{unit.name}.txt").write_text(root)
-    return {"file": f"{unit.name}.txt", "frames": len(unit.name)}
+class SceneFileResult:
+    """What `scene_file` wrote: its summary entry names the file and counts the scene name's letters."""
+
+    def __init__(self, scene: str):
+        self.scene = scene
+
+    def summary_entry(self, file_name: str) -> dict:
+        return {"file": file_name, "frames": len(self.scene)}
+
+
+def scene_file(dataset, scene: str, out: Path, options) -> SceneFileResult:
+    """A one-scene verb for the many-scene job (`engine.scene_files`): writes `out` (`<scene>.txt`) holding the
+    dataset root it was opened from; a scene whose name starts with "bad" raises ValueError."""
+    if scene.startswith("bad"):
+        raise ValueError(f"scene {scene} failed on purpose")
+    out.write_text(str(dataset.root))
+    return SceneFileResult(scene)

@@ -327,21 +327,27 @@ def test_the_many_scene_summary_lists_the_dataset_the_callers_fields_the_scenes_
     import types
     from dataclasses import dataclass
 
-    from nuparquet.engine.scene_files import write_scene_files
-    from tasks import scene_file
+    from nuparquet.dataset import DatasetReference
+    from nuparquet.engine.scene_files import SceneVerb, settings_digest, write_scene_files
 
     @dataclass
     class Options:
         scale: float = 0.5
 
+    class Reference(DatasetReference):
+        def open(self):  # a stand-in dataset: the toy verb only reads its root
+            return types.SimpleNamespace(root=self.root)
+
     data = tmp_path / "data"
     data.mkdir()
-    dataset = types.SimpleNamespace(root=data, is_remote=False, storage_options=None)
+    dataset = types.SimpleNamespace(root=data, is_remote=False, storage_options=None,
+                                    reference=Reference(str(data.resolve())))
+    verb = SceneVerb("tasks:scene_file", ".txt")
     out = tmp_path / "videos"
     with pytest.raises(UnitsFailed, match="bad-1: ValueError: scene bad-1 failed on purpose"):
-        write_scene_files(dataset, ["s-1", "bad-1", "s-22"], out, scene_file, Options(),
+        write_scene_files(dataset, ["s-1", "bad-1", "s-22"], out, verb, Options(),
                           EngineOptions(engine="serial", keep_going=True), summary_name="videos.json", file_key="file",
-                          leave_out=(), label="scenes", summary_fields={"channel": "CAM_FRONT"})
+                          label="scenes", summary_fields={"channel": "CAM_FRONT"})
     summary = json.loads((out / "videos.json").read_text())
     assert sorted(summary) == ["channel", "dataset", "failed", "scenes"]
     assert summary["dataset"] == str(data.resolve()) and summary["channel"] == "CAM_FRONT"
@@ -351,10 +357,12 @@ def test_the_many_scene_summary_lists_the_dataset_the_callers_fields_the_scenes_
     assert summary["scenes"]["s-22"] == {"file": "s-22.txt", "frames": 4, "settings": settings}
     assert list(summary["failed"]) == ["bad-1"]
     assert summary["failed"]["bad-1"].startswith("ValueError: scene bad-1 failed on purpose (at tasks.py:")
+    digest = settings_digest(str(data.resolve()), Options())  # the dataset and the whole options object
+    assert settings == digest != settings_digest(str(data.resolve()), Options(scale=1.0))
     assert (out / "s-22.txt").read_text() == str(data.resolve())
 
-    again = write_scene_files(dataset, ["s-3"], tmp_path / "other", scene_file, Options(),
-                              EngineOptions(engine="serial"), summary_name="files.json", file_key="file", leave_out=(),
+    again = write_scene_files(dataset, ["s-3"], tmp_path / "other", verb, Options(),
+                              EngineOptions(engine="serial"), summary_name="files.json", file_key="file",
                               label="scenes")
     summary = json.loads(again.summary.read_text())
     assert sorted(summary) == ["dataset", "failed", "scenes"] and summary["failed"] == {}

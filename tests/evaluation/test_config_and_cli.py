@@ -227,7 +227,7 @@ def test_settings_beside_an_options_object_are_used_and_a_contradiction_is_refus
     alone = evaluate(eval_out, submissions["noisy"], split="val", plots=False, by=("night",))
     assert merged.slices is not None and merged.slices.equals(alone.slices)  # the keyword `by` was not dropped
     with pytest.raises(TypeError, match="option\\(s\\) split given both in the EvalOptions object and as keywords"):
-        evaluate(eval_out, submissions["noisy"], None, EvalOptions(split="val"), split="train")
+        evaluate(eval_out, submissions["noisy"], None, EvalOptions(split="train"), split="val")
 
 
 def test_tp_curves_are_drawn_where_the_devkits_are(devkit):

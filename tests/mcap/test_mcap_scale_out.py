@@ -97,7 +97,8 @@ def test_a_failing_scene_is_named_keep_going_writes_the_others_and_resume_finish
     assert list(json.loads((out_dir / SUMMARY_NAME).read_text())["failed"]) == ["scene-0002"]
     inode = (out_dir / "scene-0001.mcap").stat().st_ino
 
-    assert main([*args, "--resume"]) == 0
+    # the resume digest is the whole options object (--on-missing included); where the files are is not a setting
+    assert main([*args, "--on-missing", "error", "--resume"]) == 0
     assert "exported 1 scene(s) (1 already done, skipped)" in capsys.readouterr().out
     assert _files(out_dir) == one_scene_files
     assert (out_dir / "scene-0001.mcap").stat().st_ino == inode  # not rewritten
