@@ -196,7 +196,8 @@ GROUPS: dict[str, Group] = {
          "!nuparquet/rendering/sample_grid.py", "!nuparquet/rendering/annotation.py",
          "!nuparquet/rendering/map_views.py", "!nuparquet/rendering/map_canvas.py",
          "!nuparquet/rendering/map_in_image.py", "!nuparquet/rendering/pointcloud_image.py",
-         "!nuparquet/rendering/topview.py", "!nuparquet/rendering/clouds.py", "!nuparquet/rendering/charts.py"),
+         "!nuparquet/rendering/topview.py", "!nuparquet/rendering/clouds.py", "!nuparquet/rendering/charts.py",
+         "!nuparquet/rendering/nuimages.py"),
         ("tests/rendering/test_render.py", "tests/rendering/test_bev.py", "tests/rendering/test_frame_index.py",
          "tests/rendering/test_lidar_colors.py", "tests/rendering/test_predictions.py",
          "tests/rendering/test_pipeline.py", "tests/rendering/test_rigs.py", "tests/rendering/test_video.py",
@@ -247,6 +248,17 @@ GROUPS: dict[str, Group] = {
          "tests/evaluation/test_config_and_cli.py::test_the_printout_is_the_devkits_main_for_the_same_summary",
          "tests/mcap/test_export.py::test_cli_writes_the_file_and_names_bad_input",
          "tests/site/test_report.py::test_scenes_subset_and_no_videos"),
+        keyword="not extract"),
+    # --- this stage (issues 36-41) ---------------------------------------------------------------------------------
+    "sensors": Group(  # the one sensor reader: converted points or files, local or remote
+        ("nuparquet/sensors/*.py",),
+        ("tests/dataset/test_object_store.py", "tests/parity/test_sweeps_devkit.py", "tests/rendering/test_lidar_colors.py",
+         "tests/mcap/test_export.py::test_an_unreadable_point_file_stops_the_export_with_the_reason"),
+        keyword="not extract"),
+    "nuimages": Group(
+        ("nuparquet/nuimages/*.py", "nuparquet/sources/nuimages.py", "nuparquet/conversion/builders/nuimages.py",
+         "nuparquet/rendering/nuimages.py"),
+        ("tests/parity/test_nuimages_devkit.py", "tests/conversion/test_nuimages_convert.py", "tests/test_rle.py"),
         keyword="not extract"),
     "synth": Group(  # the generator makes every fixture: its own mutants must make theirs
         ("nuparquet/synth/*.py",),
