@@ -214,6 +214,21 @@ def check_samples(submission: Submission | SubmittedBoxes, expected_tokens: Sequ
     raise InputError(f"{path}: " + "; ".join(parts))
 
 
+def restricted_to_split(sub: SubmittedBoxes, sample_tokens: np.ndarray) -> SubmittedBoxes:
+    """A custom split (devkit `load_prediction_of_sample_tokens`): the split's samples only, in their order."""
+    position = {token: i for i, token in enumerate(sub.sample_tokens.tolist())}
+    keep = np.array([position[t] for t in sample_tokens.tolist()], dtype=np.int64)
+    new_index = np.full(len(sub.sample_tokens), -1, dtype=np.int64)
+    new_index[keep] = np.arange(len(keep))
+    rows = np.flatnonzero(new_index[sub.box_sample] >= 0)
+    rows = rows[np.argsort(new_index[sub.box_sample[rows]], kind="stable")]
+    return SubmittedBoxes(meta=sub.meta, sample_tokens=sub.sample_tokens[keep], box_sample=new_index[sub.box_sample[rows]],
+                          box_index=sub.box_index[rows], translation_m=sub.translation_m[rows],
+                          size_wlh_m=sub.size_wlh_m[rows], rotation_wxyz=sub.rotation_wxyz[rows],
+                          velocity_mps=sub.velocity_mps[rows], class_name=sub.class_name[rows], score=sub.score[rows],
+                          labels={name: values[rows] for name, values in sub.labels.items()}, num_pts=sub.num_pts[rows])
+
+
 class _Unreadable(Exception):
     """DuckDB's typed reader refused the file: read it again with Python to say why."""
 
