@@ -62,7 +62,10 @@ class BoxFields:
         return ("sample_token", *VECTOR_FIELDS, self.name, self.score, *self.labels)
 
     def duckdb_struct(self) -> str:
-        strings = ", ".join(f"{name} VARCHAR" for name in (self.name, *self.labels))
+        # a field that may be a string or an integer is read as JSON text, its kind checked after (a VARCHAR would
+        # take a list or an object as its text)
+        strings = ", ".join(f"{name} {'JSON' if name in self.integer_labels else 'VARCHAR'}"
+                            for name in (self.name, *self.labels))
         return ("STRUCT(sample_token VARCHAR, translation DOUBLE[], size DOUBLE[], rotation DOUBLE[], velocity DOUBLE[], "
                 f"{strings}, {self.score} DOUBLE, num_pts BIGINT)")
 
@@ -280,6 +283,19 @@ def _read_with_duckdb(path: Path, fields: BoxFields) -> SubmittedBoxes:
     for name in ("sample_token", fields.name, fields.score, *fields.labels):
         if unnested[name].null_count():
             raise _Unreadable(f"a box lacks {name}")
+    labels = {}
+    for name in fields.labels:
+        column = unnested[name]
+        if name in fields.integer_labels:  # JSON text: a string literal, decoded, or an integer, as written
+            quoted = column.str.starts_with('"')
+            if not (quoted | column.str.contains(r"^-?[0-9]+$")).all():
+                raise _Unreadable(f"a {name} is neither a string nor an integer")
+            text = column.to_numpy().astype(object)
+            if quoted.any():
+                text[quoted.to_numpy()] = np.array(column.filter(quoted).str.json_decode(pl.String).to_list(), object)
+            labels[name] = text
+        else:
+            labels[name] = column.to_numpy().astype(object)
     box_sample = np.repeat(np.arange(len(tokens), dtype=np.int64), counts)
     named = unnested["sample_token"].to_numpy().astype(object)
     if len(named) and (named != tokens[box_sample]).any():
@@ -291,8 +307,7 @@ def _read_with_duckdb(path: Path, fields: BoxFields) -> SubmittedBoxes:
         velocity_mps=columns["velocity"],
         class_name=unnested[fields.name].to_numpy().astype(object),
         score=unnested[fields.score].to_numpy().astype(np.float64),
-        labels={name: unnested[name].to_numpy().astype(object) for name in fields.labels},
-        num_pts=unnested["num_pts"].fill_null(-1).to_numpy().astype(np.int64),
+        labels=labels, num_pts=unnested["num_pts"].fill_null(-1).to_numpy().astype(np.int64),
     )
 
 
