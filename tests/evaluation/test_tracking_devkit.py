@@ -7,12 +7,10 @@ a set, after confidence and recall_hypo."""
 
 from __future__ import annotations
 
-import copy
 import json
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 pytestmark = pytest.mark.devkit
@@ -147,7 +145,7 @@ def test_ties_in_cost_went_to_the_assignment_solver(edge_run, eval_out):
     equality above is then the solver's choice, as motmetrics makes it."""
     from nuparquet.dataset import open_dataset
     from nuparquet.evaluation.tracking.config import resolve_tracking_config
-    from nuparquet.evaluation.tracking.run import evaluate_rows, prepare
+    from nuparquet.evaluation.tracking.inputs import evaluate_rows, prepare
 
     results = edge_run[0]
     config = resolve_tracking_config()

@@ -14,6 +14,7 @@ import polars as pl
 
 from nuparquet.evaluation.slices import dimension
 from nuparquet.evaluation.tracking.config import TrackingConfig
+from nuparquet.evaluation.tracking.inputs import evaluate_rows
 
 HEADLINE = ("amota", "amotp", "recall", "motar", "mota", "motp", "ids", "frag", "tid", "lgd")
 
@@ -35,8 +36,6 @@ def matched_ground_truth(inputs, evaluation, gt_tracks, pred_tracks) -> np.ndarr
 
 def evaluate_slices(by, inputs, whole, gt_tracks, pred_tracks, config: TrackingConfig, bins, reporter, steps: int):
     """(slices table, {(by, slice): summary}, {(by, slice): details})."""
-    from nuparquet.evaluation.tracking.run import evaluate_rows
-
     gt, sub = inputs.gt, inputs.sub
     kept_gt, kept_pred = inputs.gt_kept, inputs.pred_kept
     samples = gt.samples
