@@ -35,3 +35,36 @@ def write_result(out: Path, result, evaluation, config: TrackingConfig, *, plots
             from nuparquet.evaluation.tracking.plots import write_plots
 
             write_plots(partial / "plots", result.details, config)
+
+
+def _number_format(metric: str) -> str:
+    """The devkit's `metric_name_to_print_format`."""
+    if metric in ("amota", "amotp", "motar", "recall", "mota", "motp"):
+        return "%.3f"
+    if metric in ("tid", "lgd"):
+        return "%.2f"
+    if metric == "faf":
+        return "%.1f"
+    return "%d"
+
+
+def format_summary(summary: dict) -> str:
+    """The text the devkit's `print_final_metrics` prints for a metrics_summary.json (for the CLI to show)."""
+    import math
+
+    labels = summary["label_metrics"]
+    metrics = list(labels)
+    lines = ["### Final results ###", "", "Per-class results:", "\t\t" + "\t".join(m.upper() for m in metrics)]
+    for name in sorted(next(iter(labels.values()))):
+        cells = []
+        for metric in metrics:
+            value = labels[metric][name]
+            cells.append(("%f" if math.isnan(value) else _number_format(metric)) % value)
+        lines.append(name[:7].ljust(8) + "".join(f"\t{cell}" for cell in cells))
+    lines += ["", "Aggregated results:"]
+    for metric in metrics:
+        value = summary[metric]
+        form = _number_format(metric)
+        lines.append(f"{metric.upper()}\t" + ("nan" if math.isnan(value) and form == "%d" else form % value))
+    lines.append("Eval time: %.1fs" % summary["eval_time"])
+    return "\n".join(lines)
