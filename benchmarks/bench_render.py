@@ -60,7 +60,7 @@ def render_child(out: str, scene: str, video: str, all_frames: bool, channel: st
     from nuparquet.rendering.pipeline import RenderOptions, render
 
     start = time.perf_counter()
-    result = render(out, scene, RenderOptions(channel=channel, out=video, all_frames=all_frames, scale=SCALE))
+    result = render(out, scene, video, RenderOptions(channel=channel, all_frames=all_frames, scale=SCALE))
     seconds = time.perf_counter() - start
     print(json.dumps({"frames": result.frames_written, "seconds": seconds, "fps": result.frames_written / seconds}))
 

@@ -41,8 +41,8 @@ def child(out: str, engine: str, workers: int, out_dir: str) -> None:
         ray.init(num_cpus=workers, include_dashboard=False, logging_level="ERROR", log_to_driver=False)
         start_s = time.perf_counter() - start
     start = time.perf_counter()
-    result = render_scenes(out, SceneSelection(all_scenes=True, out_dir=out_dir),
-                           RenderOptions(channel="CAM_FRONT", all_frames=True), EngineOptions(engine=engine, workers=workers))
+    result = render_scenes(out, SceneSelection(all_scenes=True), out_dir, RenderOptions(channel="CAM_FRONT", all_frames=True),
+                           engine=EngineOptions(engine=engine, workers=workers))
     total_s = time.perf_counter() - start
     videos = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(Path(out_dir).glob("*.mp4"))}
     outcomes = result.outcomes

@@ -92,7 +92,7 @@ def _time_render(out_dir: Path, scene: str, all_frames: bool, scale: float, vide
     from nuparquet.rendering.pipeline import RenderOptions, render
 
     start = time.perf_counter()
-    result = render(out_dir, scene, RenderOptions(channel="CAM_FRONT", out=video, all_frames=all_frames, scale=scale))
+    result = render(out_dir, scene, video, RenderOptions(channel="CAM_FRONT", all_frames=all_frames, scale=scale))
     seconds = time.perf_counter() - start
     return {"frames": result.frames_written, "seconds": seconds, "fps": result.frames_written / seconds}
 

@@ -67,12 +67,13 @@ __all__ = [
 ]
 
 
-def open(path, storage_options=None):  # noqa: A001 - the public name users asked for: nuparquet.open(OUT)
+def open(path, storage_options=None, *, dataroot=None):  # noqa: A001 - the public name users asked for
     """Open a converted dataset directory: a local path or a URL polars can scan (``s3://bucket/out``, ...), with
-    `storage_options` in polars' vocabulary for the manifest and every scan. Returns a `Dataset`."""
+    `storage_options` in polars' vocabulary for the manifest and every scan, and `dataroot` where the sensor files
+    are if not at the dataroot recorded at conversion. Returns a `Dataset`."""
     from nuparquet.dataset import open_dataset
 
-    return open_dataset(path, storage_options=storage_options)
+    return open_dataset(path, storage_options=storage_options, dataroot=dataroot)
 
 
 def __getattr__(name: str):

@@ -237,7 +237,7 @@ def synth_report(synth_points_out, tmp_path_factory):
 
     out = tmp_path_factory.mktemp("report") / "report"
     events = []
-    result = build_report(synth_points_out, ReportOptions(out=out), EngineOptions(engine="serial"),
+    result = build_report(synth_points_out, None, out, engine=EngineOptions(engine="serial"),
                           on_progress=events.append)
     return result, events
 
@@ -249,7 +249,8 @@ def real_report(extract_out, tmp_path_factory):
     from nuparquet.site import ReportOptions, build_report
 
     out = tmp_path_factory.mktemp("report-real") / "report"
-    return build_report(extract_out, ReportOptions(out=out, video_scale=0.2, stills=2), EngineOptions(engine="serial"))
+    return build_report(extract_out, None, out, ReportOptions(video_scale=0.2, stills=2),
+                        engine=EngineOptions(engine="serial"))
 
 
 @pytest.fixture(scope="session")
@@ -259,7 +260,7 @@ def six_scene_report(map_out, tmp_path_factory):
     from nuparquet.site import ReportOptions, build_report
 
     out = tmp_path_factory.mktemp("report-six") / "report"
-    return build_report(map_out, ReportOptions(out=out, videos=False), EngineOptions(engine="serial"))
+    return build_report(map_out, None, out, ReportOptions(videos=False), engine=EngineOptions(engine="serial"))
 
 
 @pytest.fixture(scope="session")

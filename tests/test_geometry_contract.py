@@ -94,3 +94,22 @@ def test_points_at_depth_zero_project_to_inf_and_nan_without_warnings():
         warnings.simplefilter("error")
         projected = geometry.view_points(np.array([[1.0, 1.0, 0.0], [0.0, 0.0, 0.0]]), np.eye(3), normalize=True)
     assert np.isinf(projected[0, :2]).all() and np.isnan(projected[1]).all()
+
+
+def test_rowwise_dots_and_norms_round_as_np_dot_and_np_linalg_norm_of_one_vector():
+    """The devkit's center_distance / velocity_l2 and pyquaternion's q . q are np.dot / np.linalg.norm of one small
+    vector (BLAS ddot, whose rounding the CPU's kernel decides): ours must give the same bits on this machine, for
+    2- and 4-vectors, contiguous or strided, with NaN, and broadcast against one vector."""
+    from nuparquet.geometry.dots import rowwise_dot, rowwise_norm
+
+    rng = np.random.default_rng(35)
+    for k in (2, 4):
+        a = rng.normal(size=(3000, k)) * rng.uniform(1e-3, 2e3, (3000, 1))
+        b = rng.normal(size=(3000, 2 * k))[:, ::2]  # strided rows
+        a[7, 0] = np.nan
+        expected_dot = np.array([np.dot(x, y) for x, y in zip(a, b)])
+        expected_norm = np.array([np.linalg.norm(x) for x in a])
+        np.testing.assert_array_equal(rowwise_dot(a, b), expected_dot)
+        np.testing.assert_array_equal(rowwise_norm(a), expected_norm)
+        np.testing.assert_array_equal(rowwise_dot(a, b[0]), [np.dot(x, b[0]) for x in a])
+        assert rowwise_dot(a.reshape(3, 1000, k), b.reshape(3, 1000, k)).shape == (3, 1000)

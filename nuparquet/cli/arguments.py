@@ -26,13 +26,16 @@ def _comma_list(text: str) -> tuple[str, ...]:
 
 
 def add_options(parser: argparse.ArgumentParser, options_class: type, *, skip: tuple[str, ...] = (),
-                defaults: dict[str, Any] | None = None, aliases: dict[str, tuple[str, ...]] | None = None) -> None:
+                defaults: dict[str, Any] | None = None, aliases: dict[str, tuple[str, ...]] | None = None,
+                help: dict[str, str] | None = None) -> None:  # noqa: A002 - argparse's word
     """Add one flag per CLI field of `options_class` (a dataclass using `option`), except those in `skip`.
 
     Required fields (no default) become required flags. `defaults` overrides a default for this parser only;
-    `aliases` gives a field more spellings on this parser (`{"workers": ("--jobs",)}`).
+    `aliases` gives a field more spellings on this parser (`{"workers": ("--jobs",)}`); `help` another help text
+    (a command that gives the field its own meaning, as `report --scenes`).
     """
     aliases = aliases or {}
+    helps = help or {}
     hints = typing.get_type_hints(options_class)
     defaults = defaults or {}
     for f in dataclasses.fields(options_class):
@@ -41,7 +44,7 @@ def add_options(parser: argparse.ArgumentParser, options_class: type, *, skip: t
             continue
         hint = _unwrap_optional(hints[f.name])
         flag = meta.get("flag") or "--" + f.name.replace("_", "-")
-        kwargs: dict[str, Any] = {"dest": f.name, "help": meta["help"]}
+        kwargs: dict[str, Any] = {"dest": f.name, "help": helps.get(f.name, meta["help"])}
         default = defaults.get(f.name, f.default if f.default is not dataclasses.MISSING else dataclasses.MISSING)
         if f.default_factory is not dataclasses.MISSING and f.name not in defaults:
             default = f.default_factory()
@@ -65,8 +68,17 @@ def add_options(parser: argparse.ArgumentParser, options_class: type, *, skip: t
         parser.add_argument(flag, *aliases.get(f.name, ()), **kwargs)
 
 
-def options_from(args: argparse.Namespace, options_class: type, **overrides: Any):
-    """An `options_class` instance from parsed arguments (fields absent from `args` keep their defaults)."""
+def options_from(args: argparse.Namespace, options_class: type, *, unset: tuple[str, ...] = (), **overrides: Any):
+    """An `options_class` instance from parsed arguments (fields absent from `args` keep their defaults, and so do
+    the fields of `unset` that the command line left at None: a flag shared by two option classes with other
+    defaults, as `render --scale`)."""
     values = {f.name: getattr(args, f.name) for f in dataclasses.fields(options_class)
-              if f.init and hasattr(args, f.name)}
+              if f.init and hasattr(args, f.name) and not (f.name in unset and getattr(args, f.name) is None)}
     return options_class(**(values | overrides))
+
+
+def opened(args: argparse.Namespace):
+    """The dataset `args.dataset` names, opened with `--dataroot` when the command has it (`SensorFiles`)."""
+    from nuparquet.dataset import open_dataset
+
+    return open_dataset(args.dataset, dataroot=getattr(args, "dataroot", None))

@@ -46,6 +46,10 @@ def register(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
+    p.add_argument("--results", metavar="RESULTS.json", required=True, help="the detection submission, nuScenes "
+                   "format: {\"meta\": {...}, \"results\": {sample_token: [box, ...]}}")
+    p.add_argument("--out", metavar="DIR", help="write metrics_summary.json, metrics_details.json, plots/, "
+                   "predictions/, ground_truth/ (and slices/ with --by) here; without it the metrics are only printed")
     add_options(p, EvalOptions)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -78,8 +82,8 @@ def run(args) -> int:
     from nuparquet.cli.output import print_frame
     from nuparquet.evaluation.run import evaluate
 
-    options = options_from(args, EvalOptions)
-    result = evaluate(args.dataset, options, on_progress=bars(not args.quiet))
+    result = evaluate(args.dataset, args.results, args.out, options_from(args, EvalOptions),
+                      on_progress=bars(not args.quiet))
     print_summary(result.summary)
     if result.slices is not None:
         for by in dict.fromkeys(result.slices["by"].to_list()):

@@ -10,9 +10,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from nuparquet.cli.arguments import add_options, options_from
+from nuparquet.cli.arguments import add_options, opened, options_from
 from nuparquet.cli.progress import bars
 from nuparquet.engine.options import EngineOptions
+from nuparquet.sensors.options import SensorFiles
 from nuparquet.errors import UsageError
 from nuparquet.dataset.selection import SceneSelection
 from nuparquet.mcap.options import SUMMARY_NAME, McapOptions
@@ -58,8 +59,11 @@ def register(sub) -> None:
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
     p.add_argument("--scene", metavar="NAME", help="the scene to export, e.g. scene-0061 (`nuparquet info OUT` lists "
                    "them); or many scenes with --all-scenes, --scenes or --where")
+    p.add_argument("--out", metavar="FILE.mcap", help="the MCAP file to write (replaced if it exists)")
     add_options(p, McapOptions)
+    add_options(p, SensorFiles)
     add_options(p, SceneSelection)
+    p.add_argument("--out-dir", metavar="DIR", help="where a many-scene export writes DIR/<scene>.mcap and its summary")
     add_options(p, EngineOptions)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -67,14 +71,17 @@ def register(sub) -> None:
 
 def run(args) -> int:
     selection = options_from(args, SceneSelection)
-    if selection.many:
+    if selection.many or args.out_dir is not None:
         return _run_many(args, selection)
     if args.scene is None:
         raise UsageError("say what to export: --scene NAME with --out FILE.mcap, or --all-scenes, --scenes A,B or "
                          "--where SQL with --out-dir DIR")
     from nuparquet.mcap.export import export_mcap
 
-    result = export_mcap(args.dataset, args.scene, options_from(args, McapOptions), on_progress=bars(not args.quiet))
+    if args.out is None:
+        raise UsageError("nothing to write: give --out FILE.mcap")
+    result = export_mcap(opened(args), args.scene, args.out, options_from(args, McapOptions),
+                         on_progress=bars(not args.quiet))
     print(f"wrote {result.total_messages} message(s) on {len(result.messages)} topic(s) of {result.scene} -> "
           f"{result.out} ({result.bytes / 1e6:.1f} MB)")
     if result.missing:
@@ -89,13 +96,17 @@ def _run_many(args, selection: SceneSelection) -> int:
 
     if args.scene is not None:
         raise UsageError("--scene exports one scene; with --all-scenes, --scenes or --where leave it out")
+    if args.out is not None:
+        raise UsageError("a many-scene export writes DIR/<scene>.mcap: leave out --out")
+    if not selection.many:
+        raise UsageError("--out-dir: say which scenes to take (--all-scenes, --scenes A,B or --where SQL)")
     try:
-        result = export_scenes(args.dataset, selection, options_from(args, McapOptions),
-                               options_from(args, EngineOptions), on_progress=bars(not args.quiet))
+        result = export_scenes(opened(args), selection, args.out_dir, options_from(args, McapOptions),
+                               engine=options_from(args, EngineOptions), on_progress=bars(not args.quiet))
     except UnitsFailed as exc:
         done = [o for o in exc.outcomes if o is not None and o.ok]
         if done and args.keep_going:
-            print(f"exported {len(done)} scene(s) -> {selection.out_dir}")
+            print(f"exported {len(done)} scene(s) -> {args.out_dir}")
         raise
     resumed = f" ({len(result.resumed)} already done, skipped)" if result.resumed else ""
     missing = sum(o.value.get("missing", 0) for o in result.outcomes if o.ok and isinstance(o.value, dict))

@@ -19,6 +19,8 @@ def register(sub) -> None:
         "dataset the index needs.",
     )
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
+    p.add_argument("--out", metavar="DIR", required=True,
+                   help="output directory for the info files and infos/ (created; written atomically)")
     add_options(p, IndexOptions)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -27,7 +29,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from nuparquet.index.build import build_index
 
-    written = build_index(args.dataset, options_from(args, IndexOptions), on_progress=bars(not args.quiet))
+    written = build_index(args.dataset, args.out, options_from(args, IndexOptions), on_progress=bars(not args.quiet))
     for name, path in written.items():
         print(f"{name}: {path}")
     return 0

@@ -12,13 +12,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from nuparquet.cli.arguments import add_options, options_from
+from nuparquet.cli.arguments import add_options, opened, options_from
 from nuparquet.cli.progress import bars
 from nuparquet.engine.options import EngineOptions
 from nuparquet.errors import UsageError
 from nuparquet.dataset.selection import SceneSelection
 from nuparquet.rendering.image_options import ImageOptions
 from nuparquet.rendering.options import RenderOptions
+from nuparquet.sensors.options import SensorFiles
 
 _EPILOG = """\
 examples:
@@ -81,27 +82,54 @@ def register(sub) -> None:
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
     p.add_argument("--scene", metavar="NAME", help="the scene to render, e.g. scene-0061 (`nuparquet info OUT` "
                    "lists them); or many scenes with --all-scenes, --scenes or --where")
-    add_options(p, RenderOptions)
+    p.add_argument("--out", metavar="FILE", help="the video to write (FILE.mp4); for one picture (--sample, "
+                   "--sample-data, --annotation, --instance, --map) the PNG or JPEG")
+    p.add_argument("--frames-dir", metavar="DIR", help="also (or instead) write each frame as an image: "
+                   "DIR/00000.jpg, ..., with DIR/frames.parquet saying which sample_data each frame shows")
+    add_options(p, RenderOptions, defaults={"scale": None})
+    add_options(p, SensorFiles)
     add_options(p, SceneSelection)
+    p.add_argument("--out-dir", metavar="DIR", help="where a many-scene render writes DIR/<scene>.mp4 and its summary")
     add_options(p, EngineOptions)
     add_options(p, ImageOptions)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
 
 
+# The render flags a picture of one thing uses (the rest are for scene videos): --scale, --labels, --lidar-color
+# (and --overwrite, harmless: a picture is always replaced).
+_PICTURE_FLAGS = ("scale", "labels", "lidar_color", "overwrite")
+
+
+def _video_flags_given(args) -> list[str]:
+    """The flags only scene videos take that differ from their defaults (a picture refuses them)."""
+    import dataclasses
+
+    given = []
+    for f in dataclasses.fields(RenderOptions):
+        if f.metadata.get("cli") and f.name not in _PICTURE_FLAGS and getattr(args, f.name) != f.default:
+            given.append(f.metadata.get("flag") or "--" + f.name.replace("_", "-"))
+    return given + (["--frames-dir"] if args.frames_dir is not None else [])
+
+
+def _render_options(args) -> RenderOptions:
+    return options_from(args, RenderOptions, unset=("scale",))
+
+
 def run(args) -> int:
-    image = options_from(args, ImageOptions)
+    image = options_from(args, ImageOptions, unset=("scale",), scenes=tuple(args.scenes or ()))
     if image.wanted:
         return _run_image(args, image)
     selection = options_from(args, SceneSelection)
-    if selection.many:
+    if selection.many or args.out_dir is not None:
         return _run_many(args, selection)
     if args.scene is None:
         raise UsageError("say what to render: --scene NAME (with --out or --frames-dir), or --all-scenes, "
                          "--scenes A,B or --where SQL with --out-dir DIR")
     from nuparquet.rendering.pipeline import render  # cv2 and PyAV load only when rendering
 
-    result = render(args.dataset, args.scene, options_from(args, RenderOptions), on_progress=bars(not args.quiet))
+    result = render(opened(args), args.scene, args.out, _render_options(args), frames_dir=args.frames_dir,
+                    on_progress=bars(not args.quiet))
     targets = [str(t) for t in (result.out, result.frames_dir) if t is not None]
     print(
         f"rendered {result.frames_written} frame(s) of {result.scene} {result.channel} "
@@ -122,13 +150,17 @@ def _run_many(args, selection: SceneSelection) -> int:
 
     if args.scene is not None:
         raise UsageError("--scene renders one scene; with --all-scenes, --scenes or --where leave it out")
+    if args.out is not None or args.frames_dir is not None:
+        raise UsageError("a many-scene render writes DIR/<scene>.mp4: leave out --out and --frames-dir")
+    if not selection.many:
+        raise UsageError("--out-dir: say which scenes to take (--all-scenes, --scenes A,B or --where SQL)")
     try:
-        result = render_scenes(args.dataset, selection, options_from(args, RenderOptions),
-                               options_from(args, EngineOptions), on_progress=bars(not args.quiet))
+        result = render_scenes(opened(args), selection, args.out_dir, _render_options(args),
+                               engine=options_from(args, EngineOptions), on_progress=bars(not args.quiet))
     except UnitsFailed as exc:
         done = [o for o in exc.outcomes if o is not None and o.ok]
         if done and args.keep_going:
-            print(f"rendered {len(done)} scene(s) -> {selection.out_dir}")
+            print(f"rendered {len(done)} scene(s) -> {args.out_dir}")
         raise
     resumed = f" ({len(result.resumed)} already done, skipped)" if result.resumed else ""
     print(f"rendered {len(result.written)} scene(s){resumed} -> {result.out_dir} (summary: {result.summary.name})")
@@ -144,12 +176,14 @@ def _run_image(args, image: ImageOptions) -> int:
                          "--all-scenes, --where), not both")
     if args.out is None:
         raise UsageError("give --out PICTURE.png (or .jpg) for the picture")
+    video_only = _video_flags_given(args)
+    if video_only:
+        raise UsageError(f"{', '.join(video_only)}: for scene videos; a picture of one thing takes none of them")
     image.check()
     out = check_image_path(args.out)
     from nuparquet.rendering.single import render_image, save_image  # cv2 loads only when drawing
 
-    picture = render_image(args.dataset, image, scale=args.scale, labels=args.labels, lidar_color=args.lidar_color,
-                           dataroot=args.dataroot, scenes=tuple(args.scenes or ()))
+    picture = render_image(opened(args), image)
     save_image(picture, out)
     print(f"rendered {picture.shape[1]}x{picture.shape[0]} -> {out}")
     return 0

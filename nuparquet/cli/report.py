@@ -9,7 +9,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from nuparquet.cli.arguments import add_options, options_from
+from nuparquet.cli.arguments import add_options, opened, options_from
+from nuparquet.dataset.selection import SceneSelection
+from nuparquet.sensors.options import SensorFiles
 from nuparquet.cli.progress import bars
 from nuparquet.engine.options import EngineOptions
 from nuparquet.site.options import ReportOptions
@@ -41,7 +43,14 @@ def register(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
+    p.add_argument("--out", metavar="DIR", required=True,
+                   help="the folder to write (DIR/index.html, one page per scene, assets)")
+    add_options(p, SceneSelection, skip=("all_scenes",), help={
+        "scenes": "only these scenes (comma-separated names) in the scene table and pages",
+        "where": "only the scenes matching this SQL condition on the scenes dataset, e.g. \"log_location = "
+                 "'boston-seaport'\" (combined with --scenes if both are given)"})
     add_options(p, ReportOptions)
+    add_options(p, SensorFiles)
     add_options(p, EngineOptions, skip=("keep_going", "resume"))
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -50,8 +59,8 @@ def register(sub) -> None:
 def run(args) -> int:
     from nuparquet.site.build import build_report
 
-    result = build_report(args.dataset, options_from(args, ReportOptions), options_from(args, EngineOptions),
-                          on_progress=bars(not args.quiet))
+    result = build_report(opened(args), options_from(args, SceneSelection), args.out, options_from(args, ReportOptions),
+                          engine=options_from(args, EngineOptions), on_progress=bars(not args.quiet))
     print(f"wrote the report of {len(result.scenes)} scene(s) -> {result.index}")
     for scene, reason in result.problems.items():
         print(f"warning: {scene}: {reason}", file=sys.stderr)

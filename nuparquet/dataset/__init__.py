@@ -19,16 +19,16 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-__all__ = ["Dataset", "SceneSelection", "as_dataset", "open_dataset", "select_scenes"]
+__all__ = ["Dataset", "DatasetReference", "SceneSelection", "as_dataset", "open_dataset", "select_scenes"]
 
 if TYPE_CHECKING:
-    from nuparquet.dataset.core import Dataset, as_dataset, open_dataset
+    from nuparquet.dataset.core import Dataset, DatasetReference, as_dataset, open_dataset
     from nuparquet.dataset.selection import SceneSelection, select_scenes
 
 
 def __getattr__(name: str):
     # Loaded on first use: the CLI builds its parsers from `selection` without loading polars.
-    if name in ("Dataset", "as_dataset", "open_dataset"):
+    if name in ("Dataset", "DatasetReference", "as_dataset", "open_dataset"):
         from nuparquet.dataset import core
 
         return getattr(core, name)

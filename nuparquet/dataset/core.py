@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -33,15 +34,20 @@ class Dataset:
     """A converted nuparquet directory: its manifest and one lazy polars scan per dataset.
 
     Attributes: `root` (the path or URL as given, without a trailing slash), `manifest` (the parsed
-    manifest.json), `datasets` (names, in manifest order), `dataroot` (the nuScenes dataroot it was converted
-    from, as recorded in the manifest), `version` (the source version, e.g. ``v1.0-mini``), `storage_options`
-    (polars' object-store options, used for the manifest and every scan).
+    manifest.json), `datasets` (names, in manifest order), `dataroot` (where the sensor files are: the one given
+    when opening, else the nuScenes dataroot it was converted from, as recorded in the manifest), `version` (the
+    source version, e.g. ``v1.0-mini``), `storage_options` (polars' object-store options, used for the manifest and
+    every scan).
     """
 
-    def __init__(self, root: str, manifest: dict, storage_options: Mapping[str, Any] | None = None):
+    def __init__(self, root: str, manifest: dict, storage_options: Mapping[str, Any] | None = None,
+                 dataroot: str | Path | None = None):
         self.root = root
         self.manifest = manifest
         self.storage_options = dict(storage_options) if storage_options else None
+        self._dataroot = str(dataroot) if dataroot is not None else None
+        self._sensors = None
+        self._filesystem = None
         self._entries: dict[str, dict] = dict(manifest["datasets"])
         self._channels: dict | None = None
         self._scene_names: list[str] | None = None
@@ -63,7 +69,24 @@ class Dataset:
 
     @property
     def dataroot(self) -> str | None:
-        return self.manifest.get("source", {}).get("dataroot")
+        """Where the sensor files are: the dataroot given when opening, else the one recorded at conversion."""
+        return self._dataroot if self._dataroot is not None else self.manifest.get("source", {}).get("dataroot")
+
+    @property
+    def sensors(self):
+        """The one reader of this dataset's sensor data (`nuparquet.sensors.reader.SensorReader`)."""
+        if self._sensors is None:
+            from nuparquet.sensors.reader import SensorReader
+
+            self._sensors = SensorReader(self)
+        return self._sensors
+
+    @property
+    def reference(self) -> DatasetReference:
+        """A small picklable handle that opens this dataset again (in an engine worker): root, storage options,
+        dataroot."""
+        root = str(self.root) if self.is_remote else str(Path(self.root).resolve())
+        return DatasetReference(root, self.storage_options, self._dataroot)
 
     @property
     def version(self) -> str | None:
@@ -145,11 +168,30 @@ class Dataset:
         return pl.scan_parquet(f"{location}/**/*.parquet", **options)
 
     def files(self, name: str) -> list[tuple[str, int]]:
-        """The Parquet files of dataset `name` with their sizes in bytes (local directories only)."""
+        """The Parquet files of dataset `name` with their sizes in bytes: local paths, or for an object store the
+        paths inside `self.filesystem` (listed through it, with the dataset's storage options)."""
         if self.is_remote:
-            raise UsageError("listing files needs a local directory")
+            import pyarrow.fs as pafs
+
+            filesystem, base = self.filesystem
+            selector = pafs.FileSelector(f"{base}/{self._entry(name).get('path', name)}", recursive=True)
+            infos = [i for i in filesystem.get_file_info(selector) if i.type == pafs.FileType.File
+                     and i.path.endswith(".parquet")]
+            return [(i.path, i.size) for i in sorted(infos, key=lambda i: i.path)]
         location = Path(self.location(name))
         return [(str(p), p.stat().st_size) for p in sorted(location.rglob("*.parquet"))]
+
+    @property
+    def filesystem(self):
+        """(pyarrow FileSystem, the root's path in it) for an object-store dataset, from its storage options (what
+        pyarrow reads itself: the row groups of chosen frames); None for a local folder."""
+        if not self.is_remote:
+            return None
+        if self._filesystem is None:
+            from nuparquet.dataset.storage import arrow_filesystem
+
+            self._filesystem = arrow_filesystem(self.root, self.storage_options)
+        return self._filesystem
 
     def damaged_files(self) -> list[tuple[str, str]]:
         """Parquet files of this output whose footer cannot be read (truncated, overwritten), with the reason.
@@ -317,25 +359,43 @@ class Dataset:
             modality = name.split("_")[0]
             raise UsageError(f"{self.root} has no {name}/: convert with --sensors {modality} to read points")
         if name not in self._row_groups:
-            self._row_groups[name] = RowGroupIndex.read([path for path, _ in self.files(name)])
+            filesystem = self.filesystem[0] if self.is_remote else None
+            self._row_groups[name] = RowGroupIndex.read([path for path, _ in self.files(name)], filesystem)
         return self._row_groups[name]
 
 
-def open_dataset(path, *, storage_options: Mapping[str, Any] | None = None) -> Dataset:
+@dataclass(frozen=True)
+class DatasetReference:
+    """What opens a dataset again elsewhere (an engine worker): picklable and small."""
+
+    root: str
+    storage_options: dict | None = None
+    dataroot: str | None = None
+
+    def open(self) -> Dataset:
+        return open_dataset(self.root, storage_options=self.storage_options, dataroot=self.dataroot)
+
+
+def open_dataset(path, *, storage_options: Mapping[str, Any] | None = None,
+                 dataroot: str | Path | None = None) -> Dataset:
     """Open the nuparquet output directory `path` (local path or URL polars can scan): read and check its
     manifest. `storage_options` (polars' keys, e.g. ``{"aws_endpoint_url": ...}``) serve the manifest and every
-    scan.
+    scan; `dataroot` says where the sensor files are when they are not at the dataroot recorded at conversion.
 
     Raises `FormatError` if `path` does not exist, is not a nuparquet output, or was written in another format
     version.
     """
     root, manifest = load_manifest(path, storage_options)
-    return Dataset(root, manifest, storage_options)
+    return Dataset(root, manifest, storage_options, dataroot)
 
 
-def as_dataset(dataset_or_path, *, storage_options: Mapping[str, Any] | None = None) -> Dataset:
-    """`dataset_or_path` itself when it is a `Dataset`, else the output it names opened: what every verb that
-    reads a converted directory accepts."""
-    if isinstance(dataset_or_path, Dataset):
-        return dataset_or_path
-    return open_dataset(dataset_or_path, storage_options=storage_options)
+def as_dataset(dataset, *, storage_options: Mapping[str, Any] | None = None,
+               dataroot: str | Path | None = None) -> Dataset:
+    """`dataset` itself when it is a `Dataset` (then `storage_options` and `dataroot` must not be given), else the
+    output it names opened: what every verb that reads a converted directory accepts."""
+    if isinstance(dataset, Dataset):
+        if storage_options is not None or dataroot is not None:
+            raise TypeError("storage_options and dataroot belong to opening a dataset: pass them to "
+                            "nuparquet.open(...), not beside an opened Dataset")
+        return dataset
+    return open_dataset(dataset, storage_options=storage_options, dataroot=dataroot)

@@ -13,7 +13,7 @@ from nuparquet.options import option
 
 @dataclass
 class SceneSelection:
-    """Which scenes a many-scene job takes, and the folder their outputs go to (one file per scene)."""
+    """Which scenes a many-scene job takes (the folder their outputs go to is the verb's `out` argument)."""
 
     all_scenes: bool = option(False, help="every scene of the dataset, one output each into --out-dir")
     scenes: tuple[str, ...] = option(
@@ -21,24 +21,36 @@ class SceneSelection:
     where: str | None = option(
         None, metavar="SQL", help="the scenes matching this SQL condition on the scenes dataset, e.g. "
         "\"log_location = 'boston-seaport' AND nbr_samples > 30\" (combined with --scenes if both are given)")
-    out_dir: str | Path | None = option(
-        None, metavar="DIR", help="where a many-scene job writes DIR/<scene>.<ext> and its summary")
+    def __post_init__(self) -> None:
+        scenes = self.scenes.split(",") if isinstance(self.scenes, str) else self.scenes
+        self.scenes = tuple(name.strip() for name in scenes if name.strip())
 
     @property
     def many(self) -> bool:
         """A many-scene job was asked for (rather than one --scene)."""
-        return self.all_scenes or bool(self.scenes) or self.where is not None or self.out_dir is not None
+        return self.all_scenes or bool(self.scenes) or self.where is not None
 
-    def check(self) -> None:
-        """UsageError unless the selection names scenes and a folder to write into."""
-        if self.out_dir is None:
-            raise UsageError("--all-scenes, --scenes and --where write one file per scene: give --out-dir DIR")
-        if not (self.all_scenes or self.scenes or self.where is not None):
-            raise UsageError("--out-dir: say which scenes to take (--all-scenes, --scenes A,B or --where SQL)")
+    @property
+    def subset(self) -> bool:
+        """Fewer than every scene may be taken (--scenes or --where)."""
+        return bool(self.scenes) or self.where is not None
+
+    def check(self, *, default_all: bool = False) -> None:
+        """UsageError unless the selection names scenes (`default_all`: taking none means every scene, as a report
+        does) without contradicting itself."""
+        if not default_all and not (self.all_scenes or self.scenes or self.where is not None):
+            raise UsageError("say which scenes to take (--all-scenes, --scenes A,B or --where SQL)")
         if self.all_scenes and (self.scenes or self.where is not None):
             raise UsageError("--all-scenes takes every scene; leave out --scenes and --where, or --all-scenes")
-        if Path(self.out_dir).exists() and not Path(self.out_dir).is_dir():
-            raise UsageError(f"--out-dir {self.out_dir} is a file; give a directory")
+
+
+def check_out_dir(out_dir) -> Path:
+    """The folder a many-scene job writes into, as a Path: UsageError if none is given or it is a file."""
+    if out_dir is None:
+        raise UsageError("--all-scenes, --scenes and --where write one file per scene: give --out-dir DIR")
+    if Path(out_dir).exists() and not Path(out_dir).is_dir():
+        raise UsageError(f"--out-dir {out_dir} is a file; give a directory")
+    return Path(out_dir)
 
 
 def select_scenes(dataset, scenes: tuple[str, ...] = (), where: str | None = None) -> list[str]:

@@ -32,17 +32,19 @@ Getter = Callable[[int], Any]
 SHARED_STRINGS_RATIO = 4
 
 
-def read_table(files: list[str], columns: list[str] | None = None) -> pa.Table:
-    """The rows of a dataset's Parquet files in order (all columns, or `columns` that exist), a chunk per row group.
+def read_table(files: list[str], columns: list[str] | None = None, filesystem=None) -> pa.Table:
+    """The rows of a dataset's Parquet files in order (all columns, or `columns` that exist), a chunk per row group;
+    `filesystem`: the pyarrow FileSystem of an object-store output (None: local files).
 
     Read with the system allocator, and left in its chunks (the getters index them): both keep the resident memory
     near the data's size, where mimalloc's caches and a concatenated copy would double it for the large tables."""
     if not files:
         raise ValueError("no Parquet files")
-    present = pq.read_schema(files[0]).names
+    present = pq.read_schema(files[0], filesystem=filesystem).names
     wanted = None if columns is None else [c for c in columns if c in present]
     pool = pa.system_memory_pool()
-    tables = [pads.dataset(f, format="parquet").to_table(columns=wanted, memory_pool=pool) for f in files]
+    tables = [pads.dataset(f, format="parquet", filesystem=filesystem).to_table(columns=wanted, memory_pool=pool)
+              for f in files]
     return tables[0] if len(tables) == 1 else pa.concat_tables(tables)
 
 

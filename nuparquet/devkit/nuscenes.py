@@ -31,6 +31,7 @@ from nuparquet.devkit.utils.color_map import get_colormap
 from nuparquet.devkit.utils.data_classes import Box, LidarPointCloud, PointCloud
 from nuparquet.devkit.utils.geometry_utils import BoxVisibility
 from nuparquet.devkit.utils.map_mask import MapMask, MissingMapMask
+from nuparquet.frames.points import FramesNotConverted
 from nuparquet.errors import InputError, UsageError
 from nuparquet.format import MANIFEST
 
@@ -55,10 +56,12 @@ class NuScenes:
         verbose: print what the devkit prints at start-up (table sizes, from the manifest).
         map_resolution: metres per pixel of the map masks (`map['mask']`), >= 0.1.
         colormap: {class name: (r, g, b)}; default `nuscenes.utils.color_map.get_colormap()`'s.
-        parquet: the output directory of `nuparquet convert`; may be omitted when `dataroot` is one.
+        parquet: the output directory of `nuparquet convert` (a local path, or a URL polars can scan with
+            `storage_options`); may be omitted when `dataroot` is one.
         keep_records: keep every record once built, as the devkit keeps them all (the same dict on every `get`,
             changes stay). False: a new dict on every access and none held, for read-only loops over large tables
             where memory matters more than repeated-lookup speed.
+        storage_options: polars' object-store options for a `parquet` URL (as `nuparquet.open` takes them).
 
     Everything read-only the devkit's object offers is here (see the README's "Switching from the devkit"); the
     pictures (`render_sample_data`, `render_sample`, `render_pointcloud_in_image`, `render_annotation`,
@@ -68,7 +71,8 @@ class NuScenes:
 
     def __init__(self, version: str = "v1.0-mini", dataroot: str | os.PathLike | None = None, verbose: bool = True,
                  map_resolution: float = 0.1, colormap: dict | None = None, *,
-                 parquet: str | os.PathLike | None = None, keep_records: bool = True):
+                 parquet: str | os.PathLike | None = None, keep_records: bool = True,
+                 storage_options: dict | None = None):
         from nuparquet.dataset import open_dataset
 
         start_time = time.time()
@@ -81,11 +85,8 @@ class NuScenes:
                     "dataroot")
             dataset = open_dataset(given)
             dataroot = None
-        else:
-            dataset = open_dataset(parquet)
-        if dataset.is_remote:
-            raise UsageError(f"nuparquet.devkit.NuScenes reads local outputs; {dataset.root} is a URL: copy it "
-                             "locally, or use nuparquet.open() for remote queries")
+        else:  # the dataroot given is where the sensor files are (the dataset's sensor reader reads them there)
+            dataset = open_dataset(parquet, dataroot=dataroot, storage_options=storage_options)
         if dataset.version != version:
             raise UsageError(f"version {version!r} was asked for, but {dataset.root} holds the conversion of "
                              f"{dataset.version!r}: pass version={dataset.version!r}, or convert {version!r}")
@@ -100,7 +101,7 @@ class NuScenes:
         self.map_resolution = map_resolution
         self.parquet = dataset.root
         self._dataset = dataset
-        self._source = ConvertedTables(dataset.root, dataset.manifest)
+        self._source = ConvertedTables(dataset)
         converted = set(self._source.names())
         missing = [name for name in CORE_TABLES if name not in converted]
         if missing:
@@ -275,7 +276,7 @@ class NuScenes:
                 if dataset == "lidar_points":
                     return cls(np.ascontiguousarray(self._dataset.points(sd_record["token"])[:, :4].T))
                 return cls._filtered(self._dataset.radar_points(sd_record["token"]).T.copy())
-            except UsageError:
+            except FramesNotConverted:
                 pass  # not converted (a sweep without --sweeps): say so below
         sweeps = "" if sd_record["is_key_frame"] else " --sweeps"
         raise FileNotFoundError(f"{path} does not exist, and {self.parquet} holds no points of sample_data "

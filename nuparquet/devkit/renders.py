@@ -64,7 +64,7 @@ class ExplorerRenders:
         image = _single().render_sample_data(
             self._ds, sample_data_token, with_anns, box_vis_level, axes_limit, nsweeps, underlay_map,
             use_flat_vehicle_coordinates, show_lidarseg, show_lidarseg_legend, filter_lidarseg_labels,
-            lidarseg_preds_bin_path, show_panoptic, dataroot=self.nusc.dataroot)
+            lidarseg_preds_bin_path, show_panoptic)
         return _place(image, out_path, ax) if verbose or out_path is not None or ax is not None else image
 
     def render_sample(self, token: str, box_vis_level="any", nsweeps: int = 1, out_path: str | None = None,
@@ -73,8 +73,7 @@ class ExplorerRenders:
                       show_panoptic: bool = False) -> np.ndarray:
         """Every sensor of a sample in one picture."""
         image = _single().render_sample(self._ds, token, box_vis_level, nsweeps, show_lidarseg,
-                                        filter_lidarseg_labels, lidarseg_preds_bin_path, show_panoptic,
-                                        dataroot=self.nusc.dataroot)
+                                        filter_lidarseg_labels, lidarseg_preds_bin_path, show_panoptic)
         return _place(image, out_path) if verbose or out_path is not None else image
 
     def render_pointcloud_in_image(self, sample_token: str, dot_size: int = 5, pointsensor_channel: str = "LIDAR_TOP",
@@ -86,22 +85,19 @@ class ExplorerRenders:
         """A sample's lidar or radar points on one of its camera images."""
         image = _single().render_pointcloud_in_image(
             self._ds, sample_token, dot_size, pointsensor_channel, camera_channel, render_intensity, show_lidarseg,
-            filter_lidarseg_labels, show_lidarseg_legend, lidarseg_preds_bin_path, show_panoptic,
-            dataroot=self.nusc.dataroot)
+            filter_lidarseg_labels, show_lidarseg_legend, lidarseg_preds_bin_path, show_panoptic)
         return _place(image, out_path, ax) if verbose or out_path is not None or ax is not None else image
 
     def render_annotation(self, anntoken: str, margin: float = 10, view: np.ndarray | None = None,
                           box_vis_level="any", out_path: str | None = None, extra_info: bool = False) -> np.ndarray:
         """An annotation in the lidar view beside the camera that sees it."""
-        image = _single().render_annotation(self._ds, anntoken, margin, view, box_vis_level, extra_info,
-                                            dataroot=self.nusc.dataroot)
+        image = _single().render_annotation(self._ds, anntoken, margin, view, box_vis_level, extra_info)
         return _place(image, out_path)
 
     def render_instance(self, instance_token: str, margin: float = 10, view: np.ndarray | None = None,
                         box_vis_level="any", out_path: str | None = None, extra_info: bool = False) -> np.ndarray:
         """The instance's annotation nearest to the ego vehicle (the devkit's choice), as `render_annotation` draws it."""
-        image = _single().render_instance(self._ds, instance_token, margin, view, box_vis_level, extra_info,
-                                          dataroot=self.nusc.dataroot)
+        image = _single().render_instance(self._ds, instance_token, margin, view, box_vis_level, extra_info)
         return _place(image, out_path)
 
     # --- what `nuparquet render` does instead ------------------------------------------------------------------

@@ -136,23 +136,16 @@ class Table(Sequence):
     append = extend = insert = pop = remove = clear = sort = reverse = _read_only
 
 
-def dataset_files(root: str, path: str) -> list[str]:
-    """The Parquet files of a dataset directory, in name order (local outputs)."""
-    return [str(p) for p in sorted(Path(root, path).rglob("*.parquet"))]
-
-
 class ConvertedTables:
-    """The source tables of one converted output: each one's files and the facts that rebuild its records.
+    """The source tables of one converted output (a `Dataset`, local or in an object store): each one's files and
+    the facts that rebuild its records."""
 
-    Args:
-        root: the output directory (local).
-        manifest: its manifest.json.
-    """
-
-    def __init__(self, root: str, manifest: dict):
-        self.root = root
-        self.manifest = manifest
-        self._inferred = {f["dataset"].removeprefix("tables/"): f for f in manifest.get("files", ())
+    def __init__(self, dataset):
+        self.dataset = dataset
+        self.root = dataset.root
+        self.manifest = dataset.manifest
+        self._filesystem = dataset.filesystem[0] if dataset.is_remote else None
+        self._inferred = {f["dataset"].removeprefix("tables/"): f for f in self.manifest.get("files", ())
                           if f.get("kind") == "table_inferred"}
 
     def names(self) -> list[str]:
@@ -163,8 +156,7 @@ class ConvertedTables:
         return int(self.manifest["datasets"][f"tables/{name}"]["rows"])
 
     def files(self, name: str) -> list[str]:
-        entry = self.manifest["datasets"][f"tables/{name}"]
-        files = dataset_files(self.root, entry.get("path", f"tables/{name}"))
+        files = [path for path, _ in self.dataset.files(f"tables/{name}")]
         if not files:
             raise FormatError(f"{self.root}: tables/{name} is listed in manifest.json but has no Parquet file; "
                               "convert the dataroot again")
@@ -172,11 +164,11 @@ class ConvertedTables:
 
     def read(self, name: str, columns: list[str]) -> pa.Table:
         """Only `columns` of table `name` (the reverse indexes need a few columns of the large tables)."""
-        return read_table(self.files(name), columns)
+        return read_table(self.files(name), columns, self._filesystem)
 
     def columns(self, name: str) -> Columns | RecordColumns:
         """Every column of table `name`, with what rebuilds its records."""
-        table = read_table(self.files(name))
+        table = read_table(self.files(name), filesystem=self._filesystem)
         if name in self._inferred:
             return RecordColumns(table, self._inferred[name])
         from nuparquet.schemas import table_schemas

@@ -18,6 +18,7 @@ from nuparquet.evaluation.boxes import Boxes
 from nuparquet.evaluation.classes import TP_METRICS, UNDEFINED_TP_METRICS, orientation_period_rad
 from nuparquet.evaluation.config import DetectionConfig
 from nuparquet.evaluation.matching import Matches
+from nuparquet.geometry.dots import rowwise_norm
 from nuparquet.geometry.quaternions import heading_from_quaternions
 
 NELEM = 101  # recall points of the curves (devkit DetectionMetricData.nelem)
@@ -75,8 +76,7 @@ def match_errors(gt: Boxes, pred: Boxes, gt_rows: np.ndarray, pred_rows: np.ndar
     period (pi for barriers); attr_err: 0 / 1, NaN where the ground truth has no attribute.
     """
     g, p = gt.take(gt_rows), pred.take(pred_rows)
-    dv = p.velocity_mps - g.velocity_mps
-    vel_err = np.sqrt(dv[:, 0] ** 2 + dv[:, 1] ** 2)
+    vel_err = rowwise_norm(p.velocity_mps - g.velocity_mps)  # the devkit's velocity_l2: np.linalg.norm
     sa, sr = g.size_wlh_m, p.size_wlh_m
     mins = np.minimum(sa, sr)
     volume_annotation = sa[:, 0] * sa[:, 1] * sa[:, 2]

@@ -15,15 +15,11 @@ _BY_HELP = ("distance, visibility, attribute, location, night, rain, scene, or a
 
 @dataclass
 class EvalOptions:
-    """An evaluation: which submission, which split, which settings, where to write, which slices."""
+    """How to evaluate a submission: which split, which settings, which slices (the submission and where the metrics
+    go are the verb's arguments: `evaluate(ds, results, out, ...)`)."""
 
-    results: str | Path = option(help="the detection submission, nuScenes format: {\"meta\": {...}, \"results\": "
-                                 "{sample_token: [box, ...]}}", metavar="RESULTS.json")
     split: str = option("val", help="the split evaluated: train, val, test, mini_train, mini_val, train_detect, "
                         "train_track, or a custom split of <dataroot>/<version>/splits.json (default val)")
-    out: str | Path | None = option(
-        None, metavar="DIR", help="write metrics_summary.json, metrics_details.json, plots/, predictions/, "
-        "ground_truth/ (and slices/ with --by) here; without it the metrics are only printed")
     config: str = option("detection_cvpr_2019", metavar="NAME",
                          help="the devkit configuration by name (default detection_cvpr_2019)")
     config_file: str | Path | None = option(

@@ -35,6 +35,7 @@ from nuparquet.evaluation.metrics import (
     DetectionMetrics, MetricData, detection_metrics, match_errors, metric_data, serialize_details,
 )
 from nuparquet.evaluation.options import EvalOptions
+from nuparquet.options import resolve
 from nuparquet.evaluation.slices import dimension, needed_columns, parse_bins
 from nuparquet.evaluation.splits import is_predefined
 from nuparquet.evaluation.submission import Submission, check_samples, read_submission
@@ -99,14 +100,6 @@ class EvalResult:
     notes: list[str] = field(default_factory=list)
 
 
-def _dataset(dataset_or_path):
-    if hasattr(dataset_or_path, "scan"):
-        return dataset_or_path
-    from nuparquet.dataset import open_dataset
-
-    return open_dataset(dataset_or_path)
-
-
 def _prediction_boxes(sub: Submission, sample_of: dict, class_names: tuple[str, ...]) -> tuple[Boxes, np.ndarray]:
     """The submission as Boxes (sample_index into the evaluated samples), and (N,) sample index per box."""
     sample_index = np.array([sample_of[t] for t in sub.sample_tokens.tolist()], dtype=np.int64)
@@ -148,32 +141,36 @@ def _check_out(out: Path, dataset, overwrite: bool) -> None:
         check_apart(out, dataset.root, what="the converted dataset")
 
 
-def evaluate(dataset, options: EvalOptions | None = None, *, on_progress: OnProgress | None = None,
-             **settings) -> EvalResult:
-    """Evaluate a detection submission on a converted dataset, exactly as nuscenes-devkit's DetectionEval.
+def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
+             on_progress: OnProgress | None = None, **fields) -> EvalResult:
+    """Evaluate the detection submission `results` (a results.json) on `dataset` (a `Dataset` or the path of a
+    converted output) exactly as nuscenes-devkit's DetectionEval, writing the metrics, plots and tables into the
+    folder `out` (None: nothing written).
 
-    `dataset`: a `Dataset` or the path of a converted output. Settings as an `EvalOptions` or as its keywords
-    (``results=``, ``split=``, ``out=``, ``config=``, ``config_file=``, ``by=``, ``bins=``, ``plots=``,
-    ``overwrite=``). Progress goes to `on_progress` (one "step" per stage, one per slice).
+    Settings as an `EvalOptions` or as its keywords (``split=``, ``config=``, ``config_file=``, ``by=``, ``bins=``,
+    ``plots=``, ``overwrite=``), or both (`nuparquet.options.resolve`). Progress goes to `on_progress` (one "step"
+    per stage, one per slice).
 
     Raises:
         UsageError: bad settings (unknown split, configuration or slice, an --out that holds files).
         InputError: a submission the devkit would refuse (the message names the sample and the box), or ground
             truth it cannot evaluate.
     """
-    options = options if options is not None else EvalOptions(**settings)
+    from nuparquet.dataset import as_dataset
+
+    options = resolve(EvalOptions, options, fields)
     config = resolve_config(options.config, options.config_file)
     bins = parse_bins(options.bins) if options.bins else None
     by = tuple(dict.fromkeys(options.by))
-    ds = _dataset(dataset)
-    out = Path(options.out) if options.out is not None else None
+    ds = as_dataset(dataset)
+    out = Path(out) if out is not None else None
     if out is not None:
         _check_out(out, ds, options.overwrite)
     steps = 6 + (1 if out is not None and options.plots else 0)
     # with slices the total is known once their labels are (each is a step): a bar's total never changes
     with Reporter(on_progress, "eval", total=None if by else steps, unit="step") as rep:
         rep.note("read the submission")
-        sub = read_submission(options.results, max_boxes_per_sample=config.max_boxes_per_sample,
+        sub = read_submission(results, max_boxes_per_sample=config.max_boxes_per_sample,
                               class_names=config.class_names)
         rep.advance(step="load the ground truth")
         annotation_names = ds.scan("annotations").collect_schema().names()
@@ -186,7 +183,7 @@ def evaluate(dataset, options: EvalOptions | None = None, *, on_progress: OnProg
         # a predefined split wants exactly its samples; a custom one ignores the others (devkit
         # load_prediction_of_sample_tokens) and takes the split's samples in its order
         custom = not is_predefined(options.split)
-        check_samples(sub, gt.samples.token.tolist(), split=options.split, path=options.results, allow_extra=custom)
+        check_samples(sub, gt.samples.token.tolist(), split=options.split, path=results, allow_extra=custom)
         if custom:
             sub = _restricted_to_split(sub, gt.samples.token)
         rep.advance(step="filter")

@@ -27,23 +27,25 @@ from nuparquet.schemas import table_schemas
 BATCH_ROWS = 65536  # records converted to Python at a time: keeps memory flat on trainval
 
 
-def export_json(dataset_dir: Path | str, out: Path | str, *, overwrite: bool = False,
+def export_json(dataset, out: Path | str, *, overwrite: bool = False,
                 on_progress: OnProgress | None = None) -> list[Path]:
-    """Write every JSON file the conversion at `dataset_dir` read back under `out`, at its path relative to the
-    dataroot (the tables at `out/<version>/<table>.json`); returns the paths written."""
-    dataset_dir = Path(dataset_dir)
-    check_apart(out, dataset_dir, what="the converted dataset")
-    check_target(out, overwrite=overwrite)
-    manifest_path = dataset_dir / MANIFEST
-    if not manifest_path.is_file():
-        raise FormatError(f"{dataset_dir} is not a nuparquet output (no {MANIFEST})")
-    from nuparquet.dataset import open_dataset
+    """Write every JSON file the conversion `dataset` (a `Dataset`, local or in an object store, or its folder) read
+    back under `out`, at its path relative to the dataroot (the tables at `out/<version>/<table>.json`); returns the
+    paths written."""
+    from nuparquet.dataset import Dataset, open_dataset
 
-    manifest = open_dataset(dataset_dir).manifest  # checks the format and its version, names the file when damaged
+    if not isinstance(dataset, Dataset):
+        if not (Path(dataset) / MANIFEST).is_file() and "://" not in str(dataset):
+            raise FormatError(f"{dataset} is not a nuparquet output (no {MANIFEST})")
+        dataset = open_dataset(dataset)  # checks the format and its version, names the file when damaged
+    if not dataset.is_remote:
+        check_apart(out, dataset.root, what="the converted dataset")
+    check_target(out, overwrite=overwrite)
+    manifest = dataset.manifest
     files = manifest.get("files") or _files_of_older_manifest(manifest)
     unknown = sorted({f["kind"] for f in files} - set(WRITERS))
     if unknown:
-        raise FormatError(f"{dataset_dir}: {MANIFEST} lists files of kind {', '.join(unknown)}, which this "
+        raise FormatError(f"{dataset.root}: {MANIFEST} lists files of kind {', '.join(unknown)}, which this "
                           f"nuparquet cannot write back (known: {', '.join(WRITERS)}); upgrade nuparquet")
     written = []
     with Reporter(on_progress, "export-json", total=len(files), unit="file") as reporter, \
@@ -52,7 +54,7 @@ def export_json(dataset_dir: Path | str, out: Path | str, *, overwrite: bool = F
             reporter.advance(step=entry["path"])
             target = tmp / entry["path"]
             target.parent.mkdir(parents=True, exist_ok=True)
-            WRITERS[entry["kind"]](dataset_dir, manifest, entry, target)
+            WRITERS[entry["kind"]](dataset, manifest, entry, target)
             written.append(Path(out) / entry["path"])
     return written
 
@@ -67,46 +69,57 @@ def _files_of_older_manifest(manifest: dict) -> list[dict]:
              "kind": "table", "dataset": f"tables/{name}"} for name in manifest["tables"]]
 
 
-def _write_table_file(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
+def _parquet_files(dataset, name: str) -> list[pq.ParquetFile]:
+    """The Parquet files of dataset `name` in order, opened through the dataset's storage (local or remote)."""
+    filesystem = dataset.filesystem[0] if dataset.is_remote else None
+    return [pq.ParquetFile(path, filesystem=filesystem) for path, _ in dataset.files(name)]
+
+
+def _arrow_table(dataset, name: str) -> pa.Table:
+    """The whole of dataset `name` as read by pyarrow (nested structs keep their field order)."""
+    tables = [file.read() for file in _parquet_files(dataset, name)]
+    return pa.concat_tables(tables) if tables else pa.table({})
+
+
+def _write_table_file(dataset, manifest: dict, entry: dict, target: Path) -> None:
     name = entry["dataset"].removeprefix("tables/")
     info = manifest["tables"][name]
-    _write_table(dataset_dir / manifest["datasets"][entry["dataset"]]["path"], target, info["key_order"], name,
+    _write_table(_parquet_files(dataset, entry["dataset"]), target, info["key_order"], name,
                  set(info.get("json_fields", ())), info.get("layouts") or [info["key_order"]], entry.get("layout"))
 
 
-def _scene_rows(dataset_dir: Path, manifest: dict, entry: dict) -> list[dict]:
+def _scene_rows(dataset, manifest: dict, entry: dict) -> list[dict]:
     import polars as pl
 
-    path = dataset_dir / manifest["datasets"][entry["dataset"]]["path"]
-    return (pl.scan_parquet(str(path / "*.parquet")).filter(pl.col("scene_name") == entry["scene"])
+    return (dataset.scan(entry["dataset"]).filter(pl.col("scene_name") == entry["scene"])
             .drop("scene_name").collect().to_dicts())
 
 
-def _write_can_bus_messages(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
-    rows = _scene_rows(dataset_dir, manifest, entry)
+def _write_can_bus_messages(dataset, manifest: dict, entry: dict, target: Path) -> None:
+    rows = _scene_rows(dataset, manifest, entry)
     records = to_records(rows, entry["keys"], entry.get("json_fields", []), entry.get("int_values", {}),
                          entry.get("key_orders", {}))
     target.write_text(json.dumps(records))
 
 
-def _write_can_bus_meta(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
-    rows = _scene_rows(dataset_dir, manifest, entry)
+def _write_can_bus_meta(dataset, manifest: dict, entry: dict, target: Path) -> None:
+    rows = _scene_rows(dataset, manifest, entry)
     names = [row.pop("message") for row in rows]
     records = to_records(rows, entry["keys"], entry.get("json_fields", []), entry.get("int_values", {}),
                          entry.get("key_orders", {}))
     target.write_text(json.dumps(dict(zip(names, records)), indent=0))
 
 
-def _write_can_bus_route(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
-    rows = sorted(_scene_rows(dataset_dir, manifest, entry), key=lambda r: r["point_index"])
+def _write_can_bus_route(dataset, manifest: dict, entry: dict, target: Path) -> None:
+    rows = sorted(_scene_rows(dataset, manifest, entry), key=lambda r: r["point_index"])
     records = to_records([{"x": r["x"], "y": r["y"]} for r in rows], ["x", "y"], [], entry.get("int_values", {}), {})
     target.write_text(json.dumps([[r["x"], r["y"]] for r in records], indent=0))
 
 
-def _write_inferred_table(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
+def _write_inferred_table(dataset, manifest: dict, entry: dict, target: Path) -> None:
     import polars as pl
 
-    rows = pl.read_parquet(dataset_dir / manifest["datasets"][entry["dataset"]]["path"]).to_dicts()
+    rows = pl.from_arrow(_arrow_table(dataset, entry["dataset"])).to_dicts()
     records = to_records(rows, entry["keys"], entry.get("json_fields", []), entry.get("int_values", {}),
                          entry.get("key_orders", {}))
     if "layout" in entry:  # the source's whitespace (sources/json_layout.py): byte for byte
@@ -116,18 +129,17 @@ def _write_inferred_table(dataset_dir: Path, manifest: dict, entry: dict, target
     target.write_text(json.dumps(records, indent=0))
 
 
-def _map_layer_rows(dataset_dir: Path, manifest: dict, layer: str, location: str) -> list[dict]:
+def _map_layer_rows(dataset, manifest: dict, layer: str, location: str) -> list[dict]:
     """The rows of one map's layer, in file order, without the columns nuparquet added (Arrow to Python: nested
     structs keep their field order)."""
     import pyarrow.compute as pc
 
-    path = dataset_dir / manifest["datasets"][f"map/{layer}"]["path"]
-    table = pq.read_table(path)
+    table = _arrow_table(dataset, f"map/{layer}")
     table = table.filter(pc.equal(table.column("location"), location))
     return table.drop_columns([c for c in ("location", "geometry", "bbox") if c in table.column_names]).to_pylist()
 
 
-def _write_map_expansion(dataset_dir: Path, manifest: dict, entry: dict, target: Path) -> None:
+def _write_map_expansion(dataset, manifest: dict, entry: dict, target: Path) -> None:
     """A map expansion file: every layer in the file's key order, each record as it was (`json_records` facts)."""
     out = {}
     for key in entry["top_keys"]:
@@ -135,7 +147,7 @@ def _write_map_expansion(dataset_dir: Path, manifest: dict, entry: dict, target:
             out[key] = entry["scalars"][key]
             continue
         facts = entry["layers"][key]
-        rows = _map_layer_rows(dataset_dir, manifest, key, entry["location"])
+        rows = _map_layer_rows(dataset, manifest, key, entry["location"])
         lanes = [row.pop("lane_token") for row in rows] if key in ("arcline_path_3", "connectivity") else None
         records = to_records(rows, facts["keys"], facts.get("json_fields", []), facts.get("int_values", {}),
                              facts.get("key_orders", {}))
@@ -149,7 +161,7 @@ def _write_map_expansion(dataset_dir: Path, manifest: dict, entry: dict, target:
 
 
 # How each kind of converted JSON file is written back (the manifest's "files" name the kind of each).
-WRITERS: dict[str, Callable[[Path, dict, dict, Path], None]] = {
+WRITERS: dict[str, Callable[[object, dict, dict, Path], None]] = {
     "table": _write_table_file,
     "table_inferred": _write_inferred_table,
     "can_bus_messages": _write_can_bus_messages,
@@ -159,18 +171,17 @@ WRITERS: dict[str, Callable[[Path, dict, dict, Path], None]] = {
 }
 
 
-def _write_table(parquet_dir: Path, path: Path, key_order: list[str], name: str, json_fields: set[str],
+def _write_table(files: list[pq.ParquetFile], path: Path, key_order: list[str], name: str, json_fields: set[str],
                  layouts: list[list[str]], layout: dict | None = None) -> None:
-    """`layout`: the source's whitespace (`sources.json_layout`; None: one record a line)."""
+    """`files`: the table's Parquet files in order; `layout`: the source's whitespace (`sources.json_layout`; None:
+    one record a line)."""
     schema = table_schemas().get(name)
     empty_list_fields = {f.name for f in schema.fields if f.empty_list_is_null} if schema else set()
     shapes = {f.name: f.json_shape for f in schema.fields if f.json_shape} if schema else {}
-    files = sorted(parquet_dir.glob("*.parquet"))
     opening, separator, closing, empty = json_layout.delimiters(layout)
     with path.open("w") as out:
         first = True
-        for file in files:
-            parquet = pq.ParquetFile(file)
+        for parquet in files:
             hidden = [c for c in table_layouts.HIDDEN if c in parquet.schema_arrow.names]
             int_columns = {f.name for f in parquet.schema_arrow if pa.types.is_integer(f.type)}
             for batch in parquet.iter_batches(batch_size=BATCH_ROWS, columns=key_order + hidden):

@@ -31,6 +31,16 @@ from nuparquet.sources.points import LIDAR_FIELDS
 FRAME_COLUMNS = ("sample_data_token", "scene_name", "channel", "timestamp", "is_key_frame", "point_index")
 
 
+class FramesNotConverted(UsageError):
+    """Frames asked for that the points dataset does not hold (not converted, a sweep left out, a file missing at
+    conversion, or not a frame of this sensor type); `tokens` are they."""
+
+    def __init__(self, tokens: Sequence[str]):
+        self.tokens = list(tokens)
+        super().__init__(f"no points for sample_data {', '.join(self.tokens[:5])}"
+                         f"{' ...' if len(self.tokens) > 5 else ''} (not converted, or not a frame of this sensor type)")
+
+
 @dataclass(frozen=True)
 class RowGroupIndex:
     """Per row group of a points dataset (footers only): its file and the min/max of token and scene."""
@@ -43,17 +53,19 @@ class RowGroupIndex:
     scene_min: np.ndarray
     scene_max: np.ndarray
     schema: pa.Schema  # the dataset's columns
+    filesystem: object = None  # the pyarrow FileSystem of an object-store dataset (None: local paths)
     _files: dict = field(default_factory=dict, compare=False, repr=False)  # open pq.ParquetFile by path
     # One reader at a time: a pq.ParquetFile is not safe to read from two threads (the renderer's decode threads
     # read lidar points concurrently: pyarrow's ReadRangeCache raised, or the process crashed).
     _lock: threading.Lock = field(default_factory=threading.Lock, compare=False, repr=False)
 
     @classmethod
-    def read(cls, paths: list[str]) -> RowGroupIndex:
+    def read(cls, paths: list[str], filesystem=None) -> RowGroupIndex:
+        """The footers of `paths` (local, or inside the pyarrow `filesystem` of an object store)."""
         rows: list[tuple] = []
         schema = pa.schema([])
         for i, path in enumerate(paths):
-            meta = pq.read_metadata(path)
+            meta = pq.read_metadata(path, filesystem=filesystem)
             schema = meta.schema.to_arrow_schema()
             fields = schema.names
             token_col, scene_col = fields.index("sample_data_token"), fields.index("scene_name")
@@ -65,7 +77,7 @@ class RowGroupIndex:
                 rows.append((i, g, _text(token.min), _text(token.max), _text(scene.min), _text(scene.max)))
         columns = list(zip(*rows)) if rows else [[]] * 6
         return cls(paths, np.array(columns[0], dtype=np.int64), np.array(columns[1], dtype=np.int64),
-                   *(np.array(c, dtype=str) for c in columns[2:]), schema)
+                   *(np.array(c, dtype=str) for c in columns[2:]), schema, filesystem=filesystem)
 
     @property
     def fields(self) -> tuple[str, ...]:
@@ -85,7 +97,7 @@ class RowGroupIndex:
         """The open file of row group `g` (opened once: its footer is parsed once)."""
         path = self.paths[int(self.file[g])]
         if path not in self._files:
-            self._files[path] = pq.ParquetFile(path)
+            self._files[path] = pq.ParquetFile(path, filesystem=self.filesystem)
         return self._files[path]
 
     def read_group(self, g: int, columns: Sequence[str]) -> pa.Table:
@@ -123,8 +135,7 @@ class RowGroupIndex:
             if not found:
                 missing.append(token)
         if missing:
-            raise UsageError(f"no points for sample_data {', '.join(missing[:5])}{' ...' if len(missing) > 5 else ''} "
-                             "(not converted, or not a frame of this sensor type)")
+            raise FramesNotConverted(missing)
         return pa.concat_tables(pieces)
 
 

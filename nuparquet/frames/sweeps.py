@@ -70,8 +70,7 @@ def keyframe_rows(dataset, sample_token: str, channels: list[str]) -> pl.DataFra
 
 
 def multisweep(dataset, sample_token: str, channel: str, ref_channel: str | None = None, nsweeps: int = 5,
-               min_distance_m: float = MIN_DISTANCE_M, *, radar_filters: bool = True,
-               dataroot: str | Path | None = None) -> Sweeps:
+               min_distance_m: float = MIN_DISTANCE_M, *, radar_filters: bool = True) -> Sweeps:
     """The points of the sample's `channel` keyframe and up to `nsweeps - 1` sweeps before it, in the frame of the
     sample's `ref_channel` keyframe (default: the dataset's reference lidar). See the module docstring."""
     if nsweeps < 1:
@@ -86,11 +85,10 @@ def multisweep(dataset, sample_token: str, channel: str, ref_channel: str | None
     global_from_car, car_from_current = sensor_poses(chain)
     ref_time_s = 1e-6 * int(ref["timestamp"][0])
     modality = start["modality"][0]
-    root = Path(dataroot) if dataroot is not None else Path(dataset.dataroot or ".")
     clouds, times, sweep_of = [], [], []
     fields: tuple[str, ...] = ()
     for k, row in enumerate(chain.iter_rows(named=True)):
-        cloud, fields = frame_cloud(dataset, row, modality, root, radar_filters)
+        cloud, fields = frame_cloud(dataset, row, modality, radar_filters)
         close = (np.abs(cloud[:, 0]) < min_distance_m) & (np.abs(cloud[:, 1]) < min_distance_m)
         cloud = cloud[~close]
         ref_from_current = reduce(np.dot, [ref_from_car, car_from_global, global_from_car[k], car_from_current[k]])
@@ -121,32 +119,28 @@ def _chain(dataset, start: pl.DataFrame, nsweeps: int) -> pl.DataFrame:
     return frames[order]
 
 
-def frame_cloud(dataset, row: dict, modality: str, root: Path, radar_filters: bool = True
-                ) -> tuple[np.ndarray, tuple[str, ...]]:
+def frame_cloud(dataset, row: dict, modality: str, radar_filters: bool = True) -> tuple[np.ndarray, tuple[str, ...]]:
     """(P, F) points of one frame as the devkit's `LidarPointCloud.from_file` / `RadarPointCloud.from_file` loads
     them (lidar: x, y, z, intensity; radar: every PCD field, filtered unless `radar_filters` is False), and their
-    field names. `row`: the frame's `frames` row (token, channel, filename)."""
+    field names, through the dataset's sensor reader (converted points, else the file). `row`: the frame's `frames`
+    row (token, channel, filename)."""
     if modality == "lidar":
-        if "lidar_points" in dataset.datasets:
-            try:
-                frame = dataset.points(row["token"], columns=list(LIDAR_COLUMNS))
-                return frame.to_numpy().astype(np.float32), LIDAR_COLUMNS
-            except UsageError:  # not converted (a sweep): read its file
-                pass
-        from nuparquet.sources.points import read_lidar_bin
-
-        return read_point_file(read_lidar_bin, root / row["filename"])[:, :4], LIDAR_COLUMNS
+        points, _ = dataset.sensors.lidar(row["token"], row["filename"])
+        return points, LIDAR_COLUMNS
     if modality != "radar":
         raise UsageError(f"{row['channel']} is a {modality} channel: sweeps aggregate lidar and radar points")
-    if "radar_points" in dataset.datasets:
+    from nuparquet.frames.points import FramesNotConverted
+
+    if dataset.sensors.converted_columns("radar"):
         try:
             frame = dataset.radar_points(row["token"], filtered=radar_filters)
             return frame, tuple(_radar_fields(dataset))
-        except UsageError:
+        except FramesNotConverted:  # not converted (a sweep): its file
             pass
     from nuparquet.sources.points import passes_default_filters, read_radar_pcd
 
-    structured = read_point_file(read_radar_pcd, root / row["filename"])
+    path = dataset.sensors.file(row["token"], row["filename"], "radar")
+    structured = read_point_file(read_radar_pcd, path)
     names = structured.dtype.names
     if len(structured) and any(np.isnan(structured[0][n]) for n in names if structured.dtype[n].kind == "f"):
         return np.zeros((0, len(names))), names  # a NaN first point: the devkit's empty cloud

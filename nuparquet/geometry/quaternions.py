@@ -1,11 +1,17 @@
 """Quaternions `[..., 4]` in `[w, x, y, z]` order (the nuScenes JSON order), vectorised, with pyquaternion's
 semantics reproduced exactly (its unit tolerance, its Pade fast normalisation, its slerp), so results can be
 checked against the devkit, which uses pyquaternion throughout. numpy only.
+
+pyquaternion's |q|^2 and q0 . q1 are `np.dot` of 4-vectors, i.e. the machine's BLAS `ddot`, whose rounding
+depends on the CPU's kernel; they are computed here through the same routine (`dots.rowwise_dot`), so the
+branches they decide (already unit? the shorter arc? linear or spherical?) are pyquaternion's on every machine.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+from nuparquet.geometry.dots import rowwise_dot
 
 # pyquaternion treats |q|^2 within this of 1 as already unit and leaves it untouched (Quaternion.is_unit).
 _PYQUATERNION_UNIT_TOLERANCE = 1e-14
@@ -33,7 +39,7 @@ def normalise_quaternions(q_wxyz) -> np.ndarray:
         unit (|q|^2 within 1e-14 of 1), which are returned unchanged; zero quaternions stay zero.
     """
     q = as_float_array(q_wxyz, (4,), "q_wxyz")
-    norm_squared = np.sum(q * q, axis=-1, keepdims=True)
+    norm_squared = rowwise_dot(q, q)[..., None]
     already_unit = np.abs(1.0 - norm_squared) < _PYQUATERNION_UNIT_TOLERANCE
     norm = np.sqrt(norm_squared)
     keep = already_unit | (norm == 0.0)
@@ -46,7 +52,7 @@ def _fast_normalise_quaternions(q: np.ndarray) -> np.ndarray:
     slerp uses this approximation (not `_normalise`), so interpolated rotations only agree with the devkit's
     to the last bits if we reproduce it.
     """
-    norm_squared = np.sum(q * q, axis=-1, keepdims=True)
+    norm_squared = rowwise_dot(q, q)[..., None]
     error = np.abs(1.0 - norm_squared)
     magnitude = np.where(error < _PYQUATERNION_PADE_LIMIT, (1.0 + norm_squared) / 2.0, np.sqrt(norm_squared))
     keep = (error < _PYQUATERNION_UNIT_TOLERANCE) | (norm_squared == 0.0)
@@ -95,7 +101,7 @@ def quaternion_slerp(q0_wxyz, q1_wxyz, amount) -> np.ndarray:
     q0 = _fast_normalise_quaternions(as_float_array(q0_wxyz, (4,), "q0_wxyz"))
     q1 = _fast_normalise_quaternions(as_float_array(q1_wxyz, (4,), "q1_wxyz"))
     amount = np.clip(np.asarray(amount, dtype=np.float64), 0.0, 1.0)[..., None]
-    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
+    dot = rowwise_dot(q0, q1)[..., None]  # pyquaternion's np.dot: its sign picks the arc
     q0 = np.where(dot < 0.0, -q0, q0)
     dot = np.abs(dot)
 

@@ -2,7 +2,7 @@
 
 ```python
 from nuparquet.index import IndexOptions, build_index
-paths = build_index("OUT", IndexOptions(out="infos", info_version=2))   # {"val": Path(".../nuscenes_infos_val.pkl"), ...}
+paths = build_index("OUT", "infos", IndexOptions(info_version=2))   # {"val": Path(".../nuscenes_infos_val.pkl"), ...}
 ```
 
 Modules: `build` (`build_index`), `inputs` (what is read, checked first), `splits`, `replay/` (blas, quaternions, transforms: the

@@ -31,13 +31,14 @@ def _entries(arrays, *, corrected: bool = False):
                                first_index=lo)
 
 
-def build_index(path: str | Path | Dataset, options: IndexOptions | None = None, *,
+def build_index(dataset: str | Path | Dataset, out, options: IndexOptions | None = None, *,
                 on_progress: OnProgress | None = None, **fields) -> dict:
-    """Write the info pickle(s) of `options` (or keyword fields of `IndexOptions`: `out="infos"`, ...) into
-    `options.out`; returns {split: pickle path} (plus "infos": the Parquet directory when written,
-    "<split>_mono3d": the COCO file of mmdet3d-legacy). Raises InputError when the Parquet lacks what is needed."""
+    """Write the info pickle(s) of `options` (or keyword fields of `IndexOptions`: `format="bevformer"`, ...) of
+    `dataset` (a `Dataset` or a path) into the folder `out`; returns {split: pickle path} (plus "infos": the Parquet
+    directory when written, "<split>_mono3d": the COCO file of mmdet3d-legacy). Raises InputError when the Parquet
+    lacks what is needed."""
     options = resolve(IndexOptions, options, fields)
-    ds = as_dataset(path)
+    ds = as_dataset(dataset)
     is_legacy = options.format == "mmdet3d-legacy"
     v2 = options.format == "mmdet3d" and options.info_version == 2
     version = splits.converter_version(ds.version, options.version)
@@ -45,7 +46,7 @@ def build_index(path: str | Path | Dataset, options: IndexOptions | None = None,
     wanted = splits.split_names(version) if options.split == "all" else (options.split,)
     if options.split != "all" and options.split not in splits.split_names(version):
         raise UsageError(f"{version} has no {options.split} split (it has {', '.join(splits.split_names(version))})")
-    out = Path(options.out)
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
 
     steps = 3 + len(wanted) * (2 if (options.parquet and v2) or is_legacy else 1)

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from nuparquet.errors import UsageError
-from nuparquet.options import option
+from nuparquet.options import check_choices, option
 
 # mmdetection3d's converter lists the cameras in this order (dict order of `cams` / `images`): defaults only.
 DEFAULT_CAMERAS = ("CAM_FRONT", "CAM_FRONT_RIGHT", "CAM_FRONT_LEFT", "CAM_BACK", "CAM_BACK_LEFT", "CAM_BACK_RIGHT")
@@ -15,8 +15,8 @@ DEFAULT_LIDAR = "LIDAR_TOP"
 
 @dataclass
 class IndexOptions:
-    out: str = option(help="output directory for the info files and infos/ (created; written atomically)",
-                      flag="--out", metavar="DIR")
+    """Which infos the index writes and how (where: the verb's `out`, `build_index(ds, out, ...)`)."""
+
     format: Literal["mmdet3d", "bevformer", "mmdet3d-legacy"] = option(
         "mmdet3d", help="mmdet3d: mmdetection3d v1.4's nuScenes infos; bevformer: the BEVFormer/UniAD v1 variant "
         "(needs the sample_can_bus dataset); mmdet3d-legacy: mmdetection3d 0.17's infos (gt_boxes as x, y, z, w, "
@@ -41,6 +41,7 @@ class IndexOptions:
     parquet: bool = option(True, help="also write DIR/infos/ (one row per sample, nested columns) with v2 infos")
 
     def __post_init__(self) -> None:
+        check_choices(self)
         cameras = self.cameras.split(",") if isinstance(self.cameras, str) else self.cameras
         self.cameras = tuple(c.strip() for c in cameras if c.strip())  # in info order, once for every layer
         if not self.cameras:

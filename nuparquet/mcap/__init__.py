@@ -4,7 +4,7 @@ Foxglove's published schemas (`nuparquet export-mcap`).
 ```python
 import nuparquet
 nuparquet.export_mcap("OUT", "scene-0061", out="scene-0061.mcap")       # or nuparquet.mcap.export_mcap
-nuparquet.export_mcap_scenes("OUT", all_scenes=True, out_dir="mcap/")   # many, through the engine
+nuparquet.export_mcap_scenes("OUT", None, "mcap/", all_scenes=True)   # many, through the engine
 ```
 
 Light on purpose: the writer (mcap, protobuf) loads on first use.

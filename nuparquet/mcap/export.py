@@ -23,7 +23,7 @@ import numpy as np
 from nuparquet.channels import default_camera
 from nuparquet.dataset import as_dataset
 from nuparquet.errors import InputError, UsageError
-from nuparquet.mcap.options import McapOptions
+from nuparquet.mcap.options import McapOptions, check_target
 from nuparquet.mcap.scene import can_bus_messages, load_scene
 from nuparquet.options import resolve
 from nuparquet.progress import OnProgress, Reporter
@@ -47,13 +47,10 @@ class McapResult:
     def total_messages(self) -> int:
         return sum(self.messages.values())
 
-
-def _dataroot(dataset, given) -> Path:
-    dataroot = Path(given) if given is not None else (Path(dataset.dataroot) if dataset.dataroot else None)
-    if dataroot is None or not dataroot.is_dir():
-        raise UsageError(f"sensor file folder (dataroot) {dataroot} does not exist; pass --dataroot PATH (the folder "
-                         "holding samples/ and sweeps/), or --without images,points")
-    return dataroot
+    def summary_entry(self, file_name: str) -> dict:
+        """This scene's entry in a many-scene export's summary (`mcap-summary.json`)."""
+        return {"file": file_name, "bytes": self.bytes, "messages": self.messages, "sensor_bytes": self.sensor_bytes,
+                "missing": len(self.missing), "first_missing": self.missing[:5]}
 
 
 def build_streams(dataset, rows, options: McapOptions, dataroot: Path | None) -> list:
@@ -101,22 +98,23 @@ def message_order(streams) -> tuple[np.ndarray, np.ndarray]:
     return stream[order], row[order]
 
 
-def export_mcap(dataset_or_path, scene: str, options: McapOptions | None = None, *,
+def export_mcap(dataset, scene: str, out, options: McapOptions | None = None, *,
                 on_progress: OnProgress | None = None, **fields) -> McapResult:
-    """Write `scene` as an MCAP file as `options` (or keyword fields of `McapOptions`) say (see the module docstring
-    and `streams` for the topics). Progress goes to `on_progress`, one "message" unit per message.
+    """Write `scene` of `dataset` (a `Dataset` or a path) as the MCAP file `out`, as `options` (or keyword fields of
+    `McapOptions`) say (see the module docstring and `streams` for the topics). Progress goes to `on_progress`, one
+    "message" unit per message.
 
     Raises:
-        UsageError: bad options, an unknown scene, a dataroot that does not exist (when images or points are wanted).
+        UsageError: bad options, an unknown scene, no dataroot with the sensor files (when images or points are
+            wanted).
         InputError: with on_missing="error", the first missing or unreadable sensor file (named by path).
     """
     from nuparquet.mcap.streams import MissingFile
     from nuparquet.mcap.writer import McapFile
 
     options = resolve(McapOptions, options, fields)
-    options.check_targets()
-    dataset = as_dataset(dataset_or_path)
-    out = Path(options.out)
+    out = check_target(out)
+    dataset = as_dataset(dataset)
     if not dataset.is_remote:  # never write into the converted dataset
         from nuparquet.atomic import check_apart
 
@@ -124,7 +122,8 @@ def export_mcap(dataset_or_path, scene: str, options: McapOptions | None = None,
     dataset.check_scenes([scene])
     rows = load_scene(dataset, scene)
     needs_files = options.wants("images") or options.wants("points")
-    dataroot = _dataroot(dataset, options.dataroot) if needs_files else None
+    dataroot = dataset.sensors.root("the images and points", otherwise=", or --without images,points") \
+        if needs_files else None
     streams = build_streams(dataset, rows, options, dataroot)
     stream_of, row_of = message_order(streams)
 

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Literal
 
 from nuparquet.errors import UsageError
-from nuparquet.options import option
+from nuparquet.options import check_choices, option
 
 CONTENTS = ("images", "points", "transforms", "boxes", "map", "can_bus")
 COMPRESSIONS = ("zstd", "lz4", "none")
@@ -25,9 +25,9 @@ DEFAULT_CHUNK_BYTES = 4 * 1024 * 1024  # Foxglove reads MCAP chunk by chunk: a f
 @dataclass
 class McapOptions:
     """What goes into a scene's MCAP file and how it is written (the flags of `nuparquet export-mcap`). Which scene
-    is the verb's argument (`export_mcap(ds, scene, ...)`), or a `SceneSelection` for many."""
+    and the file are the verb's arguments (`export_mcap(ds, scene, out, ...)`), or a `SceneSelection` and a folder
+    for many."""
 
-    out: str | Path | None = option(None, metavar="FILE.mcap", help="the MCAP file to write (replaced if it exists)")
     boxes: Literal["camera", "keyframes"] = option(
         "camera", help="when the 3D boxes are published: at every keyframe and, in between, at every frame of the "
         "default camera (CAM_FRONT when present, ~12 Hz) interpolated as the devkit's get_boxes does (default "
@@ -43,8 +43,6 @@ class McapOptions:
     on_missing: Literal["skip", "error"] = option(
         "skip", help="a missing or unreadable image or point file: leave its message out and warn at the end "
         "(default), or stop with exit 1")
-    dataroot: str | Path | None = option(
-        None, metavar="PATH", help="where the sensor files are, if not at the dataroot recorded at conversion")
     chunk_bytes: int = option(DEFAULT_CHUNK_BYTES, cli=False, help="uncompressed bytes per MCAP chunk")
 
     def wants(self, content: str) -> bool:
@@ -61,15 +59,13 @@ class McapOptions:
             raise UsageError(f"--map-margin-m must be 0 or more, got {self.map_margin_m}")
         if self.chunk_bytes < 1024:
             raise UsageError(f"chunk_bytes must be at least 1024, got {self.chunk_bytes}")
-        for name, value, valid in (("--boxes", self.boxes, BOX_RATES),
-                                   ("--compression", self.compression, COMPRESSIONS),
-                                   ("--on-missing", self.on_missing, ON_MISSING)):
-            if value not in valid:
-                raise UsageError(f"{name} must be one of {', '.join(valid)}, got {value!r}")
+        check_choices(self)
 
-    def check_targets(self) -> None:
-        """UsageError unless one scene's file can be written: --out given, and not a folder."""
-        if self.out is None:
-            raise UsageError("nothing to write: give --out FILE.mcap")
-        if Path(self.out).is_dir():
-            raise UsageError(f"--out {self.out} is a directory; give the MCAP file to write (e.g. scene.mcap)")
+
+def check_target(out) -> Path:
+    """The MCAP file to write, as a Path: UsageError if none is given or it is a folder."""
+    if out is None:
+        raise UsageError("nothing to write: give --out FILE.mcap")
+    if Path(out).is_dir():
+        raise UsageError(f"--out {out} is a directory; give the MCAP file to write (e.g. scene.mcap)")
+    return Path(out)

@@ -1,7 +1,8 @@
 """The point records of lidar and radar frames, as packed structured arrays ready for a foxglove.PointCloud.
 
-Read from `lidar_points/` / `radar_points/` when the frame was converted (`convert --sensors lidar,radar`), else
-from its file; both give the same record layout, so the MCAP bytes do not depend on where the points came from:
+Read through the dataset's sensor reader (`ds.sensors`: `lidar_points/` / `radar_points/` when the frame was
+converted, else its file); both give the same record layout, so the MCAP bytes do not depend on where the points
+came from:
 
 - lidar: x, y, z, intensity, ring as float32 (the `.pcd.bin` record; ring left out when the files have no 5th
   value), then `lidarseg_label` (uint8) and `panoptic_label` (uint16) when the frame was converted with labels;
@@ -11,14 +12,11 @@ from its file; both give the same record layout, so the MCAP bytes do not depend
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import polars as pl
 
-from nuparquet.errors import UsageError
 from nuparquet.frames.points import FRAME_COLUMNS as POINTS_FRAME_COLUMNS
-from nuparquet.sources.points import LIDAR_FIELDS, read_lidar_bin, read_radar_pcd
+from nuparquet.sources.points import LIDAR_FIELDS, read_radar_pcd
 
 LABEL_FIELDS = (("lidarseg_label", "u1"), ("panoptic_label", "<u2"))
 
@@ -32,16 +30,10 @@ def records(columns: dict[str, np.ndarray]) -> np.ndarray:
     return out
 
 
-def lidar_records_from_file(path: str | Path) -> np.ndarray:
-    """(P,) x, y, z, intensity, ring float32 of a nuScenes `.pcd.bin` file."""
-    values = read_lidar_bin(path, len(LIDAR_FIELDS))
-    return records({name: values[:, j] for j, name in enumerate(LIDAR_FIELDS)})
-
-
 def lidar_records_from_frame(frame: pl.DataFrame) -> np.ndarray:
     """(P,) records of one frame's `lidar_points` rows: the file's float32 record (ring as the float it was in
     the file: the converter checked it is an integer 0..255), then the labels that are not null."""
-    columns = {name: frame[name].cast(pl.Float32).to_numpy() for name in LIDAR_FIELDS[:4]}
+    columns = {name: frame[name].cast(pl.Float32).to_numpy() for name in LIDAR_FIELDS[:4]}  # file or converted
     if "ring" in frame.columns and frame["ring"].null_count() < frame.height:
         columns["ring"] = frame["ring"].cast(pl.Float32).to_numpy()
     for name, dtype in LABEL_FIELDS:
@@ -51,36 +43,28 @@ def lidar_records_from_frame(frame: pl.DataFrame) -> np.ndarray:
 
 
 class PointReader:
-    """Points of one scene's lidar and radar frames by sample_data token; `lidar_points/` and `radar_points/` are
-    used when the dataset has them (radar read once per channel: its frames share row groups)."""
+    """Points of one scene's lidar and radar frames by sample_data token, through the dataset's sensor reader
+    (radar read once per channel from `radar_points/`: its frames share row groups)."""
 
     def __init__(self, dataset, scene: str):
         self.dataset = dataset
         self.scene = scene
-        self.has_lidar = "lidar_points" in dataset.datasets
-        self.has_radar = "radar_points" in dataset.datasets
-        self._lidar_columns: list[str] | None = None
+        self.sensors = dataset.sensors
+        self.has_radar = bool(self.sensors.converted_columns("radar"))
+        self._lidar_columns = [*LIDAR_FIELDS, *(name for name, _ in LABEL_FIELDS)]
         self._radar: dict[str, dict[str, np.ndarray]] = {}  # channel -> token -> records
 
-    def lidar(self, token: str, path: str) -> np.ndarray:
-        if self.has_lidar:
-            if self._lidar_columns is None:
-                names = self.dataset.scan("lidar_points").collect_schema().names()
-                self._lidar_columns = [n for n in (*LIDAR_FIELDS, *(name for name, _ in LABEL_FIELDS)) if n in names]
-            try:
-                return lidar_records_from_frame(self.dataset.points(token, columns=self._lidar_columns))
-            except UsageError:  # this frame was not converted (a sweep without --sweeps, a file missing then)
-                pass
-        return lidar_records_from_file(path)
+    def lidar(self, token: str, filename: str) -> np.ndarray:
+        return lidar_records_from_frame(self.sensors.points(token, filename, "lidar", self._lidar_columns))
 
-    def radar(self, token: str, channel: str, path: str) -> np.ndarray:
+    def radar(self, token: str, channel: str, filename: str) -> np.ndarray:
         if self.has_radar:
             frames = self._radar.get(channel)
             if frames is None:
                 frames = self._radar[channel] = self._radar_channel(channel)
             if token in frames:
                 return frames[token]
-        return np.array(read_radar_pcd(path))  # a copy: the file's buffer is read-only and may be large
+        return np.array(read_radar_pcd(self.sensors.file(token, filename, "radar")))  # a copy: read-only buffer
 
     def _radar_channel(self, channel: str) -> dict[str, np.ndarray]:
         names = self.dataset.scan("radar_points").collect_schema().names()

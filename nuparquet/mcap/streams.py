@@ -32,6 +32,7 @@ from nuparquet import columns
 from nuparquet.frames.boxes import frame_boxes
 from nuparquet.mcap import messages
 from nuparquet.mcap.points import PointReader
+from nuparquet.sensors.reader import MissingSensorData, inside
 from nuparquet.mcap.scene import SceneRows
 from nuparquet.rendering.palette import category_rgb
 from nuparquet.geometry.quaternions import normalise_quaternions
@@ -67,10 +68,10 @@ class Stream:
 
 
 def image_path(dataroot: Path, filename: str) -> Path:
-    relative = Path(filename)
-    if relative.is_absolute() or ".." in relative.parts:
+    path = inside(dataroot, filename)
+    if path is None:
         raise MissingFile(str(dataroot / filename), "outside the dataroot: refused")
-    return dataroot / relative
+    return path
 
 
 def transform_stream(frames: pl.DataFrame) -> Stream:
@@ -132,9 +133,11 @@ def point_stream(frames: pl.DataFrame, channel: str, modality: str, dataroot: Pa
     def encode(i: int) -> bytes:
         path = image_path(dataroot, filenames[i])
         try:
-            records = (reader.lidar(tokens[i], str(path)) if modality == "lidar"
-                       else reader.radar(tokens[i], channel, str(path)))
-        except (OSError, ValueError) as exc:  # FileNotFoundError, PointFileError (truncated, not a PCD)
+            records = (reader.lidar(tokens[i], filenames[i]) if modality == "lidar"
+                       else reader.radar(tokens[i], channel, filenames[i]))
+        except MissingSensorData:
+            raise MissingFile(str(path), "not converted, and no such file") from None
+        except (OSError, ValueError) as exc:  # PointFileError (truncated, not a PCD), an unreadable file
             raise MissingFile(str(path), getattr(exc, "reason", None) or getattr(exc, "strerror", None)
                               or type(exc).__name__) from None
         return messages.point_cloud(int(times[i]), channel, records)

@@ -20,7 +20,7 @@ from nuparquet import columns, geometry
 from nuparquet.dataset import as_dataset
 from nuparquet.errors import UsageError
 from nuparquet.rendering import legend
-from nuparquet.rendering.clouds import dataroot_of, frame_frame, lidar_cloud
+from nuparquet.rendering.clouds import frame_frame, lidar_cloud
 from nuparquet.rendering.overlay import category_colors
 from nuparquet.rendering.point_colors import scalar_rgb
 from nuparquet.rendering.sample_data import camera_image, reference_keyframe, visibility_name
@@ -74,7 +74,7 @@ def lidar_panel(dataset, ref_rows: pl.DataFrame, annotation_token: str, root, *,
     plane = PlaneView.around(viewed[..., :2].reshape(-1, 2).min(axis=0), viewed[..., :2].reshape(-1, 2).max(axis=0),
                              margin, height_px)
     image = plane.canvas()
-    points = lidar_cloud(dataset, ref, root).points
+    points = lidar_cloud(dataset, ref).points
     xy = geometry.view_points(np.asarray(points[:, :3], np.float64), view, normalize=False)[:, :2]
     inside = ((xy[:, 0] >= plane.x_min) & (xy[:, 0] <= plane.x_max) & (xy[:, 1] >= plane.y_min)
               & (xy[:, 1] <= plane.y_max))
@@ -86,12 +86,11 @@ def lidar_panel(dataset, ref_rows: pl.DataFrame, annotation_token: str, root, *,
 
 
 def render_annotation(dataset_or_path, anntoken: str, margin: float = 10, view=None, box_vis_level="any",
-                      extra_info: bool = False, *, scale: float = 0.5, labels: str = "none",
-                      dataroot=None) -> np.ndarray:
+                      extra_info: bool = False, *, scale: float = 1.0, labels: str = "none") -> np.ndarray:
     """Annotation `anntoken`: its lidar view beside the camera that sees it (the module docstring); `scale` sizes
     the camera image (the lidar panel takes its height)."""
     dataset = as_dataset(dataset_or_path)
-    root = dataroot_of(dataset, dataroot)
+    root = dataset.sensors.root()
     view = np.eye(4) if view is None else np.asarray(view, np.float64)
     annotation = annotation_row(dataset, anntoken)
     sample_token = annotation["sample_token"]
@@ -145,10 +144,9 @@ def instance_annotation(dataset, instance_token: str, annotation: str = "closest
 
 
 def render_instance(dataset_or_path, instance_token: str, margin: float = 10, view=None, box_vis_level="any",
-                    extra_info: bool = False, *, annotation: str = "closest", scale: float = 0.5,
-                    labels: str = "none", dataroot=None) -> np.ndarray:
+                    extra_info: bool = False, *, annotation: str = "closest", scale: float = 1.0,
+                    labels: str = "none") -> np.ndarray:
     """`render_annotation` of the instance's annotation chosen by `annotation` (`instance_annotation`)."""
     dataset = as_dataset(dataset_or_path)
     token = instance_annotation(dataset, instance_token, annotation)
-    return render_annotation(dataset, token, margin, view, box_vis_level, extra_info, scale=scale, labels=labels,
-                             dataroot=dataroot)
+    return render_annotation(dataset, token, margin, view, box_vis_level, extra_info, scale=scale, labels=labels)

@@ -1,5 +1,6 @@
-"""One frame's rows, points and point labels for a single picture (`sample_data`, `pointcloud_image`, `annotation`):
-read from the converted datasets where they are, else from the files under the dataroot.
+"""One frame's rows, points and point labels for a single picture (`sample_data`, `pointcloud_image`, `annotation`),
+through the dataset's sensor reader (`ds.sensors`: the converted datasets where they are, else the files under the
+dataroot).
 
 - `frame_row(ds, token)`: the `frames` row of a sample_data token (UsageError naming an unknown one).
 - `lidar_cloud(ds, row, labels=...)`: (P, 4) x, y, z, intensity as the devkit's `LidarPointCloud.from_file` loads
@@ -16,10 +17,7 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 
-from nuparquet.errors import InputError, UsageError
-
-_POINT_COLUMNS = ["x", "y", "z", "intensity"]
-_LABEL_COLUMN = {"lidarseg": "lidarseg_label", "panoptic": "panoptic_label"}
+from nuparquet.errors import InputError
 
 
 @dataclass(frozen=True)
@@ -28,15 +26,6 @@ class Cloud:
 
     points: np.ndarray
     labels: np.ndarray | None = None
-
-
-def dataroot_of(dataset, given=None) -> Path:
-    """Where the sensor files are: `given`, else the dataroot recorded at conversion; UsageError if it is not there."""
-    root = Path(given) if given is not None else (Path(dataset.dataroot) if dataset.dataroot else None)
-    if root is None or not root.is_dir():
-        raise UsageError(f"the dataroot {root} (where the sensor files are) does not exist; pass dataroot=PATH "
-                         "(--dataroot on the command line)")
-    return root
 
 
 def frame_row(dataset, token: str) -> dict:
@@ -58,44 +47,17 @@ def category_names(dataset) -> dict[int, str]:
     return dict(zip(categories["index"].cast(pl.Int64).to_list(), categories["name"].to_list()))
 
 
-def lidar_cloud(dataset, row: dict, dataroot: Path, *, labels: str | None = None,
-                preds_path: str | Path | None = None) -> Cloud:
+def lidar_cloud(dataset, row: dict, *, labels: str | None = None, preds_path: str | Path | None = None) -> Cloud:
     """The lidar frame `row`'s points and, for `labels` ("lidarseg" or "panoptic"), its labels: from `preds_path`
-    when given, else the ground truth (lidar_points/ or the label file the index table names)."""
-    column = _LABEL_COLUMN.get(labels) if labels else None
-    points = truth = None
-    if "lidar_points" in dataset.datasets:
-        try:
-            frame = dataset.points(row["token"], columns=_POINT_COLUMNS + ([column] if column else []))
-        except UsageError:  # this frame was not converted: its file
-            frame = None
-        if frame is not None:
-            points = frame.select(_POINT_COLUMNS).to_numpy().astype(np.float32)
-            if column and frame[column].null_count() == 0:
-                truth = frame[column].to_numpy().astype(np.int64)
-    if points is None:
-        from nuparquet.frames.sweeps import read_point_file
-        from nuparquet.sources.points import read_lidar_bin
-
-        points = read_point_file(read_lidar_bin, _inside(dataroot, row["filename"]))[:, :4]
-    if not labels:
-        return Cloud(points)
-    if preds_path is not None:
-        found = _read_labels(Path(preds_path), labels)
-        what = f"predictions file {preds_path}"
-    else:
-        found = truth if truth is not None else _truth_from_files(dataset, row, dataroot, labels)
-        what = f"{labels} labels of sample_data {row['token']}"
+    when given, else the ground truth (the dataset's sensor reader: lidar_points/ or the label file)."""
+    if preds_path is None or not labels:
+        points, truth = dataset.sensors.lidar(row["token"], row["filename"], labels=labels)
+        return Cloud(points, truth)
+    points, _ = dataset.sensors.lidar(row["token"], row["filename"])
+    found = _read_labels(Path(preds_path), labels)
     if len(found) != len(points):
-        raise InputError(f"{what} hold {len(found)} labels for {len(points)} points")
+        raise InputError(f"predictions file {preds_path} hold {len(found)} labels for {len(points)} points")
     return Cloud(points, found)
-
-
-def _inside(dataroot: Path, filename: str) -> Path:
-    relative = Path(filename)
-    if relative.is_absolute() or ".." in relative.parts:
-        raise InputError(f"{filename}: outside the dataroot, refused")
-    return dataroot / relative
 
 
 def _read_labels(path: Path, labels: str) -> np.ndarray:
@@ -108,14 +70,3 @@ def _read_labels(path: Path, labels: str) -> np.ndarray:
     if labels == "panoptic" or path.suffix == ".npz":
         return read_point_file(read_panoptic_npz, path).astype(np.int64)
     return read_point_file(read_lidarseg_bin, path).astype(np.int64)
-
-
-def _truth_from_files(dataset, row: dict, dataroot: Path, labels: str) -> np.ndarray:
-    """The label file `tables/lidarseg` (or `tables/panoptic`) names for the frame."""
-    if f"tables/{labels}" not in dataset.datasets:
-        raise UsageError(f"{dataset.root} has no {labels} labels (the dataroot had no {labels}.json when converted)")
-    names = (dataset.scan(f"tables/{labels}").filter(pl.col("sample_data_token") == row["token"])
-             .select("filename").collect())
-    if names.is_empty():
-        raise UsageError(f"sample_data {row['token']} has no {labels} labels (only lidar keyframes have them)")
-    return _read_labels(_inside(dataroot, names["filename"][0]), labels)

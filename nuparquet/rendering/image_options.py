@@ -1,6 +1,7 @@
 """What `nuparquet render` draws as one picture (one sample, sample_data, annotation, instance, or a map picture) and
 how: declared once, each field both a keyword of `ImageOptions` and a flag of `nuparquet render` (the flags it shares
-with the scene render, `--out`, `--scale`, `--labels`, `--lidar-color`, `--dataroot`, come from `RenderOptions`).
+with the scene render, `--scale`, `--labels`, `--lidar-color`, come from `RenderOptions`; `--out` and `--dataroot`
+are the command's own).
 
 Light on purpose (no cv2): the CLI builds its parser from it.
 """
@@ -12,7 +13,7 @@ from pathlib import Path
 from typing import Literal
 
 from nuparquet.errors import UsageError
-from nuparquet.options import option
+from nuparquet.options import check_choices, option
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 MAP_PICTURES = ("map_patch", "map_record", "map_mask", "centerlines", "ego_poses", "next_roads")
@@ -80,6 +81,13 @@ class ImageOptions:
         "middle of the track")
     extra_info: bool = option(False, help="--annotation, --instance: the devkit's text (category, points, distance, "
                               "size) below")
+    # Shared with the scene render, whose flags (--scale, --labels, --lidar-color, --scenes) set them on the CLI:
+    scale: float | None = option(None, cli=False, help="camera pictures' size relative to the images (default: "
+                                 "full size, as the devkit shows them; a sample's grid of every sensor: 0.35)")
+    labels: Literal["category", "track", "none"] = option("none", cli=False, help="box labels")
+    lidar_color: Literal["depth", "intensity", "lidarseg", "panoptic"] = option(
+        "depth", cli=False, help="how lidar points are coloured")
+    scenes: tuple[str, ...] = option((), cli=False, help="--ego-poses: these scenes (default: every scene there)")
 
     @property
     def targets(self) -> list[str]:
@@ -119,6 +127,9 @@ class ImageOptions:
             raise UsageError(f"--nsweeps must be at least 1, got {self.nsweeps}")
         if not self.axes_limit > 0:
             raise UsageError(f"--axes-limit must be positive, got {self.axes_limit}")
+        if self.scale is not None and not 0 < self.scale <= 4:
+            raise UsageError(f"--scale must be in (0, 4], got {self.scale}")
+        check_choices(self)
 
     def floats(self, name: str, count: int) -> tuple[float, ...]:
         return _floats(getattr(self, name), count, "--" + name.replace("_", "-"))

@@ -23,7 +23,7 @@ from nuparquet.frames.poses import sensor_poses
 from nuparquet.frames.sweeps import keyframe_rows
 from nuparquet.map.layers import POLYGON_LAYERS
 from nuparquet.rendering import legend
-from nuparquet.rendering.clouds import dataroot_of, frame_frame
+from nuparquet.rendering.clouds import frame_frame
 from nuparquet.rendering.decode import decode_image
 from nuparquet.rendering.map_canvas import clip_ring, fill_polygons, layer_geometries
 from nuparquet.rendering.palette import MAP_LAYER_RGB
@@ -89,11 +89,11 @@ def projected_polygons(exteriors: Sequence[np.ndarray], camera_from_global: np.n
 def render_map_in_image(dataset_or_path, sample_token: str, camera_channel: str = "CAM_FRONT", alpha: float = 0.3,
                         patch_radius: float = 10000, min_polygon_area: float = 1000, render_behind_cam: bool = True,
                         render_outside_im: bool = True, layer_names: Sequence[str] | None = None, *,
-                        scale: float = 1.0, dataroot=None) -> np.ndarray:
+                        scale: float = 1.0) -> np.ndarray:
     """The sample's `camera_channel` keyframe with the map's `layer_names` over it (the module docstring); `scale`
     resizes the picture (the polygons are selected on the full-size image, as the devkit does)."""
     dataset = as_dataset(dataset_or_path)
-    root = dataroot_of(dataset, dataroot)
+    root = dataset.sensors.root()
     layer_names = list(layer_names or DEFAULT_LAYERS)
     bad = [layer for layer in layer_names if layer not in POLYGON_LAYERS]
     if bad:

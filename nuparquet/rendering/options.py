@@ -13,7 +13,7 @@ from typing import Literal
 
 from nuparquet.channels import DEFAULT_CAMERA, DEFAULT_REFERENCE_LIDAR
 from nuparquet.errors import UsageError
-from nuparquet.options import option
+from nuparquet.options import check_choices, option
 
 ALL_CHANNELS = "all"
 BEV_CHANNEL = "bev"  # the bird's-eye view (map, lidar points, boxes, ego), a channel of its own
@@ -37,7 +37,8 @@ def existing_frames(folder: Path) -> list[Path]:
 @dataclass
 class RenderOptions:
     """How to render a scene (see each field's help; the CLI flags of `nuparquet render` one to one). Which scene
-    is the verb's argument (`render(ds, scene, ...)`), or a `SceneSelection` for many."""
+    and where the video goes are the verb's arguments (`render(ds, scene, out, ...)`), or a `SceneSelection` and a
+    folder for many (`render_scenes(ds, selection, out_dir, ...)`)."""
 
     channel: str | None = option(
         None, metavar="CHANNEL",
@@ -46,12 +47,6 @@ class RenderOptions:
         f"'{BEV_CHANNEL}' for the bird's-eye view (map layers, reference lidar points coloured by height, boxes, "
         "ego; keyframes, or every lidar frame with --all-frames). Default: "
         f"{DEFAULT_CAMERA} when the dataset has it, else the first front camera")
-    out: str | Path | None = option(
-        None, metavar="FILE", help="the video to write (FILE.mp4); for one picture (--sample, --sample-data, "
-        "--annotation, --instance, --map) the PNG or JPEG")
-    frames_dir: str | Path | None = option(
-        None, metavar="DIR", help="also (or instead) write each frame as an image: DIR/00000.jpg, ..., with "
-        "DIR/frames.parquet saying which sample_data each frame shows")
     frame_format: Literal["jpg", "png"] = option("jpg", help="image format for --frames-dir (default jpg)")
     overwrite: bool = option(False, help="replace the frames a --frames-dir already holds (refused otherwise)")
     all_frames: bool = option(
@@ -60,7 +55,8 @@ class RenderOptions:
     fps: float | None = option(
         None, help="frames per second of the video (default 2, or 12 with --all-frames). With --channel all "
         "--all-frames it is also the rate at which the cameras are sampled (devkit render_scene)")
-    scale: float = option(0.5, help="output size relative to the camera images (default 0.5; 1 = full size)")
+    scale: float = option(0.5, help="output size relative to the camera images (default 0.5 for a scene video; 1, "
+                          "full size as the devkit shows it, for one picture)")
     crf: int = option(DEFAULT_CRF, help=f"x264 quality, 0 (lossless) .. 51; lower is larger (default {DEFAULT_CRF})")
     lidar: bool = option(
         False, help=f"draw the keyframe points of the reference lidar ({DEFAULT_REFERENCE_LIDAR} when the dataset has it, "
@@ -86,8 +82,6 @@ class RenderOptions:
     bev_up: Literal["ego", "north"] = option(
         "ego", help="bird's-eye view orientation: the ego's heading up (default) or north up")
     bev_size: int = option(800, metavar="PX", help="--channel bev: the picture's side in pixels (default 800)")
-    dataroot: str | Path | None = option(
-        None, metavar="PATH", help="where the images are, if not at the dataroot recorded at conversion")
     predictions: str | Path | None = option(
         None, metavar="RESULTS", help="also draw predicted boxes (keyframes; thin outlines labelled '<class> "
         "<score>'): a detection submission (results.json, magenta), or the DIR of `nuparquet eval` (true positives "
@@ -128,25 +122,18 @@ class RenderOptions:
             raise UsageError(f"--score-threshold must be a number, got {self.score_threshold}")
         if not 0 <= self.crf <= 51:
             raise UsageError(f"--crf must be in 0..51, got {self.crf}")
-        for name, value, valid in (
-            ("--bev-up", self.bev_up, ("ego", "north")),
-            ("--labels", self.labels, LABEL_MODES),
-            ("--frame-format", self.frame_format, FRAME_FORMATS),
-            ("--on-missing", self.on_missing, ON_MISSING),
-            ("--lidar-color", self.lidar_color, LIDAR_COLORS),
-        ):
-            if value not in valid:
-                raise UsageError(f"{name} must be one of {', '.join(valid)}, got {value!r}")
+        check_choices(self)
 
-    def check_targets(self) -> None:
-        """UsageError unless one scene's outputs can be written: something to write, --out not a folder,
-        --frames-dir not holding frames (unless --overwrite)."""
-        if self.out is None and self.frames_dir is None:
-            raise UsageError("nothing to write: give --out FILE.mp4, --frames-dir DIR, or both")
-        if self.frames_dir is not None and not self.overwrite and any(existing_frames(Path(self.frames_dir))):
-            raise UsageError(f"--frames-dir {self.frames_dir} already holds frames; pass --overwrite to replace them")
-        if self.out is not None and Path(self.out).is_dir():
-            raise UsageError(f"--out {self.out} is a directory; give the video file to write (e.g. scene.mp4)")
+
+def check_targets(out, frames_dir, overwrite: bool) -> None:
+    """UsageError unless one scene's outputs can be written: something to write, `out` (the video) not a folder,
+    `frames_dir` not holding frames (unless `overwrite`)."""
+    if out is None and frames_dir is None:
+        raise UsageError("nothing to write: give --out FILE.mp4, --frames-dir DIR, or both")
+    if frames_dir is not None and not overwrite and any(existing_frames(Path(frames_dir))):
+        raise UsageError(f"--frames-dir {frames_dir} already holds frames; pass --overwrite to replace them")
+    if out is not None and Path(out).is_dir():
+        raise UsageError(f"--out {out} is a directory; give the video file to write (e.g. scene.mp4)")
 
 
 SUMMARY_NAME = "render-summary.json"  # written into --out-dir by a many-scene render

@@ -3,7 +3,7 @@ H.264 MP4 and/or a folder of images.
 
 ```python
 import nuparquet
-result = nuparquet.render("OUT", "scene-0061", out="scene-0061.mp4", channel="all", on_progress=print)
+result = nuparquet.render("OUT", "scene-0061", "scene-0061.mp4", channel="all", on_progress=print)
 ```
 
 The stages, one module each (STYLE.md: vectorise over the batch; the only Python loop is over output frames):
@@ -33,12 +33,13 @@ from nuparquet.progress import OnProgress, Reporter
 from nuparquet.rendering import draw
 from nuparquet.rendering.camera_tile import CameraTile
 from nuparquet.rendering.loop import render_frames
-from nuparquet.rendering.options import BEV_CHANNEL, RenderOptions
+from nuparquet.rendering.options import BEV_CHANNEL, RenderOptions, check_targets
 from nuparquet.rendering.overlay import DrawStyle, build_overlay
 from nuparquet.rendering.plan import TilePlan, camera_rows_per_output, tile_size
 from nuparquet.rendering.scene import SceneRows, cameras_to_render, load_scene, reference_lidar
 from nuparquet.rendering.sink import FrameSink
 from nuparquet.rendering.video import even_size
+from nuparquet.sensors.reader import inside
 
 __all__ = ["RenderOptions", "RenderResult", "render"]
 
@@ -60,23 +61,18 @@ class RenderResult:
     frames_dir: Path | None
     missing: list[str] = field(default_factory=list)
 
-
-def _dataroot(dataset, given) -> Path:
-    dataroot = Path(given) if given is not None else (Path(dataset.dataroot) if dataset.dataroot else None)
-    if dataroot is None or not dataroot.is_dir():
-        raise UsageError(
-            f"image folder (dataroot) {dataroot} does not exist; pass --dataroot PATH (the folder holding samples/)"
-        )
-    return dataroot
+    def summary_entry(self, file_name: str) -> dict:
+        """This scene's entry in a many-scene render's summary (`render-summary.json`)."""
+        return {"video": file_name, "channel": self.channel, "frames_written": self.frames_written,
+                "frames_skipped": self.frames_skipped, "width": self.width, "height": self.height, "fps": self.fps,
+                "missing": self.missing[:5]}
 
 
 def _image_path(dataroot: Path, filename: str) -> str:
-    """The image file of a frame; a filename that leaves the dataroot ("../..", an absolute path) is refused: it is
+    """The image file of a frame; a filename that leaves the dataroot is refused (`sensors.reader.inside`): it is
     reported as unreadable under a name that says why."""
-    relative = Path(filename)
-    if relative.is_absolute() or ".." in relative.parts:
-        return f"{dataroot / filename} (outside the dataroot: refused)"
-    return str(dataroot / relative)
+    path = inside(dataroot, filename)
+    return str(path) if path is not None else f"{dataroot / filename} (outside the dataroot: refused)"
 
 
 def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic: bool, all_frames: bool,
@@ -152,26 +148,28 @@ def with_bev_tile(plan: TilePlan, dataset, rows: SceneRows, options: RenderOptio
     return TilePlan(plan.times_us, layout, plan.tile_size)
 
 
-def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
+def render(dataset, scene: str, out=None, options: RenderOptions | None = None, *, frames_dir=None,
            on_progress: OnProgress | None = None, **fields) -> RenderResult:
-    """Render `scene` as `options` (or keyword fields of `RenderOptions`) describe; see the module docstring.
-    Progress goes to `on_progress` (one "frame" unit per output picture).
+    """Render `scene` of `dataset` (a `Dataset` or a path) into the video `out` (FILE.mp4) and/or one image per
+    picture into `frames_dir`, as `options` (or keyword fields of `RenderOptions`) describe; see the module
+    docstring. Progress goes to `on_progress` (one "frame" unit per output picture).
 
     Raises:
-        UsageError: bad options, unknown scene or channel, a dataroot that does not exist, --lidar without a lidar.
+        UsageError: bad options, nothing to write, unknown scene or channel, no dataroot with the images, --lidar
+            without a lidar.
         InputError: with on_missing="error", the first missing or unreadable file (named by path); with
             "skip", when no frame at all could be rendered.
     """
     options = resolve(RenderOptions, options, fields)
-    options.check_targets()
-    dataset = as_dataset(dataset_or_path)
+    check_targets(out, frames_dir, options.overwrite)
+    dataset = as_dataset(dataset)
     if not dataset.is_remote:  # never write into the converted dataset (--out OUT/manifest.json replaced it)
         from nuparquet.atomic import check_apart
 
-        for target in (options.out, options.frames_dir):
+        for target in (out, frames_dir):
             if target is not None:
                 check_apart(target, dataset.root, what="the converted dataset")
-    dataroot = _dataroot(dataset, options.dataroot)
+    dataroot = dataset.sensors.root("the camera images")
     if options.labels == "none":
         plan, channel, fps = _plan(dataset, scene, options, dataroot)
     else:  # the query and projections run beside the start of OpenCV's text engine on this (the drawing) thread
@@ -180,8 +178,8 @@ def render(dataset_or_path, scene: str, options: RenderOptions | None = None, *,
             draw.start_text()
             plan, channel, fps = planned.result()
 
-    out = Path(options.out) if options.out is not None else None
-    frames_dir = Path(options.frames_dir) if options.frames_dir is not None else None
+    out = Path(out) if out is not None else None
+    frames_dir = Path(frames_dir) if frames_dir is not None else None
 
     def make_sink(executor) -> FrameSink:
         return FrameSink(executor, size=plan.size, fps=fps, video=out, crf=options.crf,

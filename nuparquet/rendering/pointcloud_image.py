@@ -19,7 +19,7 @@ from nuparquet.frames.points_in_image import POINT_MIN_DEPTH_M, points_in_image
 from nuparquet.frames.poses import cameras_from_frames, sensor_poses
 from nuparquet.frames.sweeps import frame_cloud, keyframe_rows
 from nuparquet.rendering import draw, legend
-from nuparquet.rendering.clouds import category_names, dataroot_of, frame_frame, lidar_cloud
+from nuparquet.rendering.clouds import category_names, frame_frame, lidar_cloud
 from nuparquet.rendering.decode import decode_image
 from nuparquet.rendering.palette import category_rgb
 from nuparquet.rendering.point_colors import class_filter, intensity_levels, label_rgb, legend_classes, scalar_rgb
@@ -50,10 +50,10 @@ def points_on_image(dataset, camera_rows, point_rows, root: Path, *, scale: floa
         raise InputError(f"missing or unreadable image file: {path}")
     labels = None
     if sensor["modality"] == "lidar":
-        cloud = lidar_cloud(dataset, sensor, root, labels=label_mode, preds_path=preds_path)
+        cloud = lidar_cloud(dataset, sensor, labels=label_mode, preds_path=preds_path)
         points, labels = cloud.points, cloud.labels
     else:
-        points, _ = frame_cloud(dataset, sensor, sensor["modality"], root, radar_filters)
+        points, _ = frame_cloud(dataset, sensor, sensor["modality"], radar_filters)
     global_from_ego, ego_from_sensor = sensor_poses(point_rows)
     uv, depth_m, index = points_in_image(points, global_from_ego[0], ego_from_sensor[0],
                                          cameras_from_frames(camera_rows).resized_to(size), min_depth_m=min_dist)
@@ -80,13 +80,12 @@ def render_pointcloud_in_image(dataset_or_path, sample_token: str, dot_size: flo
                                render_intensity: bool = False, show_lidarseg: bool = False,
                                filter_lidarseg_labels: Sequence[int] | None = None, show_lidarseg_legend: bool = False,
                                lidarseg_preds_bin_path: str | Path | None = None, show_panoptic: bool = False, *,
-                               min_dist: float = POINT_MIN_DEPTH_M, scale: float = 1.0, radar_filters: bool = True,
-                               dataroot=None) -> np.ndarray:
+                               min_dist: float = POINT_MIN_DEPTH_M, scale: float = 1.0, radar_filters: bool = True) -> np.ndarray:
     """The sample's `pointsensor_channel` keyframe (default: the reference lidar) on its `camera_channel` keyframe
-    image (default: the default camera); the devkit's arguments, plus `scale` (the image's), `radar_filters` and
-    `dataroot`. See the module docstring."""
+    image (default: the default camera); the devkit's arguments, plus `scale` (the image's) and `radar_filters`. The
+    files are read through the dataset's sensor reader (its `dataroot`). See the module docstring."""
     dataset = as_dataset(dataset_or_path)
-    root = dataroot_of(dataset, dataroot)
+    root = dataset.sensors.root()
     from nuparquet.channels import default_camera
 
     facts = dataset.channels

@@ -1,8 +1,8 @@
 """Lidar points for camera tiles: each keyframe camera row paired with its sample's reference-lidar keyframe,
 the poses read once from the stored transforms, the points projected straight into the tile's camera.
 
-Points come from `lidar_points/` when the output has them (`convert --sensors lidar`; `ds.points` reads only the
-frame's row groups), else from the `.pcd.bin` files. Colours (`--lidar-color`): depth (default), intensity (the
+Points come from the dataset's one sensor reader (`ds.sensors`: `lidar_points/` when the frame was converted,
+reading only its row groups, else its `.pcd.bin` file). Colours (`--lidar-color`): depth (default), intensity (the
 devkit's `render_intensity` scaling), lidarseg (the category colours, `palette.category_rgb`, which are the
 devkit's colormap for nuScenes names and a stable hash colour for others) or panoptic (the devkit's colour per
 instance, stuff in its class colour): `point_colors`. Labels need `lidar_points/` with labels.
@@ -20,7 +20,6 @@ import polars as pl
 from nuparquet.geometry import Cameras
 from nuparquet.errors import UsageError
 from nuparquet.rendering.point_colors import intensity_levels, label_rgb
-from nuparquet.sources.points import read_lidar_bin
 from nuparquet.frames.poses import sensor_poses
 from nuparquet.frames.points_in_image import lidar_for_cameras, points_in_image
 from nuparquet.rendering.options import LIDAR_COLORS
@@ -31,50 +30,44 @@ _POINT_COLUMNS = ["x", "y", "z", "intensity"]
 
 @dataclass(frozen=True)
 class CloudReader:
-    """The reference-lidar clouds of a render, by lidar row: read from `lidar_points/` when the output has them,
-    else from their files, with the labels the colour mode needs; and their colours. Shared by the camera tiles and
-    the bird's-eye view."""
+    """The reference-lidar clouds of a render, by lidar row, through the dataset's sensor reader (converted points
+    or the files), with the labels the colour mode needs; and their colours. Shared by the camera tiles and the
+    bird's-eye view."""
 
-    paths: list[str]  # (L,) point cloud files
-    tokens: list[str] = field(default_factory=list)  # (L,) sample_data tokens (to read lidar_points/)
-    dataset: object | None = None  # a nuparquet Dataset holding lidar_points/, else None: read the files
+    paths: list[str]  # (L,) point cloud files (what a missing frame is reported as)
+    tokens: list[str]  # (L,) sample_data tokens
+    filenames: list[str]  # (L,) sample_data filenames
+    sensors: object  # the dataset's SensorReader
     color: str = "depth"
     names_by_index: dict[int, str] = field(default_factory=dict)  # category index -> name (label colours)
 
     @classmethod
-    def build(cls, lidar: pl.DataFrame, dataroot: Path, *, dataset=None, color: str = "depth") -> CloudReader:
+    def build(cls, lidar: pl.DataFrame, dataroot: Path, *, dataset, color: str = "depth") -> CloudReader:
         """For the lidar rows `lidar` (`filename`, `token`); UsageError if `color` needs labels the output lacks."""
         if color not in LIDAR_COLORS:
             raise UsageError(f"--lidar-color must be one of {', '.join(LIDAR_COLORS)}, got {color!r}")
-        has_points = dataset is not None and "lidar_points" in getattr(dataset, "datasets", ())
         names: dict[int, str] = {}
         if color in _LABEL_COLUMN:
             from nuparquet.queries.points import has_labels
 
-            if not has_points or not has_labels(dataset, color):
+            if "lidar_points" not in dataset.datasets or not has_labels(dataset, color):
                 raise UsageError(f"--lidar-color {color} needs lidar_points/ with {color} labels (convert the "
                                  "dataroot with --sensors lidar; its lidarseg/panoptic files must be present)")
             categories = dataset.scan("tables/category").select("index", "name").drop_nulls("index").collect()
             names = dict(zip(categories["index"].to_list(), categories["name"].to_list()))
-        return cls([str(dataroot / name) for name in lidar["filename"].to_list()],
-                   lidar["token"].to_list() if "token" in lidar.columns else [], dataset if has_points else None,
-                   color, names)
+        filenames = lidar["filename"].to_list()
+        return cls([str(dataroot / name) for name in filenames], lidar["token"].to_list(), filenames,
+                   dataset.sensors, color, names)
 
     def cloud(self, lidar: int) -> tuple[np.ndarray, np.ndarray | None]:
-        """(P, 4) x, y, z, intensity of lidar row `lidar` and its (P,) labels for the colour mode (or None):
-        from lidar_points/ when the frame was converted, else from its file."""
+        """(P, 4) x, y, z, intensity of lidar row `lidar` and its (P,) labels for the colour mode (or None)."""
         label = _LABEL_COLUMN.get(self.color)
-        if self.dataset is not None and self.tokens:
-            try:
-                frame = self.dataset.points(self.tokens[lidar], columns=_POINT_COLUMNS + ([label] if label else []))
-            except UsageError:  # this frame is not in lidar_points/ (its file was missing at conversion)
-                frame = None
-            if frame is not None:
-                labels = frame[label].to_numpy() if label else None
-                return frame.select(_POINT_COLUMNS).to_numpy().astype(np.float32), labels
-        if label:
+        columns = [*_POINT_COLUMNS, *([label] if label else [])]
+        frame = self.sensors.points(self.tokens[lidar], self.filenames[lidar], "lidar", columns)
+        if label and label not in frame.columns:  # a frame left out of lidar_points/: its file has no labels
             raise FileNotFoundError(self.paths[lidar])
-        return read_lidar_bin(self.paths[lidar])[:, :4], None
+        points = frame.select(_POINT_COLUMNS).to_numpy().astype(np.float32)
+        return points, (frame[label].to_numpy() if label else None)
 
     def colors_bgr(self, points: np.ndarray, labels: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
         """(K, 3) BGR uint8 colours of the kept points `index`, or None for the depth colouring."""
@@ -98,7 +91,7 @@ class LidarPoints:
 
     @classmethod
     def build(cls, tile_cameras: Cameras, cameras: pl.DataFrame, lidar: pl.DataFrame, dataroot: Path, *,
-              dataset=None, color: str = "depth") -> LidarPoints:
+              dataset, color: str = "depth") -> LidarPoints:
         reader = CloudReader.build(lidar, dataroot, dataset=dataset, color=color)
         global_from_ego, ego_from_sensor = sensor_poses(lidar)
         return cls(tile_cameras, lidar_for_cameras(cameras, lidar), global_from_ego, ego_from_sensor, reader)

@@ -28,7 +28,7 @@ from nuparquet.frames.boxes import frame_boxes
 from nuparquet.frames.poses import cameras_from_frames, sensor_poses
 from nuparquet.frames.sweeps import keyframe_rows, multisweep
 from nuparquet.rendering import legend
-from nuparquet.rendering.clouds import category_names, dataroot_of, frame_frame, lidar_cloud
+from nuparquet.rendering.clouds import category_names, frame_frame, lidar_cloud
 from nuparquet.rendering.decode import decode_image
 from nuparquet.rendering.overlay import DrawStyle, build_overlay, category_colors
 from nuparquet.rendering.palette import category_rgb
@@ -63,16 +63,16 @@ def render_sample_data(dataset_or_path, sample_data_token: str, with_anns: bool 
                        show_lidarseg_legend: bool = False, filter_lidarseg_labels: Sequence[int] | None = None,
                        lidarseg_preds_bin_path: str | Path | None = None, show_panoptic: bool = False, *,
                        color: str | None = None, radar_filters: bool = True, labels: str = "none",
-                       scale: float = 1.0, size_px: int = TOP_VIEW_PX, truth_beside_preds: bool = False,
-                       dataroot=None) -> np.ndarray:
+                       scale: float = 1.0, size_px: int = TOP_VIEW_PX, truth_beside_preds: bool = False) -> np.ndarray:
     """The picture of sample_data `sample_data_token` (see the module docstring); the devkit's arguments, plus
     `color` (lidar: "distance" (default), "height", "intensity"), `radar_filters` (False: every radar return, the
     devkit's `disable_filters()`), `labels` (box labels in camera images: "none", "category", "track"), `scale`
-    (camera images), `size_px` (the top view's side) and `dataroot` (where the sensor files are)."""
+    (camera images) and `size_px` (the top view's side). The sensor files are read through the dataset's sensor reader
+    (converted points, else the files under its `dataroot`)."""
     dataset = as_dataset(dataset_or_path)
     rows = frame_frame(dataset, sample_data_token)
     row = rows.row(0, named=True)
-    root = dataroot_of(dataset, dataroot)
+    root = dataset.sensors.root()
     if row["modality"] == "camera":
         image = camera_image(dataset, rows, root, with_anns=with_anns, visibility=visibility_name(box_vis_level),
                              labels=labels, scale=scale)
@@ -182,11 +182,11 @@ def top_view(dataset, rows: Sequence[dict], root: Path, *, with_anns: bool, axes
     for row in rows:
         labels = None
         if label_mode:  # the devkit loads the reference keyframe's file whole: no sweeps, no close points removed
-            cloud = lidar_cloud(dataset, ref, root, labels=label_mode, preds_path=preds_path)
+            cloud = lidar_cloud(dataset, ref, labels=label_mode, preds_path=preds_path)
             points, labels = cloud.points, cloud.labels
         else:
             points = multisweep(dataset, row["sample_token"], row["channel"], ref["channel"], nsweeps,
-                                radar_filters=radar_filters, dataroot=root).points
+                                radar_filters=radar_filters).points
         xyz = np.asarray(points[:, :3], np.float64) @ view_from_ref[:3, :3].T + view_from_ref[:3, 3]
         shown = np.ones(len(points), dtype=bool)
         if label_mode:

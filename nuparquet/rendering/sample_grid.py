@@ -15,7 +15,7 @@ import polars as pl
 from nuparquet.dataset import as_dataset
 from nuparquet.errors import InputError, UsageError
 from nuparquet.rendering import draw
-from nuparquet.rendering.clouds import dataroot_of, frame_frame
+from nuparquet.rendering.clouds import frame_frame
 from nuparquet.rendering.mosaic import compose
 from nuparquet.rendering.pointcloud_image import points_on_image
 from nuparquet.rendering.sample_data import camera_image, top_view, visibility_name
@@ -33,11 +33,11 @@ def _square_in_tile(square: np.ndarray, size: tuple[int, int]) -> np.ndarray:
 def render_sample(dataset_or_path, token: str, box_vis_level="any", nsweeps: int = 1, show_lidarseg: bool = False,
                   filter_lidarseg_labels: Sequence[int] | None = None, lidarseg_preds_bin_path=None,
                   show_panoptic: bool = False, *, scale: float = 0.35, axes_limit: float = 40,
-                  underlay_map: bool = True, radar_filters: bool = True, dataroot=None) -> np.ndarray:
+                  underlay_map: bool = True, radar_filters: bool = True) -> np.ndarray:
     """Sample `token`'s keyframes of every sensor in one picture (the module docstring); `scale` sizes the camera
     tiles (the views from above are as high as they are)."""
     dataset = as_dataset(dataset_or_path)
-    root = dataroot_of(dataset, dataroot)
+    root = dataset.sensors.root()
     visibility = visibility_name(box_vis_level)
     keyframes = (dataset.scan("frames").filter((pl.col("sample_token") == token) & pl.col("is_key_frame"))
                  .with_columns(pl.col("channel").cast(pl.String), pl.col("modality").cast(pl.String))

@@ -66,15 +66,14 @@ def save_image(image_rgb: np.ndarray, path) -> Path:
     return path
 
 
-def render_image(dataset_or_path, options: ImageOptions | None = None, *, scale: float = 0.5,
-                 labels: str = "none", lidar_color: str = "depth", dataroot=None,
-                 scenes: tuple[str, ...] = (), **fields) -> np.ndarray:
-    """The one picture `options` (or keyword fields of `ImageOptions`) asks for; `scale` (camera images), `labels`
-    (box labels), `lidar_color` (depth, intensity, lidarseg, panoptic) and `dataroot` as for a scene render;
-    `scenes`: the scene names of `ego_poses` (default: every scene at the location)."""
+def render_image(dataset, options: ImageOptions | None = None, **fields) -> np.ndarray:
+    """The one picture of `dataset` (a `Dataset` or a path; its `dataroot` is where the images are) that `options`
+    (or keyword fields of `ImageOptions`) asks for, at full size unless `scale` says otherwise."""
     options = resolve(ImageOptions, options, fields)
     options.check()
-    dataset = as_dataset(dataset_or_path)
+    dataset = as_dataset(dataset)
+    labels, lidar_color, scenes = options.labels, options.lidar_color, options.scenes
+    sized = {} if options.scale is None else {"scale": options.scale}  # else each picture's own default (full size)
     show_lidarseg, show_panoptic = lidar_color == "lidarseg", lidar_color == "panoptic"
     labelled = dict(show_lidarseg=show_lidarseg, show_panoptic=show_panoptic,
                     filter_lidarseg_labels=options.class_indices(), lidarseg_preds_bin_path=options.lidarseg_preds)
@@ -83,24 +82,23 @@ def render_image(dataset_or_path, options: ImageOptions | None = None, *, scale:
     if options.sample is not None:
         if options.map_in_image:
             return render_map_in_image(dataset, options.sample, options.camera_channel or "CAM_FRONT",
-                                       layer_names=list(options.map_layers) or None, scale=scale, dataroot=dataroot)
+                                       layer_names=list(options.map_layers) or None, **sized)
         if options.pointcloud_in_image:
             return render_pointcloud_in_image(dataset, options.sample, pointsensor_channel=options.pointsensor_channel,
                                               camera_channel=options.camera_channel,
                                               render_intensity=lidar_color == "intensity",
-                                              show_lidarseg_legend=options.lidarseg_legend, scale=scale,
-                                              dataroot=dataroot, **labelled)
-        return render_sample(dataset, options.sample, options.box_vis_level, options.nsweeps, scale=scale,
-                             axes_limit=options.axes_limit, underlay_map=options.underlay_map, dataroot=dataroot,
+                                              show_lidarseg_legend=options.lidarseg_legend, **sized,
+                                              **labelled)
+        return render_sample(dataset, options.sample, options.box_vis_level, options.nsweeps, **sized,
+                             axes_limit=options.axes_limit, underlay_map=options.underlay_map,
                              **labelled)
     if options.sample_data is not None:
         return render_sample_data(dataset, options.sample_data, box_vis_level=options.box_vis_level,
                                   axes_limit=options.axes_limit, nsweeps=options.nsweeps,
                                   underlay_map=options.underlay_map, show_lidarseg_legend=options.lidarseg_legend,
                                   color="intensity" if lidar_color == "intensity" else None, labels=labels,
-                                  scale=scale, truth_beside_preds=True, dataroot=dataroot, **labelled)
-    common = dict(box_vis_level=options.box_vis_level, extra_info=options.extra_info, scale=scale, labels=labels,
-                  dataroot=dataroot)
+                                  **sized, truth_beside_preds=True, **labelled)
+    common = dict(box_vis_level=options.box_vis_level, extra_info=options.extra_info, labels=labels, **sized)
     if options.annotation is not None:
         return render_annotation(dataset, options.annotation, **common)
     return render_instance(dataset, options.instance, annotation=options.instance_annotation, **common)

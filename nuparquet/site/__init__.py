@@ -4,7 +4,7 @@ from disk with no network.
 
 ```python
 from nuparquet.site import ReportOptions, build_report
-build_report("OUT", ReportOptions(out="report"))
+build_report("OUT", None, "report", ReportOptions(stills=2))   # every scene; a SceneSelection for fewer
 ```
 """
 

@@ -2,7 +2,8 @@
 
 ```python
 from nuparquet.site import ReportOptions, build_report
-result = build_report("OUT", ReportOptions(out="report", scenes=("scene-0061",)), on_progress=print)
+result = build_report("OUT", SceneSelection(scenes=("scene-0061",)), "report", ReportOptions(stills=2),
+                      on_progress=print)
 ```
 
 Layout of DIR:
@@ -30,9 +31,10 @@ from urllib.parse import quote
 
 import polars as pl
 
-from nuparquet.engine import EngineOptions, UnitsFailed, WorkUnit, check_engine, move_parts, unit_file_name, run_units
+from nuparquet.dataset.selection import SceneSelection
+from nuparquet.engine import EngineOptions, UnitsFailed, check_engine, unit_file_name
 from nuparquet.errors import UsageError
-from nuparquet.options import resolve, split_fields
+from nuparquet.options import resolve_all
 from nuparquet.progress import OnProgress, Reporter
 from nuparquet.site import facts as report_facts
 from nuparquet.site import pages
@@ -88,11 +90,10 @@ def _videos(dataset, scenes: list[str], options: ReportOptions, engine: EngineOp
     from nuparquet.rendering.options import RenderOptions
 
     bev = dataset.channels.get("reference_lidar") is not None
-    render_options = RenderOptions(channel="all", bev=bev, scale=options.video_scale, dataroot=options.dataroot)
-    selection = SceneSelection(scenes=tuple(scenes), out_dir=out_dir)
+    render_options = RenderOptions(channel="all", bev=bev, scale=options.video_scale)
     try:
-        outcomes = render_scenes(dataset, selection, render_options, replace(engine, keep_going=True, resume=False),
-                                 on_progress=on_progress).outcomes
+        outcomes = render_scenes(dataset, SceneSelection(scenes=tuple(scenes)), out_dir, render_options,
+                                 engine=replace(engine, keep_going=True, resume=False), on_progress=on_progress).outcomes
     except UnitsFailed as exc:
         outcomes = [o for o in exc.outcomes if o is not None]
     videos = {o.name: (o.value if o.ok else None) for o in outcomes}
@@ -102,32 +103,26 @@ def _videos(dataset, scenes: list[str], options: ReportOptions, engine: EngineOp
 
 def _scene_assets(dataset, scenes: list[str], options: ReportOptions, engine: EngineOptions, out_dir: Path,
                   on_progress) -> tuple[dict[str, dict], dict[str, str]]:
-    """Keyframe renderings and CAN bus plots of every scene (`scene_assets` on the engine), committed into
-    `out_dir/<scene>/`."""
+    """Keyframe renderings and CAN bus plots of every scene (`scene_assets` through the many-scene helper),
+    committed into `out_dir/<scene>/`."""
     from nuparquet.channels import default_camera
-    from nuparquet.site.scene_assets import scene_assets
+    from nuparquet.engine.scene_files import SceneVerb, write_scene_files
+    from nuparquet.site.scene_assets import SceneAssetOptions
 
     channels = dataset.channels
     can_bus = {"can_bus/vehicle_monitor", "can_bus/pose", "can_bus/steeranglefeedback"} <= set(dataset.datasets)
-    wanted = {"stills": options.stills if options.videos else 0,
-              "camera": default_camera(channels.get("cameras", []), channels.get("camera_layout")),
-              "lidar": channels.get("reference_lidar") is not None, "can_bus": can_bus,
-              "dataroot": str(options.dataroot) if options.dataroot is not None else None}
-    if not (wanted["stills"] or can_bus):
+    wanted = SceneAssetOptions(stills=options.stills if options.videos else 0,
+                               camera=default_camera(channels.get("cameras", []), channels.get("camera_layout")),
+                               lidar=channels.get("reference_lidar") is not None, can_bus=can_bus)
+    if not (wanted.stills or can_bus):
         return {}, {}
-    root = str(dataset.root) if dataset.is_remote else str(Path(dataset.root).resolve())
-    units = [WorkUnit(scene, (root, dataset.storage_options, wanted)) for scene in scenes]
-    parts = out_dir / ".parts"
     try:
-        outcomes = run_units(scene_assets, units, parts_dir=parts, options=replace(engine, keep_going=True,
-                                                                                   resume=False),
-                             on_progress=on_progress, label=f"report {len(scenes)} scene page(s)")
+        outcomes = write_scene_files(dataset, scenes, out_dir, SceneVerb("nuparquet.site.scene_assets:scene_assets", ""),
+                                     wanted, replace(engine, keep_going=True, resume=False), summary_name=None,
+                                     file_key="", label=f"report {len(scenes)} scene page(s)",
+                                     on_progress=on_progress).outcomes
     except UnitsFailed as exc:
         outcomes = [o for o in exc.outcomes if o is not None]
-    for outcome in outcomes:  # each scene's files into its own folder
-        if outcome.ok:
-            move_parts([outcome], parts, out_dir / unit_file_name(outcome.name), name=lambda i, scene, name: name)
-    shutil.rmtree(parts, ignore_errors=True)
     assets = {o.name: o.value for o in outcomes if o.ok}
     problems = {o.name: f"scene assets: {o.error}" for o in outcomes if not o.ok}
     for name, value in assets.items():
@@ -136,14 +131,17 @@ def _scene_assets(dataset, scenes: list[str], options: ReportOptions, engine: En
     return assets, problems
 
 
-def build_report(dataset_or_path, options: ReportOptions | None = None, engine: EngineOptions | None = None, *,
-                 on_progress: OnProgress | None = None, **fields) -> ReportResult:
-    """Write the report of `options` (or keyword fields of `ReportOptions` / `EngineOptions`: `out="report"`,
-    `where=...`, `workers=2`; see the module docstring). Scenes whose video or renderings cannot be made (their
-    images missing) get a page saying why; the report is still written.
+def build_report(dataset, selection: SceneSelection | None = None, out=None, options: ReportOptions | None = None, *,
+                 engine: EngineOptions | None = None, on_progress: OnProgress | None = None,
+                 **fields) -> ReportResult:
+    """Write the report of the scenes of `selection` (default: every scene) of `dataset` into the folder `out`, with
+    `options` (or keyword fields of `SceneSelection`, `ReportOptions`, `EngineOptions`: `where=...`, `stills=2`,
+    `workers=2`; see the module docstring). Scenes whose video or renderings cannot be made (their images missing)
+    get a page saying why; the report is still written.
 
     Raises:
-        UsageError: bad options, an unknown scene, DIR exists without --overwrite, no dataroot for the videos.
+        UsageError: bad options, no `out`, an unknown scene, DIR exists without --overwrite, no dataroot for the
+            videos.
         QueryError: a bad --where.
     """
     from nuparquet.atomic import atomic_directory, check_apart, check_target
@@ -151,26 +149,25 @@ def build_report(dataset_or_path, options: ReportOptions | None = None, engine: 
     from nuparquet.queries import class_distribution
     from nuparquet.rendering import charts
 
-    report_fields, engine_fields = split_fields(fields, ReportOptions, EngineOptions)
-    options = resolve(ReportOptions, options, report_fields)
-    engine = resolve(EngineOptions, engine, engine_fields)
+    selection, options, engine = resolve_all(fields, (SceneSelection, selection), (ReportOptions, options),
+                                             (EngineOptions, engine))
     check_engine(engine)
-    dataset = as_dataset(dataset_or_path)
-    out = Path(options.out)
+    if out is None:
+        raise UsageError("give the folder to write the report into (--out DIR)")
+    selection.check(default_all=True)
+    dataset = as_dataset(dataset)
+    out = Path(out)
     if out.exists() and not out.is_dir():
         raise UsageError(f"--out {out} is a file; give a directory")
     if not dataset.is_remote:
         check_apart(out, dataset.root, what="the converted dataset")
     check_target(out, overwrite=options.overwrite)
-    scenes = select_scenes(dataset, options.scenes, options.where)
+    scenes = select_scenes(dataset, selection.scenes, selection.where)
     has_cameras = bool(dataset.channels.get("cameras"))
     if options.videos and has_cameras:
-        dataroot = Path(options.dataroot) if options.dataroot is not None else (
-            Path(dataset.dataroot) if dataset.dataroot else None)
-        if dataroot is None or not dataroot.is_dir():
-            raise UsageError(f"image folder (dataroot) {dataroot} does not exist; pass --dataroot PATH, or "
-                             "--no-videos for a report without videos and keyframe renderings")
-    scope = scenes if options.subset else None
+        dataset.sensors.root("the camera images", otherwise=", or --no-videos for a report without videos and "
+                             "keyframe renderings")
+    scope = scenes if selection.subset else None
 
     with Reporter(on_progress, "report", total=5, unit="step") as reporter, \
             atomic_directory(out, overwrite=options.overwrite) as tmp:
@@ -194,7 +191,7 @@ def build_report(dataset_or_path, options: ReportOptions | None = None, engine: 
         reporter.advance(step="pages")
         title = f"{dataset.version or 'dataset'} — {len(scenes)} scene(s)"
         note = (f"This report covers {len(scenes)} selected scene(s); the statistics and charts are of those scenes."
-                if options.subset else "")
+                if selection.subset else "")
         charts = [(f"assets/plots/{p.name}", p.stem.replace("_", " ")) for p in chart_paths]
         (tmp / "index.html").write_text(pages.index_page(title, report_facts.dataset_facts(dataset), sections, charts,
                                                          scene_rows, max_rows=options.max_rows, note=note))

@@ -4,7 +4,6 @@ is a keyword of `ReportOptions` and a flag of the command). Light: no polars que
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 from nuparquet.errors import UsageError
 from nuparquet.options import option
@@ -12,31 +11,17 @@ from nuparquet.options import option
 
 @dataclass
 class ReportOptions:
-    """Where the report goes, which scenes it shows, and what each scene page holds."""
+    """What each scene page holds (which scenes: a `SceneSelection`; where: the verb's `out`)."""
 
-    out: str | Path = option(metavar="DIR", help="the folder to write (DIR/index.html, one page per scene, assets)")
-    scenes: tuple[str, ...] = option(
-        (), metavar="A,B,...", help="only these scenes (comma-separated names) in the scene table and pages")
-    where: str | None = option(
-        None, metavar="SQL", help="only the scenes matching this SQL condition on the scenes dataset, e.g. "
-        "\"log_location = 'boston-seaport'\" (combined with --scenes if both are given)")
     overwrite: bool = option(False, help="replace DIR if it exists (only once the new report is complete)")
     videos: bool = option(
         True, help="render each scene's video (every camera tiled, with the bird's-eye view; H.264) and keyframe "
         "stills; --no-videos for a quick report without the sensor files")
     video_scale: float = option(0.25, metavar="S", help="video size relative to the camera images (default 0.25)")
     stills: int = option(4, metavar="N", help="keyframe renderings per scene page (default 4, evenly spaced)")
-    dataroot: str | Path | None = option(
-        None, metavar="PATH", help="where the images are, if not at the dataroot recorded at conversion")
     max_rows: int = option(200, cli=False, help="rows shown per statistics table (the rest counted)")
 
-    @property
-    def subset(self) -> bool:
-        return bool(self.scenes) or self.where is not None
-
     def __post_init__(self) -> None:
-        scenes = self.scenes.split(",") if isinstance(self.scenes, str) else self.scenes
-        self.scenes = tuple(name.strip() for name in scenes if name.strip())
         if not 0 < self.video_scale <= 1:
             raise UsageError(f"--video-scale must be in (0, 1], got {self.video_scale}")
         if not 0 <= self.stills <= 20:

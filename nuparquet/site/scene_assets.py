@@ -1,5 +1,6 @@
-"""The engine task of a report's scene page: a few keyframe renderings and the CAN bus plots of one scene, written
-into the unit's part folder (`nuparquet.engine`), committed into `DIR/scenes/<scene>/` by the report.
+"""A report's scene page assets, a one-scene verb run over the report's scenes by the many-scene helper
+(`engine.scene_files`): a few keyframe renderings and the CAN bus plots of one scene, written into a folder
+(`DIR/scenes/<scene>/` once committed).
 
 The renderings are the one-scene renderer's own frames (`render`, --frames-dir: the default camera with its boxes
 and, when the dataset has a lidar, the reference lidar's points), `stills` of them kept, evenly spaced over the
@@ -9,11 +10,11 @@ scene's keyframes; the plots are `rendering.charts.plot_can_speed` and `plot_ste
 from __future__ import annotations
 
 import shutil
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from nuparquet.engine import WorkUnit
 from nuparquet.errors import NuparquetError
 
 STILL_SCALE = 0.5
@@ -26,40 +27,62 @@ def evenly_spaced(count: int, wanted: int) -> list[int]:
     return sorted({int(round(i)) for i in np.linspace(0, count - 1, wanted)})
 
 
-def scene_assets(unit: WorkUnit, part: Path) -> dict:
-    """`unit.args`: (dataset root, storage options, {"stills", "camera", "lidar", "can_bus", "dataroot"}).
-    Returns {"stills": [[file, keyframe index, keyframes]], "plots": [file], "stills_error": str | None}."""
-    from nuparquet.dataset import open_dataset
+@dataclass(frozen=True)
+class SceneAssetOptions:
+    """What a scene page holds besides its video: `stills` keyframe renderings of `camera` (with the reference
+    lidar's points when `lidar`), and the CAN bus plots when `can_bus`."""
+
+    stills: int
+    camera: str | None
+    lidar: bool
+    can_bus: bool
+
+
+@dataclass(frozen=True)
+class SceneAssets:
+    """What `scene_assets` wrote: stills ([file, keyframe index, keyframes]), plots (files), and why the stills
+    could not be drawn (None when they were)."""
+
+    stills: list
+    plots: list
+    stills_error: str | None
+
+    def summary_entry(self, file_name: str) -> dict:
+        return {"stills": self.stills, "plots": self.plots, "stills_error": self.stills_error}
+
+
+def scene_assets(dataset, scene: str, out: Path, options: SceneAssetOptions) -> SceneAssets:
+    """Write the keyframe renderings and CAN bus plots of `scene` into the folder `out` (a one-scene verb, run over
+    every scene of a report by `engine.scene_files`)."""
     from nuparquet.rendering.options import RenderOptions
     from nuparquet.rendering.pipeline import render
 
-    root, storage_options, wanted = unit.args
-    dataset = open_dataset(root, storage_options=storage_options)
-    result: dict = {"stills": [], "plots": [], "stills_error": None}
-    if wanted["stills"] and wanted["camera"]:
-        frames_dir = part / "frames"
+    out.mkdir(parents=True, exist_ok=True)
+    stills, plot_files, stills_error = [], [], None
+    if options.stills and options.camera:
+        frames_dir = out / "frames"
         try:
-            render(dataset, unit.name, RenderOptions(channel=wanted["camera"], lidar=wanted["lidar"],
-                                                     scale=STILL_SCALE, frames_dir=frames_dir, frame_format="jpg",
-                                                     dataroot=wanted["dataroot"]))
+            render(dataset, scene, None, RenderOptions(channel=options.camera, lidar=options.lidar,
+                                                       scale=STILL_SCALE, frame_format="jpg"),
+                   frames_dir=frames_dir)
             frames = sorted(frames_dir.glob("*.jpg"))
-            for k, index in enumerate(evenly_spaced(len(frames), wanted["stills"])):
+            for k, index in enumerate(evenly_spaced(len(frames), options.stills)):
                 name = f"still-{k}.jpg"
-                frames[index].rename(part / name)
-                result["stills"].append([name, index, len(frames)])
+                frames[index].rename(out / name)
+                stills.append([name, index, len(frames)])
         except NuparquetError as exc:  # no image of this scene could be drawn: the page says so
-            result["stills_error"] = str(exc)
+            stills_error = str(exc)
         shutil.rmtree(frames_dir, ignore_errors=True)
-    if wanted["can_bus"]:
+    if options.can_bus:
         import polars as pl
 
         from nuparquet.rendering import charts as plots
         from nuparquet.queries import can_bus
 
-        speeds, steering = pl.collect_all([can_bus.speed_over_time(dataset, scene=unit.name),
-                                           can_bus.steering_over_time(dataset, scene=unit.name)])
+        speeds, steering = pl.collect_all([can_bus.speed_over_time(dataset, scene=scene),
+                                           can_bus.steering_over_time(dataset, scene=scene)])
         if speeds.filter(pl.col("source") != "ego_pose").height or steering.height:
-            plots.plot_can_speed(speeds, part / "can_speed.png", scene=unit.name)
-            plots.plot_steering(steering, part / "steering.png", scene=unit.name)
-            result["plots"] = ["can_speed.png", "steering.png"]
-    return result
+            plots.plot_can_speed(speeds, out / "can_speed.png", scene=scene)
+            plots.plot_steering(steering, out / "steering.png", scene=scene)
+            plot_files = ["can_speed.png", "steering.png"]
+    return SceneAssets(stills, plot_files, stills_error)

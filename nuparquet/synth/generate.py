@@ -30,9 +30,9 @@ MAP_SIZE_PX = 64
 CATEGORY_LABEL_INDEX = np.array([c.index for c in CATEGORIES])  # position in CATEGORIES -> category.json index
 
 
-def synthesize(out_dir, options: SynthOptions | None = None, *, on_progress: OnProgress | None = None,
+def synthesize(out, options: SynthOptions | None = None, *, on_progress: OnProgress | None = None,
                **fields) -> Path:
-    """Write a synthetic nuScenes-format dataroot and return its path (`out_dir`).
+    """Write a synthetic nuScenes-format dataroot into the folder `out` and return its path.
 
     The options (`SynthOptions`, or its fields as keywords: `synthesize(out, scenes=2, with_images=True)`):
     scenes: number of scenes (named scene-0001, ...), spread over logs of several locations.
@@ -51,12 +51,12 @@ def synthesize(out_dir, options: SynthOptions | None = None, *, on_progress: OnP
     annotation tables; `synth.irregular`).
     on_progress receives a `nuparquet.progress.Progress` event per scene written (None: silent).
 
-    The tables are written to a hidden partial beside `out_dir/<version>` and renamed into place when complete
-    (`nuparquet.atomic`); an existing `out_dir/<version>` is replaced.
+    The tables are written to a hidden partial beside `out/<version>` and renamed into place when complete
+    (`nuparquet.atomic`); an existing `out/<version>` is replaced.
     """
     options = resolve(SynthOptions, options, fields)
     scenes, samples_per_scene, seed, version = options.scenes, options.samples_per_scene, options.seed, options.version
-    dataroot = Path(out_dir)
+    dataroot = Path(out)
     dataroot.mkdir(parents=True, exist_ok=True)
     scene_duration_s = (samples_per_scene - 1) * KEYFRAME_INTERVAL_US / 1e6
     logs = plan_logs(seed, scenes, scene_duration_s, RIGS[options.rig])

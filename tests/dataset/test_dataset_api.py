@@ -80,14 +80,16 @@ def test_inventory_counts_rows_files_and_bytes_of_every_dataset_on_disk(synth_ou
     assert len(expected) > 4 and all(files > 0 and rows == manifest_rows for _, rows, manifest_rows, files, _ in expected)
 
 
-def test_a_scene_selection_writes_into_a_directory_never_over_a_file(tmp_path):
-    from nuparquet.dataset.selection import SceneSelection
+def test_a_many_scene_job_writes_into_a_directory_never_over_a_file(tmp_path):
+    from nuparquet.dataset.selection import check_out_dir
 
-    SceneSelection(all_scenes=True, out_dir=tmp_path).check()  # an existing directory
-    SceneSelection(scenes=("a",), out_dir=tmp_path / "new").check()  # one to be made
+    assert check_out_dir(tmp_path) == tmp_path  # an existing directory
+    assert check_out_dir(str(tmp_path / "new")) == tmp_path / "new"  # one to be made
     (tmp_path / "taken").write_text("x")
     with pytest.raises(UsageError, match=f"--out-dir {tmp_path / 'taken'} is a file; give a directory"):
-        SceneSelection(where="true", out_dir=tmp_path / "taken").check()
+        check_out_dir(tmp_path / "taken")
+    with pytest.raises(UsageError, match="give --out-dir DIR"):
+        check_out_dir(None)
 
 
 @pytest.fixture(scope="module")
@@ -184,7 +186,13 @@ def test_options_are_an_object_keyword_fields_or_both_and_a_typo_is_an_error():
     base = nuparquet.RenderOptions(channel="all", scale=0.3)
     assert resolve(nuparquet.RenderOptions, None, {"scale": 0.3}) == nuparquet.RenderOptions(scale=0.3)
     assert resolve(nuparquet.RenderOptions, base, {}) is base
-    assert resolve(nuparquet.RenderOptions, base, {"scale": 1.0}) == dataclasses.replace(base, scale=1.0)
+    # a keyword sets a field the object leaves at its default, or repeats a value it holds ...
+    assert resolve(nuparquet.RenderOptions, base, {"fps": 5.0, "channel": "all"}) == dataclasses.replace(base, fps=5.0)
+    # ... and one that says otherwise than the object is an error naming the field, whichever way it goes
+    with pytest.raises(TypeError, match="option\\(s\\) scale given both in the RenderOptions object and as keywords"):
+        resolve(nuparquet.RenderOptions, base, {"scale": 1.0})
+    with pytest.raises(TypeError, match="option\\(s\\) channel, scale given both"):
+        resolve(nuparquet.RenderOptions, base, {"scale": 0.5, "channel": None})  # back to the defaults, also a conflict
     with pytest.raises(TypeError, match="unknown option\\(s\\) scael for RenderOptions; valid: all_frames"):
         resolve(nuparquet.RenderOptions, None, {"scael": 1.0})
     with pytest.raises(TypeError, match="expected RenderOptions, got ConvertOptions"):
@@ -205,8 +213,8 @@ def test_values_are_checked_once_when_the_options_are_built():
     with pytest.raises(UsageError, match="--sensors takes lidar, radar"):
         nuparquet.ConvertOptions(sensors="lidar,camera")
     with pytest.raises(UsageError, match="--max-sweeps must be >= 0"):
-        nuparquet.IndexOptions(out="x", max_sweeps=-1)
-    assert nuparquet.IndexOptions(out="x", cameras="CAM_BACK, CAM_FRONT").cameras == ("CAM_BACK", "CAM_FRONT")
+        nuparquet.IndexOptions(max_sweeps=-1)
+    assert nuparquet.IndexOptions(cameras="CAM_BACK, CAM_FRONT").cameras == ("CAM_BACK", "CAM_FRONT")
     with pytest.raises(UsageError, match="--scenes must be a positive integer"):
         nuparquet.SynthOptions(scenes=0)
 

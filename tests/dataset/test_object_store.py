@@ -76,3 +76,84 @@ def test_storage_options_that_do_not_reach_the_bucket_are_a_format_error_naming_
     wrong = dict(options, aws_secret_access_key="not-the-key", aws_endpoint_url="http://127.0.0.1:9")
     with pytest.raises(FormatError, match="cannot read manifest.json"):
         nuparquet.open(url, storage_options=wrong)
+
+
+@pytest.fixture(scope="module")
+def s3_points(s3, synth_points_out):
+    """(storage_options, URL) of a converted output with lidar and radar points (and lidarseg labels) in the bucket."""
+    import boto3
+
+    options, _ = s3
+    client = boto3.client("s3", endpoint_url=options["aws_endpoint_url"], aws_access_key_id="testing",
+                          aws_secret_access_key="testing", region_name="us-east-1")
+    for path in synth_points_out.rglob("*"):
+        if path.is_file():
+            client.upload_file(str(path), BUCKET, f"points/{path.relative_to(synth_points_out)}")
+    return options, f"s3://{BUCKET}/points"
+
+
+def test_points_are_read_from_object_storage_through_the_same_storage_options(s3_points, synth_points_out):
+    """`ds.points` and `ds.radar_points` of a remote output read the frames' row groups through the dataset's own
+    storage options (they used to open local paths, and a caller took the refusal for "not converted" and read
+    the local files instead): the same values as the local output, and a frame the dataset lacks is refused."""
+    options, url = s3_points
+    remote, local = nuparquet.open(url, storage_options=options), nuparquet.open(synth_points_out)
+    lidar = local.scan("frames").filter(pl.col("channel").cast(pl.String) == "LIDAR_TOP").select("token") \
+        .head(3).collect()["token"].to_list()
+    import numpy as np
+
+    np.testing.assert_array_equal(remote.points(lidar), local.points(lidar))
+    assert remote.points(lidar[0], columns=["x", "lidarseg_label"]).equals(
+        local.points(lidar[0], columns=["x", "lidarseg_label"]))
+    radar = local.scan("frames").filter(pl.col("channel").cast(pl.String) == "RADAR_FRONT").select("token") \
+        .head(2).collect()["token"].to_list()
+    np.testing.assert_array_equal(remote.radar_points(radar), local.radar_points(radar))
+    from nuparquet.frames.points import FramesNotConverted
+
+    with pytest.raises(FramesNotConverted, match="no points for sample_data nope"):
+        remote.points(["nope"])
+
+
+def test_the_sensor_reader_of_a_remote_output_reads_converted_points_and_never_falls_back_to_local_files(
+        s3_points, synth_points_out, tmp_path):
+    """The one sensor reader: a remote output's converted frame comes from the bucket, with its labels, even with
+    no dataroot at all; a frame neither converted nor present as a file is one InputError naming the file and the
+    dataset."""
+    from nuparquet.sensors.reader import MissingSensorData
+
+    options, url = s3_points
+    remote = nuparquet.open(url, storage_options=options, dataroot=tmp_path / "no-files-here")
+    local = nuparquet.open(synth_points_out)
+    row = local.scan("frames").filter(pl.col("channel").cast(pl.String) == "LIDAR_TOP").select("token", "filename") \
+        .head(1).collect().row(0, named=True)
+    points, labels = remote.sensors.lidar(row["token"], row["filename"], labels="lidarseg")
+    expected, truth = local.sensors.lidar(row["token"], row["filename"], labels="lidarseg")
+    import numpy as np
+
+    np.testing.assert_array_equal(points, expected)
+    np.testing.assert_array_equal(labels, truth)
+    (tmp_path / "no-files-here").mkdir()
+    with pytest.raises(MissingSensorData, match="missing point file: .*no-files-here/samples/LIDAR_TOP/gone.pcd.bin "
+                                                "\\(the lidar points of sample_data gone, not in lidar_points/"):
+        remote.sensors.lidar("gone", "samples/LIDAR_TOP/gone.pcd.bin")
+
+
+def test_export_json_and_the_devkit_skin_read_a_remote_output(s3, synth_out, tmp_path):
+    """`export_json` of an object-store output writes the same files as of the local one, and
+    `nuparquet.devkit.NuScenes(parquet=URL, storage_options=...)` serves the same records (both read local folders
+    only before)."""
+    from nuparquet.devkit import NuScenes
+
+    options, url = s3
+    remote = nuparquet.open(url, storage_options=options)
+    nuparquet.export_json(remote, tmp_path / "remote")
+    nuparquet.export_json(synth_out, tmp_path / "local")
+    local_files = sorted(p.relative_to(tmp_path / "local") for p in (tmp_path / "local").rglob("*") if p.is_file())
+    assert local_files and local_files == sorted(p.relative_to(tmp_path / "remote")
+                                                 for p in (tmp_path / "remote").rglob("*") if p.is_file())
+    assert all((tmp_path / "remote" / f).read_bytes() == (tmp_path / "local" / f).read_bytes() for f in local_files)
+    version = remote.version
+    theirs = NuScenes(version, parquet=url, storage_options=options, verbose=False)
+    ours = NuScenes(version, parquet=synth_out, verbose=False)
+    assert theirs.sample[3] == ours.sample[3] and theirs.get("sample_annotation", ours.sample_annotation[5]["token"]) \
+        == ours.sample_annotation[5]

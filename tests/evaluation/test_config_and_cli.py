@@ -215,6 +215,21 @@ def test_evaluate_takes_an_opened_dataset_as_it_takes_its_path(submissions, eval
     assert opened.details == by_path.details
 
 
+def test_settings_beside_an_options_object_are_used_and_a_contradiction_is_refused(submissions, eval_out):
+    """`evaluate(ds, results, options=EvalOptions(...), **keywords)` merges the two as every verb does (a keyword
+    passed beside an options object used to be dropped silently): the keyword split takes effect, and a keyword
+    that says otherwise than a field the object set is an error naming it."""
+    from nuparquet.evaluation.options import EvalOptions
+
+    with pytest.raises(UsageError, match="holds none of the dataset.s"):  # the keyword split is the one checked
+        evaluate(eval_out, submissions["noisy"], None, EvalOptions(plots=False), split="mini_val")
+    merged = evaluate(eval_out, submissions["noisy"], None, EvalOptions(split="val"), plots=False, by=("night",))
+    alone = evaluate(eval_out, submissions["noisy"], split="val", plots=False, by=("night",))
+    assert merged.slices is not None and merged.slices.equals(alone.slices)  # the keyword `by` was not dropped
+    with pytest.raises(TypeError, match="option\\(s\\) split given both in the EvalOptions object and as keywords"):
+        evaluate(eval_out, submissions["noisy"], None, EvalOptions(split="val"), split="train")
+
+
 def test_tp_curves_are_drawn_where_the_devkits_are(devkit):
     """`class_tp_curve` draws on an Axes what the devkit's `render.class_tp_curve` draws: a curve per TP metric up to
     the highest recall reached, none (label "n/a") for a metric undefined for the class (barrier: vel_err,

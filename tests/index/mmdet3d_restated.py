@@ -18,8 +18,8 @@ Run as a script, in a directory where `./data/nuscenes` is the dataroot, as mmde
     python mmdet3d_restated.py --folder v1.0-synth --version v1.0-trainval --out OUT [--which v017,v14]
 
 It writes OUT/v017/nuscenes_infos_<split>.pkl + nuscenes_infos_<split>_mono3d.coco.json, OUT/v14/v1/ and
-OUT/v14/v2/nuscenes_infos_<split>.pkl. `reference_env()` gives the environment that makes numpy compute as the
-machine that produced mmdetection3d's reference output did (OpenBLAS Haswell kernels, no AVX-512 loops).
+OUT/v14/v2/nuscenes_infos_<split>.pkl. It runs with this machine's numpy and BLAS kernels (never pinned): its
+floats are this machine's rounding of the converter's products, which the tests compare within that rounding.
 """
 
 from __future__ import annotations
@@ -65,24 +65,11 @@ NameMapping = {
 }
 
 
-def reference_env(environ=None) -> dict:
-    """os.environ plus what makes numpy here compute like numpy 1.26 + OpenBLAS on an AVX2 machine (the
-    reference's): OpenBLAS's Haswell kernels, and numpy's AVX-512 loops off (its AVX-512 arctan2 differs from
-    the C library's in the last bit)."""
-    from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
-
-    env = dict(os.environ if environ is None else environ)
-    env["OPENBLAS_CORETYPE"] = "Haswell"
-    off = [f for f in __cpu_dispatch__ if __cpu_features__.get(f) and (f.startswith("AVX512") or f == "X86_V4")]
-    if off:
-        env["NPY_DISABLE_CPU_FEATURES"] = " ".join(off)
-    return env
-
-
 def run_restated(work: Path, root: Path, folder: str, version: str, which: str = "v017,v14",
                  max_sweeps: int = 10) -> Path:
-    """OUT of this script run on dataroot `root` in a subprocess with `reference_env()`, from the fresh
-    directory `work` in which ./data/nuscenes is `root` (as mmdetection3d's tools see their data)."""
+    """OUT of this script run on dataroot `root` in a subprocess (numpy and BLAS as this machine has them: its
+    floats differ from the index's replay of the reference machine by rounding, docs/CONTRACTS.md), from the
+    fresh directory `work` in which ./data/nuscenes is `root` (as mmdetection3d's tools see their data)."""
     import subprocess
     import sys
 
@@ -90,7 +77,7 @@ def run_restated(work: Path, root: Path, folder: str, version: str, which: str =
     (work / "data" / "nuscenes").symlink_to(Path(root).resolve(), target_is_directory=True)
     done = subprocess.run([sys.executable, __file__, "--folder", folder, "--version", version, "--out", "out",
                            "--which", which, "--max-sweeps", str(max_sweeps)],
-                          cwd=work, env=reference_env(), capture_output=True, text=True)
+                          cwd=work, capture_output=True, text=True)
     if done.returncode:
         raise AssertionError(f"the re-stated converter failed:\n{done.stderr[-4000:]}")
     return work / "out"

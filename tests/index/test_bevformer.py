@@ -31,8 +31,8 @@ def _get_can_bus_info(root, scene_name, sample_timestamp):
 def built(extract_root, extract_out, tmp_path_factory):
     ds = nuparquet.open(extract_out)
     bev, v1 = tmp_path_factory.mktemp("bev"), tmp_path_factory.mktemp("v1")
-    build_index(ds, IndexOptions(out=str(bev), format="bevformer", info_version=1, parquet=False))
-    build_index(ds, IndexOptions(out=str(v1), info_version=1, parquet=False))
+    build_index(ds, str(bev), IndexOptions(format="bevformer", info_version=1, parquet=False))
+    build_index(ds, str(v1), IndexOptions(info_version=1, parquet=False))
     return extract_root, bev, v1
 
 
@@ -72,7 +72,7 @@ def test_bevformer_infos_follow_its_converter(built):
 def test_bevformer_infos_carry_its_can_bus_vector_on_synthetic_data(synth_root, synth_out, tmp_path):
     """The same walk on the synthetic set (no real data), whose CAN bus covers every scene but the last: each info
     has BEVFormer's keys in its order and `_get_can_bus_info`'s vector, zeros where the scene has no pose file."""
-    build_index(synth_out, IndexOptions(out=str(tmp_path), version="v1.0-trainval", format="bevformer",
+    build_index(synth_out, str(tmp_path), IndexOptions(version="v1.0-trainval", format="bevformer",
                                         info_version=1, parquet=False, split="train"))
     ours = pickle.loads((tmp_path / "nuscenes_infos_temporal_train.pkl").read_bytes())["infos"]
     version = next(p for p in synth_root.iterdir() if (p / "sample.json").is_file())

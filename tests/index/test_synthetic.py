@@ -21,8 +21,8 @@ from nuparquet.index.splits import assign_splits
 @pytest.fixture(scope="session")
 def synth_infos(synth_out, tmp_path_factory):
     out = tmp_path_factory.mktemp("synth-index")
-    build_index(synth_out, IndexOptions(out=str(out / "v2"), version="v1.0-trainval", max_sweeps=3))
-    build_index(synth_out, IndexOptions(out=str(out / "v1"), version="v1.0-trainval", info_version=1, max_sweeps=3))
+    build_index(synth_out, str(out / "v2"), IndexOptions(version="v1.0-trainval", max_sweeps=3))
+    build_index(synth_out, str(out / "v1"), IndexOptions(version="v1.0-trainval", info_version=1, max_sweeps=3))
     return out
 
 
@@ -60,8 +60,8 @@ def test_a_test_version_has_no_instances_even_over_annotated_data(synth_root, sy
     anns = json.loads((synth_root / "v1.0-synth" / "sample_annotation.json").read_text())
     samples = json.loads((synth_root / "v1.0-synth" / "sample.json").read_text())
     assert anns  # the data reach the case
-    build_index(synth_out, IndexOptions(out=str(tmp_path / "v1"), version="v1.0-test", info_version=1))
-    build_index(synth_out, IndexOptions(out=str(tmp_path / "v2"), version="v1.0-test"))
+    build_index(synth_out, str(tmp_path / "v1"), IndexOptions(version="v1.0-test", info_version=1))
+    build_index(synth_out, str(tmp_path / "v2"), IndexOptions(version="v1.0-test"))
     v1 = pickle.loads((tmp_path / "v1" / "nuscenes_infos_test.pkl").read_bytes())["infos"]
     assert len(v1) == len(samples) and not any(k.startswith("gt_") or k == "valid_flag" for i in v1 for k in i)
     v2 = pickle.loads((tmp_path / "v2" / "nuscenes_infos_test.pkl").read_bytes())
@@ -97,14 +97,14 @@ def test_missing_inputs_are_named(synth_out, tmp_path):
     ds = open_dataset(synth_out)
     manifest = dict(ds.manifest, datasets={k: v for k, v in ds.manifest["datasets"].items() if k != "annotations"})
     with pytest.raises(InputError, match="annotations"):
-        build_index(Dataset(ds.root, manifest), IndexOptions(out=str(tmp_path / "a"), version="v1.0-trainval"))
+        build_index(Dataset(ds.root, manifest), str(tmp_path / "a"), IndexOptions(version="v1.0-trainval"))
     without_can_bus = dict(ds.manifest, datasets={k: v for k, v in ds.manifest["datasets"].items()
                                                   if k != "sample_can_bus"})
     with pytest.raises(InputError, match="sample_can_bus"):
-        build_index(Dataset(ds.root, without_can_bus), IndexOptions(out=str(tmp_path / "b"), version="v1.0-trainval",
+        build_index(Dataset(ds.root, without_can_bus), str(tmp_path / "b"), IndexOptions(version="v1.0-trainval",
                                                                     format="bevformer", info_version=1))
     with pytest.raises(UsageError, match="--version"):
-        build_index(ds, IndexOptions(out=str(tmp_path / "c")))
+        build_index(ds, str(tmp_path / "c"))
 
 
 def test_cli_writes_the_files(synth_out, tmp_path):
@@ -120,10 +120,10 @@ def test_cli_writes_the_files(synth_out, tmp_path):
 def test_cameras_given_as_comma_separated_text_are_the_channels_in_that_order():
     """A library caller may give `cameras` as the CLI's text: "CAM_BACK, CAM_FRONT" is those two channels, in that
     order (the order of each info's `cams` / `images`), as the tuple gives them."""
-    assert IndexOptions(out="o", cameras="CAM_BACK, CAM_FRONT,").cameras == ("CAM_BACK", "CAM_FRONT")
-    assert IndexOptions(out="o", cameras=("CAM_BACK", "CAM_FRONT")).cameras == ("CAM_BACK", "CAM_FRONT")
+    assert "o", IndexOptions(cameras="CAM_BACK, CAM_FRONT,").cameras == ("CAM_BACK", "CAM_FRONT")
+    assert "o", IndexOptions(cameras=("CAM_BACK", "CAM_FRONT")).cameras == ("CAM_BACK", "CAM_FRONT")
     with pytest.raises(UsageError, match="--cameras must name at least one camera channel"):
-        IndexOptions(out="o", cameras=" , ")
+        "o", IndexOptions(cameras=" , ")
 
 
 @pytest.mark.parametrize("fields, parquet_step", [({}, True), ({"parquet": False}, False),
@@ -133,7 +133,7 @@ def test_progress_counts_the_steps_it_names(synth_out, tmp_path, fields, parquet
     then per split the pickle and, for v2 infos with `parquet` (the default), the Parquet rows. v1 infos write no
     Parquet whatever `parquet` says, so they have no such step (a bar that ends at 4 of 5 would look stuck)."""
     events = []
-    build_index(synth_out, IndexOptions(out=str(tmp_path / "o"), version="v1.0-test", **fields),
+    build_index(synth_out, str(tmp_path / "o"), IndexOptions(version="v1.0-test", **fields),
                 on_progress=events.append)
     steps = [e.step for e in events if e.step]
     assert steps == ["read tables", "compute", "splits", *(["parquet test"] if parquet_step else []), "write test"]

@@ -69,7 +69,7 @@ def exported(synth_points_out, tmp_path_factory):
     """scene-0001 exported with the defaults, its progress events, and every message decoded."""
     out = tmp_path_factory.mktemp("mcap") / f"{SCENE}.mcap"
     events = []
-    result = export_mcap(synth_points_out, SCENE, McapOptions(out=out), on_progress=events.append)
+    result = export_mcap(synth_points_out, SCENE, out, on_progress=events.append)
     return result, events, read_messages(out)
 
 
@@ -259,7 +259,7 @@ def test_points_read_from_the_files_are_the_same_messages(exported, synth_out, t
     labels, which only the conversion adds). Without images, the sensor bytes carried are the point files' sizes."""
     _, _, messages = exported
     out = tmp_path / "files.mcap"
-    result = export_mcap(synth_out, SCENE, McapOptions(out=out, without=("images",)))
+    result = export_mcap(synth_out, SCENE, out, McapOptions(without=("images",)))
     point_files = [r for r in tables.sample_data if r["channel"] in ("LIDAR_TOP", *RADARS)]
     assert result.sensor_bytes == sum((tables.root / r["filename"]).stat().st_size for r in point_files) > 0
     from_files = read_messages(out)
@@ -350,7 +350,7 @@ def test_the_map_reaches_the_margin_on_every_side_of_the_route_and_stops_there(s
     bounds = shapely.total_bounds(np.array([g for geoms in geometry.values() for g in geoms], dtype=object))
     assert bounds[0] < box[0] and bounds[1] < box[1] and bounds[2] > box[2] and bounds[3] > box[3]
     out = tmp_path / "map.mcap"
-    result = export_mcap(synth_points_out, SCENE, McapOptions(out=out, map_margin_m=margin_m, without=(
+    result = export_mcap(synth_points_out, SCENE, out, McapOptions(map_margin_m=margin_m, without=(
         "images", "points", "boxes", "can_bus", "transforms")))
     # every other content left out (no /tf without transforms); the cameras' calibrations stay
     assert set(result.messages) == {"/map", *(f"/{c}/camera_info" for c in CAMERAS)}
@@ -376,13 +376,13 @@ def test_the_size_is_in_the_order_of_the_sensor_files(exported, tables):
 def test_the_same_options_give_the_same_bytes(exported, synth_points_out, tmp_path):
     result, _, _ = exported
     again = tmp_path / "again.mcap"
-    export_mcap(synth_points_out, SCENE, McapOptions(out=again))
+    export_mcap(synth_points_out, SCENE, again)
     assert again.read_bytes() == result.out.read_bytes()
 
 
 def test_lz4_and_keyframe_boxes_and_contents_left_out(synth_points_out, tables, tmp_path):
     out = tmp_path / "small.mcap"
-    result = export_mcap(synth_points_out, SCENE, McapOptions(out=out, boxes="keyframes", compression="lz4",
+    result = export_mcap(synth_points_out, SCENE, out, McapOptions(boxes="keyframes", compression="lz4",
                                                        without=("images", "points", "can_bus", "map")))
     assert validate(out)["compression"] == {"lz4"}
     topics = set(result.messages)
@@ -406,13 +406,13 @@ def test_a_missing_file_is_skipped_and_named_or_stops_the_export(synth_points_ou
               .sort("timestamp").select("filename").collect()["filename"].to_list())
     (dataroot / frames[1]).unlink()
     out = tmp_path / "scene.mcap"
-    result = export_mcap(synth_points_out, SCENE, McapOptions(out=out, dataroot=dataroot, without=("points",)))
+    result = export_mcap(nuparquet.open(synth_points_out, dataroot=dataroot), SCENE, out, McapOptions(without=("points",)))
     assert result.missing == [str(dataroot / frames[1])]
     assert result.messages["/CAM_BACK/image_rect_compressed"] == len(frames) - 1
     assert result.messages["/CAM_BACK/camera_info"] == len(frames)
     before = out.read_bytes()
     with pytest.raises(InputError, match=frames[1].split("/")[-1]):
-        export_mcap(synth_points_out, SCENE, McapOptions(out=out, dataroot=dataroot, on_missing="error"))
+        export_mcap(nuparquet.open(synth_points_out, dataroot=dataroot), SCENE, out, McapOptions(on_missing="error"))
     assert out.read_bytes() == before  # the earlier file is intact, no partial is left
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data", "scene.mcap"]
 
@@ -432,7 +432,7 @@ def test_cli_writes_the_file_and_names_bad_input(synth_points_out, tmp_path, cap
     assert "inside the converted dataset" in capsys.readouterr().err
     with pytest.raises(UsageError, match="--out-dir"):
         from nuparquet.mcap import export_scenes
-        export_scenes(synth_points_out, nuparquet.SceneSelection(all_scenes=True), McapOptions())
+        export_scenes(synth_points_out, nuparquet.SceneSelection(all_scenes=True), None, McapOptions())
 
 
 def test_the_scene_query_refuses_an_unknown_scene_listing_every_valid_one(synth_points_out, synth_root):
@@ -464,7 +464,7 @@ def test_the_scene_metadata_and_the_can_bus_json_schemas_are_what_a_reader_is_to
     from mcap.reader import SeekingReader
 
     out = tmp_path / "can.mcap"
-    export_mcap(synth_points_out, SCENE, McapOptions(out=out, without=("images", "points", "boxes", "map",
+    export_mcap(synth_points_out, SCENE, out, McapOptions(without=("images", "points", "boxes", "map",
                                                                       "transforms")))
     with open(out, "rb") as f:
         reader = SeekingReader(f)
@@ -490,16 +490,16 @@ def test_chunk_bytes_takes_1024_and_refuses_less(synth_points_out, tmp_path):
     """chunk_bytes (the MCAP writer's chunk size) has a floor of 1024 bytes: 1024 itself writes a valid file, of
     many chunks; 1023 is refused naming the option and the value."""
     with pytest.raises(UsageError, match="chunk_bytes must be at least 1024, got 1023"):
-        McapOptions(out=tmp_path / "x.mcap", chunk_bytes=1023)
+        McapOptions(chunk_bytes=1023)
     out = tmp_path / "small-chunks.mcap"
-    export_mcap(synth_points_out, SCENE, McapOptions(out=out, chunk_bytes=1024, without=("images", "points",
+    export_mcap(synth_points_out, SCENE, out, McapOptions(chunk_bytes=1024, without=("images", "points",
                                                                                           "map", "boxes")))
     assert len(validate(out)["chunks"]) > 1
 
 
 def test_an_unreadable_point_file_stops_the_export_with_the_reason(synth_out, synth_root, tmp_path):
     """With --on-missing error, a lidar file that is gone or truncated stops the export with an InputError naming
-    the file and why (the OS's reason; the point reader's for a truncated file): read from the files, as a dataset
+    the file and why (neither converted nor a file; the point reader's reason for a truncated file): read from the files, as a dataset
     converted without points is."""
     import os
     import shutil
@@ -510,12 +510,13 @@ def test_an_unreadable_point_file_stops_the_export_with_the_reason(synth_out, sy
               .filter((pl.col("scene_name") == SCENE) & (pl.col("channel").cast(pl.String) == "LIDAR_TOP"))
               .sort("timestamp").select("filename").collect()["filename"].to_list())
     (dataroot / frames[0]).unlink()
-    options = dict(dataroot=dataroot, on_missing="error", without=("images", "boxes", "map", "can_bus"))
-    with pytest.raises(InputError) as raised:
-        export_mcap(synth_out, SCENE, McapOptions(out=tmp_path / "a.mcap", **options))
-    assert str(raised.value).startswith(f"sensor file {dataroot / frames[0]}: No such file or directory")
+    options = McapOptions(on_missing="error", without=("images", "boxes", "map", "can_bus"))
+    ds = nuparquet.open(synth_out, dataroot=dataroot)
+    with pytest.raises(InputError) as raised:  # the one reader's word: neither converted nor a file
+        export_mcap(ds, SCENE, tmp_path / "a.mcap", options)
+    assert str(raised.value).startswith(f"sensor file {dataroot / frames[0]}: not converted, and no such file")
     (dataroot / frames[0]).write_bytes(b"\0" * 22)  # 5.5 float32: not whole 5-float points
     with pytest.raises(InputError) as raised:
-        export_mcap(synth_out, SCENE, McapOptions(out=tmp_path / "b.mcap", **options))
+        export_mcap(ds, SCENE, tmp_path / "b.mcap", options)
     assert str(raised.value).startswith(f"sensor file {dataroot / frames[0]}: 22 bytes is not a whole number of "
                                         "5-float32 points")

@@ -274,15 +274,15 @@ def test_our_pointcloud_in_image_draws_the_lidarseg_predictions_it_is_given(lida
     from nuparquet.rendering import single
 
     ours = NuScenes(SYNTH_VERSION, dataroot=str(lidarseg_root), parquet=lidarseg_out, verbose=False)
-    ds = nuparquet.open(lidarseg_out)
+    ds = nuparquet.open(lidarseg_out, dataroot=lidarseg_root)
     sample = ours.sample[1]
     lidar = ours.get("sample_data", sample["data"]["LIDAR_TOP"])
     points = (lidarseg_root / lidar["filename"]).stat().st_size // (5 * 4)
     predictions = tmp_path / "predictions.bin"
     np.ones(points, np.uint8).tofile(predictions)
     expected = single.render_pointcloud_in_image(ds, sample["token"], show_lidarseg=True,
-                                                 lidarseg_preds_bin_path=str(predictions), dataroot=lidarseg_root)
-    truth = single.render_pointcloud_in_image(ds, sample["token"], show_lidarseg=True, dataroot=lidarseg_root)
+                                                 lidarseg_preds_bin_path=str(predictions))
+    truth = single.render_pointcloud_in_image(ds, sample["token"], show_lidarseg=True)
     assert not np.array_equal(expected, truth)
     for render in (ours.render_pointcloud_in_image, ours.explorer.render_pointcloud_in_image):
         drawn = render(sample["token"], show_lidarseg=True, lidarseg_preds_bin_path=str(predictions), verbose=False)
@@ -297,14 +297,12 @@ def test_our_render_sample_draws_only_the_lidarseg_classes_it_is_asked_for(lidar
     from nuparquet.rendering import single
 
     ours = NuScenes(SYNTH_VERSION, dataroot=str(lidarseg_root), parquet=lidarseg_out, verbose=False)
-    ds = nuparquet.open(lidarseg_out)
+    ds = nuparquet.open(lidarseg_out, dataroot=lidarseg_root)
     sample = ours.sample[1]
     labels = np.fromfile(lidarseg_root / ours.get("lidarseg", sample["data"]["LIDAR_TOP"])["filename"], np.uint8)
     kept = int(np.bincount(labels).argmax())
-    expected = single.render_sample(ds, sample["token"], show_lidarseg=True, filter_lidarseg_labels=[kept],
-                                    dataroot=lidarseg_root)
-    assert not np.array_equal(expected, single.render_sample(ds, sample["token"], show_lidarseg=True,
-                                                             dataroot=lidarseg_root))
+    expected = single.render_sample(ds, sample["token"], show_lidarseg=True, filter_lidarseg_labels=[kept])
+    assert not np.array_equal(expected, single.render_sample(ds, sample["token"], show_lidarseg=True))
     drawn = ours.render_sample(sample["token"], show_lidarseg=True, filter_lidarseg_labels=[kept], verbose=False)
     assert np.array_equal(drawn, expected)
 
@@ -346,10 +344,10 @@ def test_our_render_sample_data_takes_the_devkits_arguments_in_order_and_shows_b
     from nuparquet.rendering import single
 
     ours = NuScenes(SYNTH_VERSION, dataroot=str(synth_root), parquet=synth_out, verbose=False)
-    ds = nuparquet.open(synth_out)
+    ds = nuparquet.open(synth_out, dataroot=synth_root)
     camera = ours.sample[1]["data"]["CAM_FRONT"]
-    without = single.render_sample_data(ds, camera, with_anns=False, dataroot=synth_root)
-    with_boxes = single.render_sample_data(ds, camera, dataroot=synth_root)
+    without = single.render_sample_data(ds, camera, with_anns=False)
+    with_boxes = single.render_sample_data(ds, camera)
     assert not np.array_equal(without, with_boxes)  # the synthetic camera sees boxes: with_anns matters
     shown = []
     monkeypatch.setattr(plt, "show", lambda *args, **kwargs: shown.append(plt.gcf().number))

@@ -61,7 +61,7 @@ def synth_nusc(devkit, synth_root):
 @pytest.fixture(scope="module")
 def synth_messages(synth_points_out, tmp_path_factory):
     out = tmp_path_factory.mktemp("mcap-devkit") / "scene.mcap"
-    export_mcap(synth_points_out, "scene-0002", McapOptions(out=out))
+    export_mcap(synth_points_out, "scene-0002", out)
     return read_messages(out)
 
 
@@ -121,7 +121,7 @@ def real_nusc(devkit, extract_root):
 @pytest.fixture(scope="module")
 def real_export(extract_out, tmp_path_factory):
     out = tmp_path_factory.mktemp("mcap-real") / f"{REAL_SCENE}.mcap"
-    result = export_mcap(extract_out, REAL_SCENE, McapOptions(out=out))
+    result = export_mcap(extract_out, REAL_SCENE, out)
     return result, read_messages(out)
 
 

@@ -31,15 +31,15 @@ def points_out(synth_root, tmp_path_factory):
 def test_multisweep_equals_the_devkit(nusc, synth_out, points_out, source, channel, tmp_path):
     from nuscenes.utils.data_classes import LidarPointCloud, RadarPointCloud
 
-    ds = nuparquet.open(synth_out if source == "files" else points_out)
     # "points": from lidar_points/ and radar_points/ alone: the sensor files are not where they are looked for
-    dataroot = None if source == "files" else tmp_path / "no-sensor-files"
+    ds = nuparquet.open(synth_out) if source == "files" else nuparquet.open(points_out,
+                                                                           dataroot=tmp_path / "no-sensor-files")
     cls = LidarPointCloud if channel.startswith("LIDAR") else RadarPointCloud
     checked = 0
     for sample in nusc.sample[:3] + nusc.sample[-2:]:
         for nsweeps in (1, 3, 10):
             pc, times = cls.from_file_multisweep(nusc, sample, channel, "LIDAR_TOP", nsweeps=nsweeps)
-            ours = multisweep(ds, sample["token"], channel, "LIDAR_TOP", nsweeps, dataroot=dataroot)
+            ours = multisweep(ds, sample["token"], channel, "LIDAR_TOP", nsweeps)
             assert ours.points.shape == pc.points.T.shape and ours.points.dtype == pc.points.dtype
             if cls is LidarPointCloud:
                 np.testing.assert_array_max_ulp(ours.points, pc.points.T, maxulp=1)
@@ -102,14 +102,14 @@ def test_radar_default_filters_drop_the_returns_the_devkit_drops(synth_root, syn
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_bytes(data[:head] + points.tobytes() + data[-1:])
     nusc = devkit.NuScenes(SYNTH_VERSION, str(root), verbose=False)
-    ds = nuparquet.open(synth_out)
+    ds = nuparquet.open(synth_out, dataroot=root)
     kept = 0
     for sample in nusc.sample[2:5]:
         pc, times = RadarPointCloud.from_file_multisweep(nusc, sample, "RADAR_FRONT", "LIDAR_TOP", nsweeps=3)
-        ours = multisweep(ds, sample["token"], "RADAR_FRONT", "LIDAR_TOP", 3, dataroot=root)
+        ours = multisweep(ds, sample["token"], "RADAR_FRONT", "LIDAR_TOP", 3)
         np.testing.assert_allclose(ours.points, pc.points.T, rtol=0, atol=1e-9)
         assert np.array_equal(ours.times_s, times[0])
-        everything = multisweep(ds, sample["token"], "RADAR_FRONT", "LIDAR_TOP", 3, dataroot=root, radar_filters=False)
+        everything = multisweep(ds, sample["token"], "RADAR_FRONT", "LIDAR_TOP", 3, radar_filters=False)
         assert len(everything.points) > len(ours.points) > 0
         kept += len(ours.points)
     assert marked > 0 and kept > 0
@@ -147,6 +147,7 @@ def test_a_radar_file_whose_first_point_holds_a_nan_is_the_devkits_empty_cloud(s
         expected = RadarPointCloud.from_file(str(path)).points.T
         assert len(expected) == (0 if nan_at == 0 else len(points))
         for filters in (True, False):
-            ours, names = frame_cloud(ds, row, "radar", tmp_path / str(nan_at), radar_filters=filters)
+            ours, names = frame_cloud(nuparquet.open(synth_out, dataroot=tmp_path / str(nan_at)), row, "radar",
+                                      radar_filters=filters)
             assert ours.shape == expected.shape and len(names) == expected.shape[1], (nan_at, filters)
             np.testing.assert_array_equal(ours, expected)

@@ -234,7 +234,7 @@ def test_projected_box_edges_lie_on_the_painted_cuboids(synth_out):
 def test_rendered_frames_carry_the_category_colour_along_the_box_edges(synth_out, tmp_path):
     ds, scene, loaded, projected = _scene_boxes(synth_out)
     result = render(
-        ds, scene, RenderOptions(channel="CAM_FRONT", frames_dir=tmp_path, frame_format="png", scale=1.0, labels="none")
+        ds, scene, None, RenderOptions(channel="CAM_FRONT", frame_format="png", scale=1.0, labels="none"), frames_dir=tmp_path
     )
     assert result.frames_written == loaded.cameras.height
     drawn = {row: cv2.imread(str(tmp_path / f"{row:05d}.png")) for row in range(loaded.cameras.height)}

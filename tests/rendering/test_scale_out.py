@@ -262,7 +262,7 @@ def test_the_many_scene_progress_counts_scenes_under_the_jobs_name(scenes_out, t
     import nuparquet
 
     events = []
-    nuparquet.render_scenes(scenes_out, scenes=["scene-0003", "scene-0001"], out_dir=tmp_path / "v", scale=0.1,
+    nuparquet.render_scenes(scenes_out, None, tmp_path / "v", scenes=["scene-0003", "scene-0001"], scale=0.1,
                             engine=nuparquet.EngineOptions(engine="serial"), on_progress=events.append)
     job = [e for e in events if e.task == "render 2 scene(s)"]
     assert job and {e.total for e in job} == {2} and {e.unit for e in job} == {"scene"}

@@ -165,7 +165,7 @@ def test_the_map_lies_under_the_views_from_above_unless_told_not_to(synth_out, t
 
 
 def test_a_sample_picture_reads_its_files_from_the_dataroot_given(synth_out, tokens, tmp_path):
-    """`render_image(sample=..., dataroot=...)` (what `render --sample --dataroot` draws) reads the sample's files
+    """`render_image` of a dataset opened with `dataroot=` (what `render --sample --dataroot` draws) reads the sample's files
     under the dataroot given, not the one the conversion recorded: an empty one lacks them, and the error names a
     file under it; a dataroot holding the same files gives the same picture."""
     import os
@@ -177,11 +177,13 @@ def test_a_sample_picture_reads_its_files_from_the_dataroot_given(synth_out, tok
     ds = nuparquet.open(synth_out)
     (tmp_path / "empty").mkdir()
     with pytest.raises(InputError, match=str(tmp_path / "empty")):
-        render_image(ds, sample=tokens["sample"], scale=0.2, nsweeps=1, dataroot=tmp_path / "empty")
+        render_image(nuparquet.open(synth_out, dataroot=tmp_path / "empty"), sample=tokens["sample"], scale=0.2,
+                     nsweeps=1)
     (tmp_path / "copy").mkdir()
     recorded = Path(ds.dataroot)
     for folder in ("samples", "sweeps", "maps"):
         if (recorded / folder).exists():
             os.symlink(recorded / folder, tmp_path / "copy" / folder)
-    assert np.array_equal(render_image(ds, sample=tokens["sample"], scale=0.2, dataroot=tmp_path / "copy"),
+    assert np.array_equal(render_image(nuparquet.open(synth_out, dataroot=tmp_path / "copy"), sample=tokens["sample"],
+                                       scale=0.2),
                           render_image(ds, sample=tokens["sample"], scale=0.2))

@@ -17,7 +17,9 @@ import cv2
 import polars as pl
 import pytest
 
+import nuparquet
 from nuparquet.cli.main import main
+from nuparquet.dataset.selection import SceneSelection
 from nuparquet.errors import UsageError
 from nuparquet.site import ReportOptions, build_report
 from nuparquet.site.facts import dataset_facts, local_start, log_utc_offset_min, time_of_day, weather_words
@@ -370,7 +372,8 @@ def test_a_report_without_videos_still_charts_the_can_bus(synth_points_out, tabl
     wrote its CAN bus files) gets its speed and steering charts, shown on its page. Built in this test's process."""
     scene = "scene-0001"
     assert scene in tables.can_bus
-    result = build_report(synth_points_out, ReportOptions(out=tmp_path / "report", scenes=(scene,), videos=False))
+    result = build_report(synth_points_out, SceneSelection(scenes=(scene,)), tmp_path / "report",
+                          ReportOptions(videos=False))
     charts = sorted((result.out / "scenes" / scene).iterdir())
     assert [p.name for p in charts] == ["can_speed.png", "steering.png"]
     assert all(p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for p in charts)
@@ -391,7 +394,7 @@ def test_existing_output_unknown_scene_and_missing_dataroot_are_refused(synth_po
     assert main(["report", str(synth_points_out), "--out", str(synth_points_out / "r")]) == 2
     assert "/r is inside the converted dataset " in capsys.readouterr().err  # not written into the Parquet's folder
     with pytest.raises(UsageError, match="--no-videos"):
-        build_report(synth_points_out, ReportOptions(out=tmp_path / "r", dataroot=tmp_path / "nowhere"))
+        build_report(nuparquet.open(synth_points_out, dataroot=tmp_path / "nowhere"), None, tmp_path / "r")
     assert main(["report", str(synth_points_out), "--out", str(out), "--no-videos", "--quiet", "--overwrite"]) == 0
     assert not (out / "keep.txt").exists() and (out / "index.html").is_file()
 
@@ -465,13 +468,13 @@ def test_keyframe_renderings_draw_the_reference_lidar_when_the_dataset_has_one(s
     from nuparquet.site.scene_assets import STILL_SCALE
 
     scene = SCENES[1]
-    result = build_report(synth_points_out, ReportOptions(out=tmp_path / "report", scenes=(scene,), stills=2))
+    result = build_report(synth_points_out, SceneSelection(scenes=(scene,)), tmp_path / "report", ReportOptions(stills=2))
     assert len(result.assets[scene]["stills"]) == 2
     frames = {}
     for lidar in (True, False):
         folder = tmp_path / f"lidar-{lidar}"
-        render(synth_points_out, scene, RenderOptions(channel="CAM_FRONT", lidar=lidar, scale=STILL_SCALE,
-                                                      frames_dir=folder, frame_format="jpg"))
+        render(synth_points_out, scene, None, RenderOptions(channel="CAM_FRONT", lidar=lidar, scale=STILL_SCALE,
+                                                            frame_format="jpg"), frames_dir=folder)
         frames[lidar] = sorted(folder.glob("*.jpg"))
     for file, index, count in result.assets[scene]["stills"]:
         assert count == len(frames[True])
@@ -486,8 +489,8 @@ def test_the_report_says_its_steps_as_it_goes(synth_points_out, tmp_path):
     """The report's own progress task names each of its five steps as it starts it, in order (the CLI shows the
     step beside the bar)."""
     events = []
-    build_report(synth_points_out, ReportOptions(out=tmp_path / "report", scenes=("scene-0002",), videos=False),
-                 on_progress=events.append)
+    build_report(synth_points_out, SceneSelection(scenes=("scene-0002",)), tmp_path / "report",
+                 ReportOptions(videos=False), on_progress=events.append)
     steps = [(e.done, e.total, e.step) for e in events if e.task == "report" and e.step]
     assert steps == [(1, 5, "statistics"), (2, 5, "videos"), (3, 5, "scene assets"), (4, 5, "pages"),
                      (5, 5, "done")]

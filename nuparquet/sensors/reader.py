@@ -1,0 +1,183 @@
+"""`SensorReader`: where a dataset's sensor data is read from, decided in one place for every caller (scene renders
+and their bird's-eye view, single pictures, sweeps, the MCAP export, the report, the devkit skin, the training
+loader).
+
+A frame's points come from the converted datasets (`lidar_points/`, `radar_points/`, read through the dataset's own
+storage: a local folder or an object store with its `storage_options`) when the frame is there, else from its
+file under the dataroot (`Dataset.dataroot`: the one given when opening, else the one recorded at conversion);
+ground-truth labels from `lidar_points/` or the label file `tables/lidarseg` / `tables/panoptic` names; images
+from their files. When a frame's data is in neither place the error says so once, the same way for every caller
+(`MissingSensorData`, which is also a FileNotFoundError for the renderers that skip such frames).
+
+```python
+reader = ds.sensors
+xyzi, labels = reader.lidar(token, filename, labels="lidarseg")     # (P, 4) float32, (P,) int64
+frame = reader.points(token, filename, "radar")                     # a polars DataFrame of the PCD fields
+```
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+
+from nuparquet.errors import InputError, UsageError
+from nuparquet.frames.points import FramesNotConverted
+from nuparquet.sources.points import LIDAR_FIELDS
+
+POINTS_DATASETS = {"lidar": "lidar_points", "radar": "radar_points"}
+LABEL_COLUMNS = {"lidarseg": "lidarseg_label", "panoptic": "panoptic_label"}
+XYZI = ("x", "y", "z", "intensity")
+
+
+def inside(root: Path, filename: str) -> Path | None:
+    """`root / filename`, or None for a filename that leaves the dataroot ("../..", an absolute path): the one rule for
+    every sensor file a dataset names."""
+    relative = Path(filename)
+    if relative.is_absolute() or ".." in relative.parts:
+        return None
+    return root / relative
+
+
+class MissingSensorData(InputError, FileNotFoundError):
+    """A frame's data is neither in the converted datasets nor in a file under the dataroot; `path` is the file
+    looked for."""
+
+    def __init__(self, path: str, message: str):
+        self.path = str(path)
+        self.reason = message
+        InputError.__init__(self, message)
+
+    def __str__(self) -> str:
+        return self.reason
+
+
+class SensorReader:
+    """The sensor data of one opened dataset (`ds.sensors`)."""
+
+    def __init__(self, dataset) -> None:
+        self.dataset = dataset
+        self._columns: dict[str, list[str]] = {}
+
+    # -- where the files are ---------------------------------------------------------------------------------------
+
+    def root(self, what: str = "the sensor files", *, otherwise: str = "") -> Path:
+        """The local dataroot holding the sensor files: UsageError saying `what` is read from it when it is not
+        there (`otherwise`: what else the user may do, e.g. ", or --no-videos")."""
+        dataroot = self.dataset.dataroot
+        root = Path(dataroot) if dataroot else None
+        if root is None or not root.is_dir():
+            raise UsageError(f"the dataroot {root} (where {what} are read from) does not exist; pass --dataroot PATH "
+                             f"(the folder holding samples/ and sweeps/; in Python nuparquet.open(OUT, dataroot=...))"
+                             f"{otherwise}")
+        return root
+
+    def path(self, filename: str, root: Path | None = None) -> Path:
+        """The file of a sample_data `filename` under the dataroot; one that leaves it ("../..", an absolute path)
+        is refused (InputError naming it)."""
+        path = inside(root if root is not None else self.root(), filename)
+        if path is None:
+            raise InputError(f"{filename}: outside the dataroot, refused")
+        return path
+
+    # -- points ------------------------------------------------------------------------------------------------------
+
+    def converted_columns(self, modality: str) -> list[str]:
+        """The columns of `lidar_points/` or `radar_points/` ([] when not converted)."""
+        name = POINTS_DATASETS[modality]
+        if name not in self._columns:
+            self._columns[name] = (self.dataset.scan(name).collect_schema().names()
+                                   if name in self.dataset.datasets else [])
+        return self._columns[name]
+
+    def converted(self, token: str, modality: str, columns) -> pl.DataFrame | None:
+        """The frame's rows of `columns` in the points dataset of `modality`, or None when the frame is not there
+        (not converted, a sweep left out, its file missing at conversion)."""
+        have = self.converted_columns(modality)
+        if not have:
+            return None
+        read = self.dataset.points if modality == "lidar" else self.dataset.radar_points
+        try:  # only columns the dataset has: an unknown column must not read as "frame not converted"
+            return read(token, columns=[c for c in columns if c in have])
+        except FramesNotConverted:  # the frame is not there (every other error is the storage's, and raised)
+            return None
+
+    def points(self, token: str, filename: str, modality: str, columns=None) -> pl.DataFrame:
+        """One frame's points as a polars DataFrame: from the converted dataset when the frame is there (`columns`,
+        default every sensor field the dataset has), else from its file (lidar: x, y, z, intensity, ring; radar:
+        the PCD fields; `columns` that a file does not hold, such as labels, left out).
+
+        Raises:
+            MissingSensorData: neither converted nor a file under the dataroot.
+            PointFileError: a file that cannot be read as its format says.
+        """
+        if columns is None:
+            columns = self.sensor_fields(modality)
+        frame = self.converted(token, modality, columns)
+        if frame is not None:
+            return frame
+        from nuparquet.sources.points import read_lidar_bin, read_radar_pcd
+
+        path = self.file(token, filename, modality)
+        if modality == "lidar":
+            values = read_lidar_bin(path, len(LIDAR_FIELDS))
+            frame = pl.DataFrame({name: values[:, j] for j, name in enumerate(LIDAR_FIELDS)})
+        else:
+            records = np.array(read_radar_pcd(path))  # a copy: the file's buffer is read-only
+            frame = pl.DataFrame({name: records[name] for name in records.dtype.names})
+        return frame.select([c for c in columns if c in frame.columns])
+
+    def sensor_fields(self, modality: str) -> list[str]:
+        """The sensor fields of a frame of `modality` as the converted dataset stores them (lidar: x, y, z,
+        intensity, ring and the labels; radar: the PCD fields), or the file's (lidar) when not converted."""
+        from nuparquet.frames.points import FRAME_COLUMNS
+
+        converted = [c for c in self.converted_columns(modality)
+                     if c not in FRAME_COLUMNS and c != "passes_default_filters"]
+        return converted or list(LIDAR_FIELDS)
+
+    def lidar(self, token: str, filename: str, *, labels: str | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """(P, 4) float32 x, y, z, intensity of a lidar frame as the devkit's `LidarPointCloud.from_file` loads them
+        (every point, the sensor frame) and, for `labels` ("lidarseg" or "panoptic"), its (P,) int64 ground-truth
+        labels (from `lidar_points/` or the label file `tables/<labels>` names; UsageError when it has none)."""
+        column = LABEL_COLUMNS.get(labels) if labels else None
+        wanted = [*XYZI, *([column] if column and column in self.converted_columns("lidar") else [])]
+        frame = self.points(token, filename, "lidar", wanted)
+        points = frame.select(XYZI).to_numpy().astype(np.float32)
+        if not labels:
+            return points, None
+        if column in frame.columns and frame[column].null_count() == 0:
+            found = frame[column].to_numpy().astype(np.int64)
+        else:
+            found = self.label_file(token, labels)
+        if len(found) != len(points):
+            raise InputError(f"{labels} labels of sample_data {token} hold {len(found)} labels for {len(points)} "
+                             "points")
+        return points, found
+
+    def label_file(self, token: str, labels: str) -> np.ndarray:
+        """(P,) int64: the lidarseg or panoptic label file `tables/<labels>` names for sample_data `token`."""
+        from nuparquet.frames.sweeps import read_point_file
+        from nuparquet.sources.points import read_lidarseg_bin, read_panoptic_npz
+
+        if f"tables/{labels}" not in self.dataset.datasets:
+            raise UsageError(f"{self.dataset.root} has no {labels} labels (the dataroot had no {labels}.json when "
+                             "converted)")
+        names = (self.dataset.scan(f"tables/{labels}").filter(pl.col("sample_data_token") == token)
+                 .select("filename").collect())
+        if names.is_empty():
+            raise UsageError(f"sample_data {token} has no {labels} labels (only lidar keyframes have them)")
+        reader = read_panoptic_npz if labels == "panoptic" else read_lidarseg_bin
+        return read_point_file(reader, self.path(names["filename"][0])).astype(np.int64)
+
+    def file(self, token: str, filename: str, modality: str) -> Path:
+        """The frame's file, which must exist: MissingSensorData saying where the data was looked for."""
+        path = self.path(filename)
+        if not path.is_file():
+            where = (f"not in {POINTS_DATASETS[modality]}/" if self.converted_columns(modality) else
+                     f"not converted: convert --sensors {modality}")
+            raise MissingSensorData(str(path), f"missing point file: {path} (the {modality} points of sample_data "
+                                               f"{token}, {where}; or --dataroot PATH where the files are)")
+        return path
