@@ -1,4 +1,5 @@
-"""The nuScenes detection vocabulary, as nuscenes-devkit's `eval/detection/constants.py` and `utils.py` define it:
+"""The nuScenes detection vocabulary, as nuscenes-devkit's `eval/detection/constants.py` and `utils.py` define it
+(and the tracking classes of `eval/tracking/utils.py`, at the end):
 the ten detection classes, the eight attributes, which categories map to which class, and which true-positive
 errors a class has no use for."""
 
@@ -59,3 +60,8 @@ MEAN_TP_NAMES = {"trans_err": "mATE", "scale_err": "mASE", "orient_err": "mAOE",
 
 def orientation_period_rad(detection_name: str) -> float:
     return ORIENTATION_PERIOD_RAD.get(detection_name, 2 * math.pi)
+
+# The tracking challenge (devkit `eval/tracking/utils.py::category_to_tracking_name`): seven classes, the detection
+# mapping less the static ones (barrier, traffic cone) and construction vehicles.
+TRACKING_NAMES = ("bicycle", "bus", "car", "motorcycle", "pedestrian", "trailer", "truck")
+CATEGORY_TO_TRACKING = {category: name for category, name in CATEGORY_TO_DETECTION.items() if name in TRACKING_NAMES}

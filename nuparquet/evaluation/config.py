@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import ClassVar
 
 from nuparquet.errors import UsageError
 from nuparquet.evaluation.classes import DETECTION_NAMES
@@ -38,6 +39,9 @@ class DetectionConfig:
     min_precision: float
     max_boxes_per_sample: int
     mean_ap_weight: float
+
+    named: ClassVar[tuple[str, ...]] = NAMED_CONFIGS  # the configurations shipped (nuparquet/data/<name>.json)
+    default: ClassVar[str] = DEFAULT_CONFIG
 
     @property
     def class_names(self) -> tuple[str, ...]:
@@ -96,17 +100,18 @@ def _is_number(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
-def named_config(name: str) -> DetectionConfig:
-    """A configuration shipped with the devkit, by name (`NAMED_CONFIGS`)."""
-    if name not in NAMED_CONFIGS:
-        raise UsageError(f"unknown configuration {name!r}; known: {', '.join(NAMED_CONFIGS)} "
+def named_config(name: str, config_class=DetectionConfig):
+    """A configuration shipped with the devkit, by name (`config_class.named`: DetectionConfig's, or another
+    evaluation's config class with `named`, `default` and `from_dict`, such as the tracking one)."""
+    if name not in config_class.named:
+        raise UsageError(f"unknown configuration {name!r}; known: {', '.join(config_class.named)} "
                          "(or give a devkit-format JSON with --config-file)")
     text = (resources.files("nuparquet") / "data" / f"{name}.json").read_text()
-    return DetectionConfig.from_dict(json.loads(text), where=name)
+    return config_class.from_dict(json.loads(text), where=name)
 
 
-def config_from_file(path: str | Path) -> DetectionConfig:
-    """A configuration from a JSON file in the devkit's format (`DetectionConfig.serialize()`)."""
+def config_from_file(path: str | Path, config_class=DetectionConfig):
+    """A configuration from a JSON file in the devkit's format (`config_class.serialize()`)."""
     path = Path(path)
     try:
         content = json.loads(path.read_text())
@@ -116,18 +121,17 @@ def config_from_file(path: str | Path) -> DetectionConfig:
         raise UsageError(f"--config-file {path}: cannot be read ({exc})") from exc
     except json.JSONDecodeError as exc:
         raise UsageError(f"--config-file {path}: not valid JSON ({exc})") from exc
-    return DetectionConfig.from_dict(content, where=str(path))
+    return config_class.from_dict(content, where=str(path))
 
 
-def resolve_config(config: str | DetectionConfig | None = None,
-                   config_file: str | Path | None = None) -> DetectionConfig:
-    """The configuration asked for: a DetectionConfig as given, `config_file`, else the named `config`."""
-    if isinstance(config, DetectionConfig):
+def resolve_config(config=None, config_file: str | Path | None = None, config_class=DetectionConfig):
+    """The configuration asked for: a `config_class` instance as given, `config_file`, else the named `config`."""
+    if isinstance(config, config_class):
         if config_file is not None:
             raise UsageError("give a configuration or a configuration file, not both")
         return config
     if config_file is not None:
-        if config not in (None, DEFAULT_CONFIG):
+        if config not in (None, config_class.default):
             raise UsageError("--config and --config-file both given; use one")
-        return config_from_file(config_file)
-    return named_config(config or DEFAULT_CONFIG)
+        return config_from_file(config_file, config_class)
+    return named_config(config or config_class.default, config_class)

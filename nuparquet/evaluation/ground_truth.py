@@ -62,10 +62,13 @@ class GroundTruth:
 
 
 def load_ground_truth(dataset, split: str, class_names: Sequence[str], *, annotation_columns: Sequence[str] = (),
-                      scene_columns: Sequence[str] = ()) -> GroundTruth:
+                      scene_columns: Sequence[str] = (), category_map: dict[str, str] = CATEGORY_TO_DETECTION,
+                      one_attribute: bool = True) -> GroundTruth:
     """The ground truth of `split` in `dataset` (a `nuparquet.dataset.Dataset`).
 
     annotation_columns, scene_columns: extra columns of `annotations` / `scenes` to carry (for slices).
+    category_map: category name -> evaluated class (detection's, or `CATEGORY_TO_TRACKING`); one_attribute: refuse
+    an evaluated annotation with several attributes (the detection devkit does; the tracking devkit reads none).
     Raises UsageError when the split names no scene of the dataset; InputError for data the devkit refuses
     (a sample without reference-lidar keyframe, an evaluated annotation with several attributes).
     """
@@ -102,7 +105,7 @@ def load_ground_truth(dataset, split: str, class_names: Sequence[str], *, annota
         .select("sample_token", "ego_translation")
         .unique("sample_token", keep="first", maintain_order=True)
     )
-    detection = pl.col("category_name").cast(pl.String).replace_strict(CATEGORY_TO_DETECTION, default=None)
+    detection = pl.col("category_name").cast(pl.String).replace_strict(category_map, default=None)
     extra = [c for c in annotation_columns if c not in ANNOTATION_COLUMNS]
     annotations_lf = (
         dataset.scan("annotations").filter(pl.col("scene_name").is_in(scene_names))
@@ -132,7 +135,7 @@ def load_ground_truth(dataset, split: str, class_names: Sequence[str], *, annota
     is_rack = (annotations_df["category_name"] == BIKE_RACK_CATEGORY).to_numpy()
     racks = _boxes(annotations_df.filter(pl.Series(is_rack)), class_index=None)
     evaluated = annotations_df.filter(~pl.Series(is_rack))
-    several = evaluated.filter(pl.col("attribute_names").list.len() > 1)
+    several = evaluated.filter(pl.col("attribute_names").list.len() > 1) if one_attribute else evaluated.clear()
     if several.height:
         raise InputError(f"annotation {several['token'][0]} has {several['attribute_names'][0].len()} attributes; "
                          "the devkit evaluates at most one per box" +
@@ -148,6 +151,7 @@ def load_ground_truth(dataset, split: str, class_names: Sequence[str], *, annota
 
 def _boxes(df: pl.DataFrame, class_index: np.ndarray | None) -> Boxes:
     n = df.height
+    # the first attribute (one_attribute=False lets several through: the tracking evaluation reads none)
     attribute = df["attribute_names"].list.first().fill_null("").to_numpy().astype(object) if n else np.zeros(0, object)
     return Boxes(
         sample_index=df["_sample_index"].to_numpy().astype(np.int64),

@@ -20,6 +20,10 @@ match it against that other sample's ground truth), and (`check_samples`) sample
 to the evaluated split. Extra fields of a box are ignored, as by the devkit, except "num_pts" (the devkit
 reads it: a prediction claiming 0 points is filtered out like a ground-truth box without points).
 
+The tracking submission (`TRACKING_FIELDS`) is read by the same code: its boxes carry "tracking_id",
+"tracking_name" and "tracking_score" instead of the detection fields, and its sizes need not be positive (the
+tracking metrics never use them); `read_boxes` returns the columns of either kind (`SubmittedBoxes`).
+
 Longer than our ~300-line norm on purpose: every check a submission goes through, and the message that names the
 sample and the box, stand together so the rules can be read in one place.
 """
@@ -38,10 +42,76 @@ from nuparquet.evaluation.classes import ATTRIBUTE_NAMES, DETECTION_NAMES
 
 MAX_LISTED = 10  # problems named in one error message
 VECTOR_FIELDS = {"translation": 3, "size": 3, "rotation": 4, "velocity": 2}
-REQUIRED_FIELDS = ("sample_token", "translation", "size", "rotation", "velocity", "detection_name", "detection_score",
-                   "attribute_name")
-_BOX_TYPE = ("STRUCT(sample_token VARCHAR, translation DOUBLE[], size DOUBLE[], rotation DOUBLE[], velocity DOUBLE[], "
-             "detection_name VARCHAR, detection_score DOUBLE, attribute_name VARCHAR, num_pts BIGINT)")
+
+
+@dataclass(frozen=True)
+class BoxFields:
+    """What one kind of submission box holds besides the box: its class field (`name`), its score field, further
+    string fields (`labels`: required strings, or integers read as their decimal text where `integer_labels`
+    allows), and whether its size must be positive (the detection scale error divides by the volume)."""
+
+    kind: str
+    name: str
+    score: str
+    labels: tuple[str, ...]
+    positive_size: bool
+    integer_labels: tuple[str, ...] = ()
+
+    @property
+    def required(self) -> tuple[str, ...]:
+        return ("sample_token", *VECTOR_FIELDS, self.name, self.score, *self.labels)
+
+    def duckdb_struct(self) -> str:
+        # a field that may be a string or an integer is read as JSON text, its kind checked after (a VARCHAR would
+        # take a list or an object as its text)
+        strings = ", ".join(f"{name} {'JSON' if name in self.integer_labels else 'VARCHAR'}"
+                            for name in (self.name, *self.labels))
+        return ("STRUCT(sample_token VARCHAR, translation DOUBLE[], size DOUBLE[], rotation DOUBLE[], velocity DOUBLE[], "
+                f"{strings}, {self.score} DOUBLE, num_pts BIGINT)")
+
+
+DETECTION_FIELDS = BoxFields("detection", "detection_name", "detection_score", ("attribute_name",), positive_size=True)
+# the devkit's TrackingBox: tracking_id is documented as a string; trackers that write integers are read as their text
+TRACKING_FIELDS = BoxFields("tracking", "tracking_name", "tracking_score", ("tracking_id",), positive_size=False,
+                            integer_labels=("tracking_id",))
+REQUIRED_FIELDS = DETECTION_FIELDS.required
+
+
+@dataclass(frozen=True)
+class SubmittedBoxes:
+    """A submission of either kind as aligned arrays, boxes in file order (see `Submission` for the order).
+
+    meta, sample_tokens, box_sample, box_index, translation_m, size_wlh_m, rotation_wxyz, velocity_mps, num_pts:
+    as in `Submission`; class_name: (N,) str (detection_name / tracking_name); score: (N,) float64;
+    labels: {field: (N,) str} the kind's further string fields (attribute_name / tracking_id)."""
+
+    meta: dict
+    sample_tokens: np.ndarray
+    box_sample: np.ndarray
+    box_index: np.ndarray
+    translation_m: np.ndarray
+    size_wlh_m: np.ndarray
+    rotation_wxyz: np.ndarray
+    velocity_mps: np.ndarray
+    class_name: np.ndarray
+    score: np.ndarray
+    labels: dict
+    num_pts: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.box_sample)
+
+    def box_counts(self) -> np.ndarray:
+        """(S,) boxes per sample."""
+        return np.bincount(self.box_sample, minlength=len(self.sample_tokens))
+
+    def detections(self) -> Submission:
+        """The detection submission these columns hold."""
+        return Submission(meta=self.meta, sample_tokens=self.sample_tokens, box_sample=self.box_sample,
+                          box_index=self.box_index, translation_m=self.translation_m, size_wlh_m=self.size_wlh_m,
+                          rotation_wxyz=self.rotation_wxyz, velocity_mps=self.velocity_mps,
+                          detection_name=self.class_name, detection_score=self.score,
+                          attribute_name=self.labels["attribute_name"], num_pts=self.num_pts)
 
 
 @dataclass(frozen=True)
@@ -104,22 +174,28 @@ class _Problems:
 
 def read_submission(path: str | Path, *, max_boxes_per_sample: int | None = None,
                     class_names: Sequence[str] = DETECTION_NAMES) -> Submission:
-    """Read and check the submission at `path` (see the module docstring); InputError listing the problems.
-
-    `class_names`: the detection classes a box may name; `max_boxes_per_sample`: the configuration's limit.
+    """Read and check the detection submission at `path` (see the module docstring); InputError listing the
+    problems. `class_names`: the detection classes a box may name; `max_boxes_per_sample`: the configuration's limit.
     """
+    return read_boxes(path, DETECTION_FIELDS, max_boxes_per_sample=max_boxes_per_sample,
+                      class_names=class_names).detections()
+
+
+def read_boxes(path: str | Path, fields: BoxFields, *, max_boxes_per_sample: int | None = None,
+               class_names: Sequence[str]) -> SubmittedBoxes:
+    """Read and check a submission of the kind `fields` describes (DETECTION_FIELDS, TRACKING_FIELDS)."""
     path = Path(path)
     if not path.is_file():
         raise UsageError(f"--results {path}: no such file")
     try:
-        submission = _read_with_duckdb(path)
+        submission = _read_with_duckdb(path, fields)
     except _Unreadable:
-        submission = _read_with_python(path)
-    _check_boxes(submission, path, max_boxes_per_sample, class_names)
+        submission = _read_boxes_with_python(path, fields)
+    _check_boxes(submission, path, max_boxes_per_sample, class_names, fields)
     return submission
 
 
-def check_samples(submission: Submission, expected_tokens: Sequence[str], *, split: str, path: str | Path,
+def check_samples(submission: Submission | SubmittedBoxes, expected_tokens: Sequence[str], *, split: str, path: str | Path,
                   allow_extra: bool = False) -> None:
     """The devkit's "Samples in split doesn't match samples in predictions", naming the samples: every sample
     of the split must be in the submission (with an empty list if nothing was detected), and no other (unless
@@ -141,11 +217,26 @@ def check_samples(submission: Submission, expected_tokens: Sequence[str], *, spl
     raise InputError(f"{path}: " + "; ".join(parts))
 
 
+def restricted_to_split(sub: SubmittedBoxes, sample_tokens: np.ndarray) -> SubmittedBoxes:
+    """A custom split (devkit `load_prediction_of_sample_tokens`): the split's samples only, in their order."""
+    position = {token: i for i, token in enumerate(sub.sample_tokens.tolist())}
+    keep = np.array([position[t] for t in sample_tokens.tolist()], dtype=np.int64)
+    new_index = np.full(len(sub.sample_tokens), -1, dtype=np.int64)
+    new_index[keep] = np.arange(len(keep))
+    rows = np.flatnonzero(new_index[sub.box_sample] >= 0)
+    rows = rows[np.argsort(new_index[sub.box_sample[rows]], kind="stable")]
+    return SubmittedBoxes(meta=sub.meta, sample_tokens=sub.sample_tokens[keep], box_sample=new_index[sub.box_sample[rows]],
+                          box_index=sub.box_index[rows], translation_m=sub.translation_m[rows],
+                          size_wlh_m=sub.size_wlh_m[rows], rotation_wxyz=sub.rotation_wxyz[rows],
+                          velocity_mps=sub.velocity_mps[rows], class_name=sub.class_name[rows], score=sub.score[rows],
+                          labels={name: values[rows] for name, values in sub.labels.items()}, num_pts=sub.num_pts[rows])
+
+
 class _Unreadable(Exception):
     """DuckDB's typed reader refused the file: read it again with Python to say why."""
 
 
-def _read_with_duckdb(path: Path) -> Submission:
+def _read_with_duckdb(path: Path, fields: BoxFields) -> SubmittedBoxes:
     import duckdb
     import polars as pl
 
@@ -153,7 +244,7 @@ def _read_with_duckdb(path: Path) -> Submission:
     query = (f"SELECT json_type(meta) AS meta_type, CAST(meta AS VARCHAR) AS meta, "
              f"results IS NULL AS no_results, map_keys(results) AS samples, map_values(results) AS boxes "
              f"FROM read_json($path, format='unstructured', maximum_object_size={max(size + 1024, 1 << 24)}, "
-             f"columns={{'meta': 'JSON', 'results': 'MAP(VARCHAR, {_BOX_TYPE}[])'}})")
+             f"columns={{'meta': 'JSON', 'results': 'MAP(VARCHAR, {fields.duckdb_struct()}[])'}})")
     connection = duckdb.connect()
     try:
         relation = connection.sql(query, params={"path": str(path)})
@@ -179,32 +270,44 @@ def _read_with_duckdb(path: Path) -> Submission:
     boxes = per_sample.filter(pl.Series(counts > 0)).explode()  # (N,) struct
     if boxes.null_count():
         raise _Unreadable("a box is null")
-    fields = boxes.struct.unnest()
+    unnested = boxes.struct.unnest()
     columns = {}
     for name, width in VECTOR_FIELDS.items():
-        field = fields[name]
+        field = unnested[name]
         if field.null_count() or (field.list.len() != width).any():
             raise _Unreadable(f"a {name} missing or of the wrong length")
         values = field.explode()
         if values.null_count():
             raise _Unreadable(f"a {name} holds null")
         columns[name] = values.to_numpy().astype(np.float64).reshape(-1, width)
-    for name in ("sample_token", "detection_name", "attribute_name", "detection_score"):
-        if fields[name].null_count():
+    for name in ("sample_token", fields.name, fields.score, *fields.labels):
+        if unnested[name].null_count():
             raise _Unreadable(f"a box lacks {name}")
+    labels = {}
+    for name in fields.labels:
+        column = unnested[name]
+        if name in fields.integer_labels:  # JSON text: a string literal, decoded, or an integer, as written
+            quoted = column.str.starts_with('"')
+            if not (quoted | column.str.contains(r"^-?[0-9]+$")).all():
+                raise _Unreadable(f"a {name} is neither a string nor an integer")
+            text = column.to_numpy().astype(object)
+            if quoted.any():
+                text[quoted.to_numpy()] = np.array(column.filter(quoted).str.json_decode(pl.String).to_list(), object)
+            labels[name] = text
+        else:
+            labels[name] = column.to_numpy().astype(object)
     box_sample = np.repeat(np.arange(len(tokens), dtype=np.int64), counts)
-    named = fields["sample_token"].to_numpy().astype(object)
+    named = unnested["sample_token"].to_numpy().astype(object)
     if len(named) and (named != tokens[box_sample]).any():
         raise _Unreadable("a box names another sample")
-    return Submission(
+    return SubmittedBoxes(
         meta=meta, sample_tokens=tokens, box_sample=box_sample,
         box_index=np.arange(len(box_sample), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts),
         translation_m=columns["translation"], size_wlh_m=columns["size"], rotation_wxyz=columns["rotation"],
         velocity_mps=columns["velocity"],
-        detection_name=fields["detection_name"].to_numpy().astype(object),
-        detection_score=fields["detection_score"].to_numpy().astype(np.float64),
-        attribute_name=fields["attribute_name"].to_numpy().astype(object),
-        num_pts=fields["num_pts"].fill_null(-1).to_numpy().astype(np.int64),
+        class_name=unnested[fields.name].to_numpy().astype(object),
+        score=unnested[fields.score].to_numpy().astype(np.float64),
+        labels=labels, num_pts=unnested["num_pts"].fill_null(-1).to_numpy().astype(np.int64),
     )
 
 
@@ -224,6 +327,11 @@ class _Duplicate:
 
 
 def _read_with_python(path: Path) -> Submission:
+    """The strict reader of a detection submission (`_read_boxes_with_python`)."""
+    return _read_boxes_with_python(path, DETECTION_FIELDS).detections()
+
+
+def _read_boxes_with_python(path: Path, fields: BoxFields) -> SubmittedBoxes:
     """The strict reader: every problem of the file found and named (slow; used when DuckDB refused it)."""
     try:
         data = json.loads(path.read_bytes(), object_pairs_hook=_unique_keys)
@@ -237,16 +345,17 @@ def _read_with_python(path: Path) -> Submission:
     if not isinstance(data, dict):
         raise InputError(f"{path}: expected a JSON object with \"meta\" and \"results\", got {type(data).__name__}")
     if "results" not in data or not isinstance(data["results"], (dict, _Duplicate)):
-        raise InputError(f"{path}: no \"results\" object (the detection format: "
+        raise InputError(f"{path}: no \"results\" object (the {fields.kind} format: "
                          "{\"meta\": {...}, \"results\": {sample_token: [box, ...]}})")
     if not isinstance(data.get("meta"), dict):
-        raise InputError(f"{path}: no \"meta\" object (the detection format: {{\"meta\": {{\"use_camera\": ..., "
+        raise InputError(f"{path}: no \"meta\" object (the {fields.kind} format: {{\"meta\": {{\"use_camera\": ..., "
                          "\"use_lidar\": ..., ...}}, \"results\": {...}})")
     results = data["results"]
     if isinstance(results, _Duplicate):
         raise InputError(f"{path}: sample {results.key} is listed twice in \"results\"")
+    strings = ("sample_token", fields.name, *fields.labels)
     tokens, box_sample, box_index = [], [], []
-    values: dict[str, list] = {name: [] for name in (*REQUIRED_FIELDS, "num_pts")}
+    values: dict[str, list] = {name: [] for name in (*fields.required, "num_pts")}
     for sample, boxes in results.items():
         s = len(tokens)
         tokens.append(sample)
@@ -261,7 +370,7 @@ def _read_with_python(path: Path) -> Submission:
             if not isinstance(box, dict):
                 problems.add(f"{where}: expected an object, got {_kind(box)}")
                 continue
-            missing = [name for name in REQUIRED_FIELDS if name not in box]
+            missing = [name for name in fields.required if name not in box]
             if missing:
                 problems.add(f"{where}: missing {', '.join(missing)}")
                 continue
@@ -271,15 +380,19 @@ def _read_with_python(path: Path) -> Submission:
                 if not isinstance(vector, list) or len(vector) != width or not all(_is_number(v) for v in vector):
                     problems.add(f"{where}: {name} must be a list of {width} numbers, got {_short(vector)}")
                     ok = False
-            for name in ("sample_token", "detection_name", "attribute_name"):
-                if not isinstance(box[name], str):
-                    problems.add(f"{where}: {name} must be a string, got {_short(box[name])}")
+            for name in strings:
+                value = box[name]
+                if name in fields.integer_labels and isinstance(value, int) and not isinstance(value, bool):
+                    box[name] = str(value)  # as DuckDB's VARCHAR reads a JSON integer
+                elif not isinstance(value, str):
+                    also = " (or an integer)" if name in fields.integer_labels else ""
+                    problems.add(f"{where}: {name} must be a string{also}, got {_short(value)}")
                     ok = False
             if isinstance(box["sample_token"], str) and box["sample_token"] != sample:
                 problems.add(f"{where}: sample_token {box['sample_token']!r} is not the sample it is listed under")
                 ok = False
-            if not _is_number(box["detection_score"]):
-                problems.add(f"{where}: detection_score must be a number, got {_short(box['detection_score'])}")
+            if not _is_number(box[fields.score]):
+                problems.add(f"{where}: {fields.score} must be a number, got {_short(box[fields.score])}")
                 ok = False
             num_pts = box.get("num_pts", -1)
             if isinstance(num_pts, bool) or not isinstance(num_pts, int):
@@ -289,7 +402,7 @@ def _read_with_python(path: Path) -> Submission:
                 continue
             box_sample.append(s)
             box_index.append(i)
-            for name in REQUIRED_FIELDS:
+            for name in fields.required:
                 values[name].append(box[name])
             values["num_pts"].append(num_pts)
     problems.raise_if_any()
@@ -298,13 +411,13 @@ def _read_with_python(path: Path) -> Submission:
     def vectors(name: str) -> np.ndarray:
         return np.array(values[name], dtype=np.float64).reshape(n, VECTOR_FIELDS[name])
 
-    return Submission(
+    return SubmittedBoxes(
         meta=data["meta"], sample_tokens=np.array(tokens, dtype=object),
         box_sample=np.array(box_sample, dtype=np.int64), box_index=np.array(box_index, dtype=np.int64),
         translation_m=vectors("translation"), size_wlh_m=vectors("size"), rotation_wxyz=vectors("rotation"),
-        velocity_mps=vectors("velocity"), detection_name=np.array(values["detection_name"], dtype=object),
-        detection_score=np.array(values["detection_score"], dtype=np.float64),
-        attribute_name=np.array(values["attribute_name"], dtype=object),
+        velocity_mps=vectors("velocity"), class_name=np.array(values[fields.name], dtype=object),
+        score=np.array(values[fields.score], dtype=np.float64),
+        labels={name: np.array(values[name], dtype=object) for name in fields.labels},
         num_pts=np.array(values["num_pts"], dtype=np.int64),
     )
 
@@ -323,7 +436,8 @@ def _short(value) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _check_boxes(sub: Submission, path: Path, max_boxes_per_sample: int | None, class_names: Sequence[str]) -> None:
+def _check_boxes(sub: SubmittedBoxes, path: Path, max_boxes_per_sample: int | None, class_names: Sequence[str],
+                 fields: BoxFields) -> None:
     """The checks of the module docstring that need no dataset, vectorised over every box."""
     problems = _Problems(path)
     if max_boxes_per_sample is not None:
@@ -337,14 +451,17 @@ def _check_boxes(sub: Submission, path: Path, max_boxes_per_sample: int | None, 
         problems.add_boxes(*where, np.flatnonzero(~np.isfinite(values).all(axis=1)), f"{name} is not finite")
     problems.add_boxes(*where, np.flatnonzero(np.isinf(sub.velocity_mps).any(axis=1)),
                        "velocity is infinite (NaN is allowed: no velocity estimate)")
-    problems.add_boxes(*where, np.flatnonzero(~np.isfinite(sub.detection_score)), "detection_score is not finite")
-    problems.add_boxes(*where, np.flatnonzero(np.isfinite(sub.size_wlh_m).all(axis=1)
-                                              & (sub.size_wlh_m <= 0).any(axis=1)),
-                       "size must be positive (the scale error divides by the volume)")
+    problems.add_boxes(*where, np.flatnonzero(~np.isfinite(sub.score)), f"{fields.score} is not finite")
+    if fields.positive_size:
+        problems.add_boxes(*where, np.flatnonzero(np.isfinite(sub.size_wlh_m).all(axis=1)
+                                                  & (sub.size_wlh_m <= 0).any(axis=1)),
+                           "size must be positive (the scale error divides by the volume)")
     problems.add_boxes(*where, np.flatnonzero((sub.rotation_wxyz == 0).all(axis=1)),
                        "rotation is the zero quaternion")
-    for column, valid, what in ((sub.detection_name, class_names, "detection_name"),
-                                (sub.attribute_name, ("", *ATTRIBUTE_NAMES), "attribute_name")):
+    vocabularies = [(sub.class_name, class_names, fields.name)]
+    if "attribute_name" in fields.labels:
+        vocabularies.append((sub.labels["attribute_name"], ("", *ATTRIBUTE_NAMES), "attribute_name"))
+    for column, valid, what in vocabularies:
         unknown = np.flatnonzero(~np.isin(column, np.array(list(valid), dtype=object)))
         if len(unknown):
             choices = ", ".join(repr(v) for v in valid)
@@ -353,4 +470,3 @@ def _check_boxes(sub: Submission, path: Path, max_boxes_per_sample: int | None, 
                              f"unknown {what} {column[row]!r} (one of {choices})")
             problems.count += max(0, len(unknown) - MAX_LISTED)
     problems.raise_if_any()
-

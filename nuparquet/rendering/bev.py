@@ -151,6 +151,7 @@ class BevTile(RowTile):
     prediction_colors_rgb: np.ndarray | None = None  # (M, 3)
     tokens: tuple[str, ...] = ()  # (L,) sample_data token of each lidar frame (the frame index)
     timestamps_us: np.ndarray | None = None  # (L,)
+    prediction_legend: tuple = ()  # (name, RGB) entries: what the predictions' colours mean
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)
@@ -172,14 +173,20 @@ class BevTile(RowTile):
         ego_yaw = float(np.arctan2(ego[1, 0], ego[0, 0]))
         to_pixel = self.view.world_to_pixel(ego[:2, 3], ego_yaw)
         image = self.raster.warp(self.view.size, to_pixel)
-        if cloud is not None and len(cloud[0]):
+        points_drawn = cloud is not None and len(cloud[0]) > 0
+        if points_drawn:
             self._draw_points(image, *cloud, row, to_pixel)
         self._draw_boxes(image, row, to_pixel)
         if self.predictions is not None:
             self._draw_predictions(image, row, to_pixel)
         self._draw_ego(image, ego[:2, 3], ego_yaw, to_pixel)
-        draw_legend(image, points="height" if self.clouds is None or self.clouds.color == "depth" else self.clouds.color,
-                    map_layers=self.raster.has_map)
+        # the point colouring is explained only where points are drawn (no bar over a picture without any)
+        points = None if not points_drawn else "height" if self.clouds.color == "depth" else self.clouds.color
+        draw_legend(image, points=points, map_layers=self.raster.has_map)
+        if self.predictions is not None:
+            from nuparquet.rendering import legend
+
+            legend.draw_legend(image, self.prediction_legend, corner="top-right", max_chars=40)
         return image
 
     def _draw_points(self, image: np.ndarray, points: np.ndarray, labels: np.ndarray | None, row: int,
@@ -243,15 +250,17 @@ class BevTile(RowTile):
 LEGEND = tuple((layer.replace("_", " "), color) for layer, color, _ in MAP_STYLE)
 
 
-def draw_legend(image: np.ndarray, points: str = "height", map_layers: bool = True) -> None:
+def draw_legend(image: np.ndarray, points: str | None = "height", map_layers: bool = True) -> None:
     """Layer swatches (only when the map was drawn: `map_layers`) and the point colouring (the height scale, or the
-    name of the colouring) in the top-left corner."""
+    name of the colouring; None: no points drawn, nothing said) in the top-left corner."""
     h = image.shape[0]
     font = max(0.3, h / 1800)
     step = max(10, int(22 * font * 2))
     x, y = 6, 6
     legend = LEGEND if map_layers else ()
-    panel_h = step * (len(legend) + 2) + 6
+    if not legend and points is None:
+        return
+    panel_h = step * (len(legend) + (2 if points is not None else 0)) + 6
     panel_w = int(150 * font * 2.2)
     image[y:y + panel_h, x:x + panel_w] = (image[y:y + panel_h, x:x + panel_w] * 0.35).astype(np.uint8)
     for i, (name, color) in enumerate(legend):
@@ -259,6 +268,8 @@ def draw_legend(image: np.ndarray, points: str = "height", map_layers: bool = Tr
         cv2.rectangle(image, (x + 4, top), (x + 4 + step - 4, top + step - 4), color, -1)
         cv2.putText(image, name, (x + step + 6, top + step - 5), cv2.FONT_HERSHEY_SIMPLEX, font, (255, 255, 255), 1,
                     cv2.LINE_AA)
+    if points is None:
+        return
     top = y + 4 + len(legend) * step
     lo, hi = POINT_HEIGHT_RANGE_M
     text = f"points: {points}"

@@ -51,5 +51,6 @@ def bev_source(dataset, rows: SceneRows, dataroot: Path, view: View, *, times_us
     tile = BevTile(frame_rows.astype(np.int64), view, raster, global_from_ego, ego_from_sensor,
                    CloudReader.build(lidar, dataroot, dataset=dataset, color=lidar_color), boxes,
                    predictions=predicted, prediction_colors_rgb=predicted_rgb,
+                   prediction_legend=tuple(predictions.legend()) if predictions is not None else (),
                    tokens=tuple(lidar["token"].to_list()), timestamps_us=stamps)
     return tile, np.asarray(times_us, dtype=np.float64)

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from nuparquet.rendering import draw
+from nuparquet.rendering import draw, legend
 from nuparquet.rendering.decode import decode_image
 from nuparquet.rendering.overlay import LIDAR_MAX_DEPTH_M, DrawStyle, Overlay
 from nuparquet.rendering.plan import RowTile, TileLoad
@@ -39,6 +39,7 @@ class CameraTile(RowTile):
     prediction_style: DrawStyle | None = None
     tokens: tuple[str, ...] = ()  # (F,) sample_data token of each camera row (the frame index)
     timestamps_us: np.ndarray | None = None  # (F,)
+    prediction_legend: tuple = ()  # (name, RGB) entries: what the predictions' colours mean
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)
@@ -61,4 +62,5 @@ class CameraTile(RowTile):
         image = self.overlay.draw(image, int(self.rows[t]), self.style)
         if self.predictions is not None:
             self.predictions.draw(image, int(self.rows[t]), self.prediction_style or self.style)
+            legend.draw_legend(image, self.prediction_legend, corner="top-right", max_chars=40)
         return image

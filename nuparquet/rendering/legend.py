@@ -20,15 +20,16 @@ def _font_scale(image: np.ndarray) -> float:
     return max(0.35, min(image.shape[:2]) / 1500)
 
 
-def draw_legend(image_bgr: np.ndarray, entries: Sequence[tuple[str, Sequence[int]]], *, corner: str = "top-left",
-                font_scale: float | None = None) -> np.ndarray:
+def draw_legend(image_bgr: np.ndarray, entries: Sequence[tuple[str, Sequence]], *, corner: str = "top-left",
+                font_scale: float | None = None, max_chars: int = MAX_NAME_CHARS) -> np.ndarray:
     """A panel of (name, RGB) swatches in a corner ("top-left", "top-right", "bottom-left", "bottom-right"), in place;
-    nothing for no entries. Names longer than 25 characters are cut, as the devkit's legend cuts them."""
+    nothing for no entries. Names longer than 25 characters are cut, as the devkit's legend cuts them. An entry's
+    colour may be a sequence of RGB colours (a swatch of stripes: "one colour per track")."""
     if not entries:
         return image_bgr
     font = font_scale or _font_scale(image_bgr)
     thickness = max(1, round(font * 1.5))
-    names = [name[:MAX_NAME_CHARS] for name, _ in entries]
+    names = [name[:max_chars] for name, _ in entries]
     # every row as tall as the tallest name and as deep as the deepest descender (g, j, p, q, y), so no name
     # reaches into the next row whichever name is the widest
     sizes = [cv2.getTextSize(n, TEXT_FONT, font, thickness) for n in names]
@@ -43,8 +44,11 @@ def draw_legend(image_bgr: np.ndarray, entries: Sequence[tuple[str, Sequence[int
     region[:] = (region * PANEL_DARKEN).astype(np.uint8)
     for i, (name, (_, rgb)) in enumerate(zip(names, entries)):
         top = y + 4 + i * step
-        colour = tuple(int(c) for c in rgb_to_bgr(rgb))
-        cv2.rectangle(image_bgr, (x + 4, top + 2), (x + step, top + step - 2), colour, cv2.FILLED)
+        stripes = [rgb] if np.ndim(rgb) == 1 else list(rgb)
+        edges = np.linspace(x + 4, x + step, len(stripes) + 1).round().astype(int)
+        for left, right, stripe in zip(edges[:-1], edges[1:], stripes):
+            colour = tuple(int(c) for c in rgb_to_bgr(stripe))
+            cv2.rectangle(image_bgr, (int(left), top + 2), (int(right), top + step - 2), colour, cv2.FILLED)
         cv2.putText(image_bgr, name, (x + step + 6, top + step - baseline - 3), TEXT_FONT, font, (255, 255, 255),
                     thickness, cv2.LINE_AA)
     return image_bgr

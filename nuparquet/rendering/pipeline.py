@@ -99,7 +99,7 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
     image_size_px = np.stack([cameras["width"].to_numpy(), cameras["height"].to_numpy()], axis=1)
     decode_scale = np.max(tile_cameras.scale, axis=1)  # the decoded image must cover the tile on both axes
     style = DrawStyle.for_scale(scale)
-    predicted, predicted_style = None, None
+    predicted, predicted_style, predicted_legend = None, None, ()
     if predictions is not None:
         from nuparquet.rendering.predictions import prediction_boxes, prediction_style
 
@@ -107,9 +107,11 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
         predicted = build_overlay(tile_cameras, boxes, clip=clip, colors_rgb=predictions.colors_rgb(rows),
                                   texts=predictions.labels(rows))
         predicted_style = prediction_style(style)
+        predicted_legend = tuple(predictions.legend())
     tokens, stamps = tuple(cameras["token"].to_list()), cameras["timestamp"].to_numpy()
     tiles = iter(CameraTile(channel, plan_rows[:, column], paths, decode_scale, size, overlay, style, lidar,
-                            image_size_px, predicted, predicted_style, tokens, stamps)
+                            image_size_px, predicted, predicted_style, tokens, stamps,
+                            prediction_legend=predicted_legend)
                  for column, channel in enumerate(channels))
     return TilePlan(times_us, tuple(tuple(next(tiles) for _ in row) for row in layout), size)
 

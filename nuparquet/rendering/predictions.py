@@ -1,8 +1,11 @@
 """Predicted boxes drawn beside the ground truth (`render --predictions RESULTS [--score-threshold 0.3]`).
 
-RESULTS is a detection submission (results.json: every box is drawn in one colour, PREDICTED_RGB), or a directory
-written by `nuparquet eval` (its predictions/ dataset: true positives at the TP threshold in TP_RGB, false
-positives in FP_RGB, boxes the evaluation left out, beyond a class range or in a bicycle rack, in FILTERED_RGB).
+RESULTS is a detection submission (results.json: every box is drawn in one colour, PREDICTED_RGB), a tracking
+submission (boxes with a "tracking_id": each track in its own colour, the same in every picture and every run,
+`track_rgb`, and labelled "<id> <class> <score>"), or a directory written by `nuparquet eval` (its predictions/
+dataset: true positives at the TP threshold in TP_RGB, false positives in FP_RGB, boxes the evaluation left out,
+beyond a class range or in a bicycle rack, in FILTERED_RGB). Every picture that draws them says what the colours
+mean (`Predictions.legend`).
 Predictions belong to samples, so they are drawn on keyframes only (the sweeps of --all-frames show none), with
 thinner lines than the ground truth and a "<class> <score>" label; boxes scoring below the threshold are not drawn.
 """
@@ -10,6 +13,7 @@ thinner lines than the ground truth and a "<class> <score>" label; boxes scoring
 from __future__ import annotations
 
 import json
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,6 +31,24 @@ FP_RGB = (255, 45, 45)
 FILTERED_RGB = (150, 150, 150)
 STATUS_RGB = np.array([PREDICTED_RGB, TP_RGB, FP_RGB, FILTERED_RGB], dtype=np.uint8)
 PREDICTED, TRUE_POSITIVE, FALSE_POSITIVE, FILTERED = 0, 1, 2, 3
+# tracks: 20 well-separated colours (matplotlib's tab20, light and dark interleaved), one per tracking_id by a hash
+# of the id that every process computes alike (Python's hash() of a string changes from run to run)
+TRACK_PALETTE_RGB = np.array([
+    (31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189), (140, 86, 75), (227, 119, 194),
+    (127, 127, 127), (188, 189, 34), (23, 190, 207), (174, 199, 232), (255, 187, 120), (152, 223, 138),
+    (255, 152, 150), (197, 176, 213), (196, 156, 148), (247, 182, 210), (199, 199, 199), (219, 219, 141),
+    (158, 218, 229)], dtype=np.uint8)
+HEAD_BYTES = 1 << 16  # how much of a results file is read to tell a tracking submission from a detection one
+
+
+def track_rgb(tracking_ids: np.ndarray) -> np.ndarray:
+    """(N, 3) uint8: the colour of each tracking_id (CRC-32 of its text into TRACK_PALETTE_RGB)."""
+    ids = np.asarray(tracking_ids, dtype=object).astype(str)
+    if not len(ids):
+        return np.zeros((0, 3), np.uint8)
+    unique, inverse = np.unique(ids, return_inverse=True)
+    codes = np.array([zlib.crc32(text.encode()) for text in unique.tolist()], dtype=np.int64)  # per distinct id
+    return TRACK_PALETTE_RGB[(codes % len(TRACK_PALETTE_RGB))[inverse.reshape(-1)]]
 
 
 @dataclass(frozen=True)
@@ -42,16 +64,39 @@ class Predictions:
     rotation_wxyz: np.ndarray
     score: np.ndarray
     status: np.ndarray
+    tracking_id: np.ndarray | None = None  # (N,) str for a tracking submission
+    evaluated: bool = False  # from an evaluation directory (status colours)
 
     def __len__(self) -> int:
         return len(self.sample_token)
 
     def colors_rgb(self, rows: np.ndarray) -> np.ndarray:
+        if self.tracking_id is not None:
+            return track_rgb(self.tracking_id[rows])
         return STATUS_RGB[self.status[rows]]
 
     def labels(self, rows: np.ndarray) -> list[str]:
-        return [f"{name} {score:.2f}" for name, score in zip(self.detection_name[rows].tolist(),
-                                                             self.score[rows].tolist())]
+        texts = [f"{name} {score:.2f}" for name, score in zip(self.detection_name[rows].tolist(),
+                                                              self.score[rows].tolist())]
+        if self.tracking_id is not None:
+            texts = [f"{str(t)[:6]} {text}" for t, text in zip(self.tracking_id[rows].tolist(), texts)]
+        return texts
+
+    def legend(self) -> list[tuple[str, object]]:
+        """(name, RGB or [RGB, ...]) entries saying what the colours of these predictions (thin lines) and of the
+        ground truth beside them (thick lines) mean."""
+        from nuparquet.rendering.palette import category_rgb
+
+        truth = ("ground truth: category colours",
+                 [category_rgb(name) for name in ("vehicle.car", "vehicle.truck", "human.pedestrian.adult",
+                                                  "vehicle.bicycle")])
+        if self.tracking_id is not None:
+            return [("predicted track: one colour per id", [tuple(c) for c in TRACK_PALETTE_RGB[:6].tolist()]),
+                    truth]
+        if self.evaluated:
+            return [("prediction, true positive", TP_RGB), ("prediction, false positive", FP_RGB),
+                    ("prediction left out by a filter", FILTERED_RGB), truth]
+        return [("prediction", PREDICTED_RGB), truth]
 
 
 def load_predictions(source: str | Path, dataset, scene: str, score_threshold: float = DEFAULT_SCORE_THRESHOLD
@@ -65,20 +110,33 @@ def load_predictions(source: str | Path, dataset, scene: str, score_threshold: f
     return _from_submission(source, dataset, scene, score_threshold)
 
 
-def _from_submission(path: Path, dataset, scene: str, score_threshold: float) -> Predictions:
-    from nuparquet.evaluation.submission import read_submission
+def is_tracking_submission(path: Path) -> bool:
+    """The file's boxes carry a "tracking_id" (read from its first 64 KiB: a box comes early in any submission)."""
+    with open(path, "rb") as f:
+        return b'"tracking_id"' in f.read(HEAD_BYTES)
 
-    submission = read_submission(path)
+
+def _from_submission(path: Path, dataset, scene: str, score_threshold: float) -> Predictions:
+    from nuparquet.evaluation.submission import DETECTION_FIELDS, TRACKING_FIELDS, read_boxes
+
+    tracking = is_tracking_submission(path)
+    fields = TRACKING_FIELDS if tracking else DETECTION_FIELDS
+    if tracking:
+        from nuparquet.evaluation.classes import TRACKING_NAMES as names
+    else:
+        from nuparquet.evaluation.classes import DETECTION_NAMES as names
+    submission = read_boxes(path, fields, class_names=names)
     samples = set(dataset.scan("tables/sample").join(
         dataset.scan("scenes").filter(pl.col("name") == scene).select(pl.col("token").alias("scene_token")),
         on="scene_token", how="semi").select("token").collect()["token"].to_list())
     box_sample = submission.sample_tokens[submission.box_sample] if len(submission) else np.zeros(0, object)
     in_scene = np.isin(box_sample, np.array(sorted(samples), dtype=object))
-    keep = in_scene & (submission.detection_score >= score_threshold)
-    return Predictions(sample_token=box_sample[keep], detection_name=submission.detection_name[keep],
+    keep = in_scene & (submission.score >= score_threshold)
+    return Predictions(sample_token=box_sample[keep], detection_name=submission.class_name[keep],
                        translation_m=submission.translation_m[keep], size_wlh_m=submission.size_wlh_m[keep],
-                       rotation_wxyz=submission.rotation_wxyz[keep], score=submission.detection_score[keep],
-                       status=np.full(int(keep.sum()), PREDICTED, dtype=np.int8))
+                       rotation_wxyz=submission.rotation_wxyz[keep], score=submission.score[keep],
+                       status=np.full(int(keep.sum()), PREDICTED, dtype=np.int8),
+                       tracking_id=submission.labels["tracking_id"][keep] if tracking else None)
 
 
 def _from_evaluation(folder: Path, scene: str, score_threshold: float) -> Predictions:
@@ -86,6 +144,9 @@ def _from_evaluation(folder: Path, scene: str, score_threshold: float) -> Predic
 
     files = sorted((folder / "predictions").glob("*.parquet"))
     summary = folder / "metrics_summary.json"
+    if not files and (folder / "predicted_tracks").is_dir():
+        raise UsageError(f"--predictions {folder}: a tracking evaluation; give its submission (the tracking "
+                         "results JSON) to draw each track in its colour")
     if not files or not summary.is_file():
         raise UsageError(f"--predictions {folder}: a directory, but not one written by `nuparquet eval` "
                          "(no predictions/*.parquet and metrics_summary.json)")
@@ -101,7 +162,7 @@ def _from_evaluation(folder: Path, scene: str, score_threshold: float) -> Predic
                        translation_m=to_numpy(rows["translation"], (3,), writable=True),
                        size_wlh_m=to_numpy(rows["size"], (3,), writable=True),
                        rotation_wxyz=to_numpy(rows["rotation"], (4,), writable=True),
-                       score=rows["detection_score"].to_numpy(), status=status.astype(np.int8))
+                       score=rows["detection_score"].to_numpy(), status=status.astype(np.int8), evaluated=True)
 
 
 def prediction_boxes(frames: pl.DataFrame, predictions: Predictions) -> tuple[FrameBoxes, np.ndarray]:

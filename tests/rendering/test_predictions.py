@@ -123,7 +123,9 @@ def test_rendered_frames_tell_true_from_false_positives(channel, synth_out, resu
             "--frame-format", "png", "--quiet"]
     assert main([*args, "--predictions", str(results[1]), "--score-threshold", "0"]) == 0
     images = [cv2.imread(str(p)) for p in sorted(frames.glob("*.png"))]
-    assert images and any(_has(i, predicted.TP_RGB) for i in images) and any(_has(i, predicted.FP_RGB) for i in images)
+    assert images and all(_has(i[:100], predicted.TP_RGB) for i in images)  # the legend says what green is
+    boxes = [i[100:] for i in images]  # below the legend: the boxes
+    assert any(_has(i, predicted.TP_RGB) for i in boxes) and any(_has(i, predicted.FP_RGB) for i in boxes)
     plain = tmp_path / "plain"
     assert main([*args[:-5], "--frames-dir", str(plain), "--frame-format", "png", "--quiet"]) == 0
     images = [cv2.imread(str(p)) for p in sorted(plain.glob("*.png"))]
@@ -156,3 +158,63 @@ def test_an_evaluation_directory_missing_its_predictions_or_its_summary_is_refus
         with pytest.raises(UsageError, match=message):
             predicted.load_predictions(folder, None, SCENE)  # the dataset is read for a results.json only
     assert len(predicted.load_predictions(evaluation, None, SCENE, 0.0).score) > 0  # both halves: read
+
+
+@pytest.fixture(scope="module")
+def tracking_results(synth_out, results, tmp_path_factory):
+    """The submission of `results` as tracks: each box's instance as its tracking_id (the false positives get ids
+    of their own), tracking classes only."""
+    from nuparquet.evaluation.classes import CATEGORY_TO_TRACKING
+
+    annotations = pl.read_parquet(synth_out / "annotations").select("sample_token", "translation", "instance_token",
+                                                                     "category_name")
+    instance_at = {(r["sample_token"], tuple(r["translation"])): (r["instance_token"], r["category_name"])
+                   for r in annotations.iter_rows(named=True)}
+    content = json.loads(results[0].read_text())
+    tracked = {}
+    for token, boxes in content["results"].items():
+        tracked[token] = []
+        for i, box in enumerate(boxes):
+            instance, category = instance_at.get((token, tuple(box["translation"])), (f"fp-{token[:4]}-{i}", None))
+            name = CATEGORY_TO_TRACKING.get(category, "car") if category else "car"
+            tracked[token].append({k: v for k, v in box.items() if k not in ("detection_name", "detection_score",
+                                                                            "attribute_name")}
+                                  | {"tracking_id": instance[:12], "tracking_name": name,
+                                     "tracking_score": box["detection_score"]})
+    path = tmp_path_factory.mktemp("render-tracks") / "tracks.json"
+    path.write_text(json.dumps({"meta": {}, "results": tracked}))
+    return path
+
+
+def test_a_tracking_submission_draws_each_track_in_its_own_stable_colour(synth_out, tracking_results):
+    import zlib
+
+    dataset = nuparquet.open(synth_out)
+    loaded = predicted.load_predictions(tracking_results, dataset, SCENE, score_threshold=0.0)
+    assert loaded.tracking_id is not None and len(set(loaded.tracking_id.tolist())) > 5
+    colors = loaded.colors_rgb(np.arange(len(loaded)))
+    for track in set(loaded.tracking_id.tolist()):
+        mine = colors[loaded.tracking_id == track]
+        expected = predicted.TRACK_PALETTE_RGB[zlib.crc32(track.encode()) % len(predicted.TRACK_PALETTE_RGB)]
+        assert (mine == expected).all()  # one colour along the track, the id's own
+    assert len({tuple(c) for c in colors.tolist()}) > 3
+    labels = loaded.labels(np.arange(len(loaded)))
+    assert all(label.startswith(str(t)[:6] + " ") for label, t in zip(labels, loaded.tracking_id.tolist()))
+    assert loaded.legend()[0][0] == "predicted track: one colour per id"
+
+
+@pytest.mark.parametrize("channel", ["CAM_FRONT", "bev"])
+def test_rendered_tracks_show_their_colours_and_a_legend(channel, synth_out, tracking_results, tmp_path):
+    frames = tmp_path / "frames"
+    assert main(["render", str(synth_out), "--scene", SCENE, "--channel", channel, "--frames-dir", str(frames),
+                 "--frame-format", "png", "--quiet", "--predictions", str(tracking_results),
+                 "--score-threshold", "0"]) == 0
+    images = [cv2.imread(str(p)) for p in sorted(frames.glob("*.png"))]
+    dataset = nuparquet.open(synth_out)
+    loaded = predicted.load_predictions(tracking_results, dataset, SCENE, score_threshold=0.0)
+    used = {tuple(c) for c in loaded.colors_rgb(np.arange(len(loaded))).tolist()}
+    for image in images:
+        width = image.shape[1]
+        corner = image[:60, width - 300:]  # the legend's stripes: the first six palette colours
+        assert all(_has(corner, tuple(c)) for c in predicted.TRACK_PALETTE_RGB[:6].tolist())
+    assert sum(_has(i[100:], c) for i in images for c in used) >= 3  # boxes in their tracks' colours
