@@ -82,9 +82,14 @@ def run(args) -> int:
     from nuparquet.cli.output import print_frame
     from nuparquet.evaluation.run import evaluate
 
-    result = evaluate(args.dataset, args.results, args.out, options_from(args, EvalOptions),
-                      on_progress=bars(not args.quiet))
-    print_summary(result.summary)
+    options = options_from(args, EvalOptions)
+    result = evaluate(args.dataset, args.results, args.out, options, on_progress=bars(not args.quiet))
+    if options.task == "tracking":
+        from nuparquet.evaluation.tracking.output import format_summary
+
+        print(format_summary(result.summary))
+    else:
+        print_summary(result.summary)
     if result.slices is not None:
         for by in dict.fromkeys(result.slices["by"].to_list()):
             table = result.slices.filter(result.slices["by"] == by).drop("by")

@@ -6,8 +6,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
-from nuparquet.options import option
+from nuparquet.options import check_choices, option
 
 _BY_HELP = ("distance, visibility, attribute, location, night, rain, scene, or any column of the annotations or "
             "scenes datasets")
@@ -15,13 +16,17 @@ _BY_HELP = ("distance, visibility, attribute, location, night, rain, scene, or a
 
 @dataclass
 class EvalOptions:
-    """How to evaluate a submission: which split, which settings, which slices (the submission and where the metrics
-    go are the verb's arguments: `evaluate(ds, results, out, ...)`)."""
+    """How to evaluate a submission: which benchmark, which split, which settings, which slices (the submission and
+    where the metrics go are the verb's arguments: `evaluate(ds, results, out, ...)`)."""
 
+    task: Literal["detection", "tracking"] = option(
+        "detection", help="the benchmark: detection (DetectionEval: mAP, TP errors, NDS; default), tracking "
+        "(TrackingEval: AMOTA, AMOTP, MOTA, IDS...)")
     split: str = option("val", help="the split evaluated: train, val, test, mini_train, mini_val, train_detect, "
                         "train_track, or a custom split of <dataroot>/<version>/splits.json (default val)")
-    config: str = option("detection_cvpr_2019", metavar="NAME",
-                         help="the devkit configuration by name (default detection_cvpr_2019)")
+    config: str | None = option(None, metavar="NAME",
+                                help="the devkit configuration by name (default: the task's: detection_cvpr_2019, "
+                                "tracking_nips_2019)")
     config_file: str | Path | None = option(
         None, metavar="CONFIG.json", help="a configuration in the devkit's JSON format instead of --config")
     by: tuple[str, ...] = option((), metavar="DIM,...", help=f"also evaluate per slice of {_BY_HELP} "
@@ -31,3 +36,6 @@ class EvalOptions:
         "columns, e.g. 0,20,40")
     plots: bool = option(True, help="write the devkit's PR and TP curves as PNG into DIR/plots (--no-plots: skip)")
     overwrite: bool = option(False, help="replace DIR if it already holds files")
+
+    def __post_init__(self) -> None:
+        check_choices(self)

@@ -33,6 +33,7 @@ from nuparquet.evaluation.metrics import (
     DetectionMetrics, MetricData, detection_metrics, match_errors, metric_data, serialize_details,
 )
 from nuparquet.evaluation.options import EvalOptions
+from nuparquet.evaluation.tasks import task_function
 from nuparquet.options import resolve
 from nuparquet.evaluation.slices import dimension, needed_columns, parse_bins
 from nuparquet.evaluation.splits import is_predefined
@@ -141,9 +142,9 @@ def _check_out(out: Path, dataset, overwrite: bool) -> None:
 
 def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
              on_progress: OnProgress | None = None, **fields) -> EvalResult:
-    """Evaluate the detection submission `results` (a results.json) on `dataset` (a `Dataset` or the path of a
-    converted output) exactly as nuscenes-devkit's DetectionEval, writing the metrics, plots and tables into the
-    folder `out` (None: nothing written).
+    """Evaluate the submission `results` on `dataset` (a `Dataset` or the path of a converted output) exactly as
+    nuscenes-devkit evaluates its benchmark (`task`: detection, DetectionEval, here; the others in their packages,
+    `evaluation.tasks`), writing the metrics, plots and tables into the folder `out` (None: nothing written).
 
     Settings as an `EvalOptions` or as its keywords (``split=``, ``config=``, ``config_file=``, ``by=``, ``bins=``,
     ``plots=``, ``overwrite=``), or both (`nuparquet.options.resolve`). Progress goes to `on_progress` (one "step"
@@ -157,6 +158,8 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
     from nuparquet.dataset import as_dataset
 
     options = resolve(EvalOptions, options, fields)
+    if options.task != "detection":  # the other benchmarks, each in its own package, through the one verb
+        return task_function(options.task)(dataset, results, out, options, on_progress=on_progress)
     config = resolve_config(options.config, options.config_file)
     bins = parse_bins(options.bins) if options.bins else None
     by = tuple(dict.fromkeys(options.by))

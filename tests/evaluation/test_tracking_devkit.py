@@ -198,3 +198,22 @@ def test_a_slice_equals_the_devkit_on_the_filtered_boxes(eval_root, eval_out, ev
     assert_same(folder, summary, details)
     row = ours.slices.row(1, named=True)
     assert row["amota"] == summary["amota"] or (math.isnan(row["amota"]) and math.isnan(summary["amota"]))
+
+
+def test_the_one_verb_and_the_cli_evaluate_tracking_as_evaluate_tracking_does(edge_run, eval_out, tmp_path, capsys):
+    """`nuparquet.evaluate(ds, results, out, task="tracking")` and `nuparquet eval --task tracking` go to the same
+    evaluation (the one front door): the same files, and the CLI prints the devkit's tracking summary."""
+    import nuparquet
+    from nuparquet.cli.main import main
+    from nuparquet.evaluation.tracking.output import format_summary
+
+    results, _, _, ours, folder = edge_run
+    front = nuparquet.evaluate(eval_out, results, tmp_path / "front", task="tracking", plots=False)
+    assert {k: v for k, v in front.summary.items() if k != "eval_time"} == \
+        {k: v for k, v in ours.summary.items() if k != "eval_time"}
+    assert main(["eval", str(eval_out), "--task", "tracking", "--results", str(results), "--out",
+                 str(tmp_path / "cli"), "--no-plots", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "AMOTA" in printed and format_summary(front.summary).splitlines()[0] in printed
+    for name in ("metrics_details.json",):
+        assert (tmp_path / "cli" / name).read_text() == (folder / "ours" / name).read_text()

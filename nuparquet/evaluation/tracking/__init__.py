@@ -8,7 +8,8 @@ result.summary["amota"]                    # metrics_summary.json, the devkit's 
 result.tracks                              # one row per ground-truth track: matched, switches, missed
 ```
 
-Modules, in the order the data flows: `options`, `config` (the devkit's configurations), `run` (submission,
+Settings are the one `EvalOptions` (task "tracking"; `nuparquet.evaluate(ds, results, out, task="tracking")`).
+Modules, in the order the data flows: `config` (the devkit's configurations), `run` (submission,
 ground truth and filters: the detection evaluation's, generalised), `tracks` (score means and interpolation),
 `accumulator` (motmetrics' matching), `metrics` (thresholds, per-threshold metrics, metric data, summary),
 `scoring` (one evaluation, class by class), `slicing`, `tables`, `plots`, `output`.
@@ -18,14 +19,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-__all__ = ["TrackingConfig", "TrackingOptions", "TrackingResult", "evaluate_tracking"]
+__all__ = ["TrackingConfig", "TrackingResult", "evaluate_tracking"]
 
 if TYPE_CHECKING:
     from nuparquet.evaluation.tracking.config import TrackingConfig
-    from nuparquet.evaluation.tracking.options import TrackingOptions
     from nuparquet.evaluation.tracking.run import TrackingResult, evaluate_tracking
 
-_HOMES = {"TrackingConfig": "config", "TrackingOptions": "options", "TrackingResult": "run",
+_HOMES = {"TrackingConfig": "config", "TrackingResult": "run",
           "evaluate_tracking": "run"}
 
 

@@ -17,7 +17,7 @@ import polars as pl
 
 from nuparquet.evaluation.tracking.config import resolve_tracking_config
 from nuparquet.evaluation.tracking.inputs import evaluate_rows, prepare
-from nuparquet.evaluation.tracking.options import TrackingOptions
+from nuparquet.evaluation.options import EvalOptions
 from nuparquet.options import resolve
 from nuparquet.progress import OnProgress, Reporter
 
@@ -41,13 +41,13 @@ class TrackingResult:
     notes: list[str] = field(default_factory=list)
 
 
-def evaluate_tracking(dataset, results, out=None, options: TrackingOptions | None = None, *,
+def evaluate_tracking(dataset, results, out=None, options: EvalOptions | None = None, *,
                       on_progress: OnProgress | None = None, **fields) -> TrackingResult:
     """Evaluate a tracking submission on a converted dataset, exactly as nuscenes-devkit's TrackingEval (with
     motmetrics 1.4.0) does.
 
     `dataset`: a `Dataset` or the path of a converted output; `results`: the submission (the devkit's tracking
-    JSON); `out`: the directory to write (None: nothing written). Settings as a `TrackingOptions` or as its
+    JSON); `out`: the directory to write (None: nothing written). Settings as an `EvalOptions` (its task tracking) or as its
     keywords (`split=`, `config=`, `config_file=`, `by=`, `bins=`, `plots=`, `overwrite=`).
 
     Raises:
@@ -60,7 +60,7 @@ def evaluate_tracking(dataset, results, out=None, options: TrackingOptions | Non
     from nuparquet.evaluation.slices import needed_columns, parse_bins
     from nuparquet.evaluation.tracking import tables
 
-    options = resolve(TrackingOptions, options, fields)
+    options = resolve(EvalOptions, options, {"task": "tracking", **fields})
     config = resolve_tracking_config(options.config, options.config_file)
     bins = parse_bins(options.bins) if options.bins else None
     by = tuple(dict.fromkeys(options.by))

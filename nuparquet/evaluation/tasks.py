@@ -1,0 +1,17 @@
+"""The benchmarks `nuparquet eval --task` evaluates, one package each, reached through the one verb
+(`evaluation.run.evaluate`): task name -> its function `(dataset, results, out, options: EvalOptions, *, on_progress)`.
+Detection is `evaluation.run` itself."""
+
+from __future__ import annotations
+
+import importlib
+
+TASKS = {
+    "tracking": "nuparquet.evaluation.tracking.run:evaluate_tracking",
+}
+
+
+def task_function(task: str):
+    """The evaluation function of `task` (imported on first use: a task's package loads only when asked for)."""
+    module, name = TASKS[task].split(":")
+    return getattr(importlib.import_module(module), name)
