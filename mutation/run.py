@@ -260,6 +260,11 @@ GROUPS: dict[str, Group] = {
          "nuparquet/rendering/nuimages.py"),
         ("tests/parity/test_nuimages_devkit.py", "tests/conversion/test_nuimages_convert.py", "tests/test_rle.py"),
         keyword="not extract"),
+    "tracking": Group(  # the tracking benchmark: motmetrics' accumulator replayed, the devkit's metrics
+        ("nuparquet/evaluation/tracking/*.py",),
+        ("tests/evaluation/test_tracking_devkit.py", "tests/evaluation/test_tracking_matching.py",
+         "tests/evaluation/test_tracking_submission.py"),
+        keyword="not extract", cache_conversions=True),
     "synth": Group(  # the generator makes every fixture: its own mutants must make theirs
         ("nuparquet/synth/*.py",),
         ("tests/synth/", "tests/parity/test_synth_devkit.py"),

@@ -40,11 +40,23 @@ def route_misalignment_m(ds: Dataset) -> pl.DataFrame:
             continue
         route_xy = route.select("x", "y").to_numpy().astype(np.float64)
         pose_xy = to_numpy(pose["pos"], (3,))[:, :2]
-        nearest = np.concatenate([
-            np.sqrt(((pose_xy[i:i + _CHUNK, None, :] - route_xy[None]) ** 2).sum(axis=-1)).min(axis=1)
-            for i in range(0, len(pose_xy), _CHUNK)])
-        rows.append((scene, float(nearest.max())))
+        rows.append((scene, float(nearest_route_distance_m(pose_xy, route_xy).max())))
     return pl.DataFrame(rows, schema={"scene_name": pl.String, "misalignment_m": pl.Float64}, orient="row")
+
+
+def nearest_route_distance_m(pose_xy: np.ndarray, route_xy: np.ndarray) -> np.ndarray:
+    """(N,) distance from each of the (N, k) poses to its nearest of the (M, k) route points (M >= 1): the devkit's
+    `cdist(pose, route).min(axis=1)`, a block of poses at a time. The squared distances are summed axis by axis, as
+    cdist sums them, and the root is taken of each pose's smallest only (the root is monotonic: the same value)."""
+    out = []
+    for i in range(0, len(pose_xy), _CHUNK):
+        block = pose_xy[i:i + _CHUNK]
+        squared = np.zeros((len(block), len(route_xy)))
+        for axis in range(pose_xy.shape[1]):
+            delta = block[:, axis, None] - route_xy[None, :, axis]
+            squared += delta * delta
+        out.append(np.sqrt(squared.min(axis=1)))
+    return np.concatenate(out) if out else np.zeros(0)
 
 
 def misaligned_routes(ds: Dataset, max_misalignment_m: float = 5.0) -> list[str]:

@@ -18,13 +18,13 @@ from __future__ import annotations
 import os
 import os.path as osp
 import time
-from pathlib import Path
 
 import numpy as np
 
 from nuparquet.devkit import boxes as box_calls
 from nuparquet.devkit.errors import NotServed
 from nuparquet.devkit.explorer import NuScenesExplorer
+from nuparquet.devkit.output import open_output
 from nuparquet.devkit.reverse import ReverseIndex
 from nuparquet.devkit.tables import ConvertedTables, Table
 from nuparquet.devkit.utils.color_map import get_colormap
@@ -33,7 +33,6 @@ from nuparquet.devkit.utils.geometry_utils import BoxVisibility
 from nuparquet.devkit.utils.map_mask import MapMask, MissingMapMask
 from nuparquet.frames.points import FramesNotConverted
 from nuparquet.errors import InputError, UsageError
-from nuparquet.format import MANIFEST
 
 CORE_TABLES = ("category", "attribute", "visibility", "instance", "sensor", "calibrated_sensor", "ego_pose", "log",
                "scene", "sample", "sample_data", "sample_annotation", "map")
@@ -41,7 +40,6 @@ LIDAR_TASKS = ("lidarseg", "panoptic")
 # The fields the devkit adds to records (its reverse indexes): not stored columns.
 DECORATED = {"sample_annotation": ("category_name",), "sample_data": ("sensor_modality", "channel"),
              "sample": ("data", "anns"), "log": ("map_token",), "map": ("mask",)}
-DEVKIT_DATAROOT = "/data/sets/nuscenes"  # the devkit's default
 
 
 class NuScenes:
@@ -73,20 +71,10 @@ class NuScenes:
                  map_resolution: float = 0.1, colormap: dict | None = None, *,
                  parquet: str | os.PathLike | None = None, keep_records: bool = True,
                  storage_options: dict | None = None):
-        from nuparquet.dataset import open_dataset
-
         start_time = time.time()
-        if parquet is None:
-            given = dataroot if dataroot is not None else DEVKIT_DATAROOT
-            if not (Path(given) / MANIFEST).is_file():
-                raise UsageError(
-                    f"{given} is not a nuparquet output (no {MANIFEST}): pass parquet=OUT, the directory "
-                    f"`nuparquet convert {given} --version {version} --out OUT` wrote, or give that directory as "
-                    "dataroot")
-            dataset = open_dataset(given)
-            dataroot = None
-        else:  # the dataroot given is where the sensor files are (the dataset's sensor reader reads them there)
-            dataset = open_dataset(parquet, dataroot=dataroot, storage_options=storage_options)
+        dataset, dataroot = open_output(dataroot, parquet, what="nuparquet.devkit.NuScenes",
+                                        convert=f"nuparquet convert {{dataroot}} --version {version} --out OUT",
+                                        storage_options=storage_options)
         if dataset.version != version:
             raise UsageError(f"version {version!r} was asked for, but {dataset.root} holds the conversion of "
                              f"{dataset.version!r}: pass version={dataset.version!r}, or convert {version!r}")

@@ -17,6 +17,7 @@ import pyarrow.parquet as pq
 
 from nuparquet.atomic import atomic_directory, check_target
 from nuparquet.atomic import check_apart
+from nuparquet.can_bus.files import CanBusFiles
 from nuparquet.errors import FormatError
 from nuparquet.format import MANIFEST
 from nuparquet.progress import OnProgress, Reporter
@@ -88,32 +89,11 @@ def _write_table_file(dataset, manifest: dict, entry: dict, target: Path) -> Non
                  set(info.get("json_fields", ())), info.get("layouts") or [info["key_order"]], entry.get("layout"))
 
 
-def _scene_rows(dataset, manifest: dict, entry: dict) -> list[dict]:
-    import polars as pl
-
-    return (dataset.scan(entry["dataset"]).filter(pl.col("scene_name") == entry["scene"])
-            .drop("scene_name").collect().to_dicts())
-
-
-def _write_can_bus_messages(dataset, manifest: dict, entry: dict, target: Path) -> None:
-    rows = _scene_rows(dataset, manifest, entry)
-    records = to_records(rows, entry["keys"], entry.get("json_fields", []), entry.get("int_values", {}),
-                         entry.get("key_orders", {}))
-    target.write_text(json.dumps(records))
-
-
-def _write_can_bus_meta(dataset, manifest: dict, entry: dict, target: Path) -> None:
-    rows = _scene_rows(dataset, manifest, entry)
-    names = [row.pop("message") for row in rows]
-    records = to_records(rows, entry["keys"], entry.get("json_fields", []), entry.get("int_values", {}),
-                         entry.get("key_orders", {}))
-    target.write_text(json.dumps(dict(zip(names, records)), indent=0))
-
-
-def _write_can_bus_route(dataset, manifest: dict, entry: dict, target: Path) -> None:
-    rows = sorted(_scene_rows(dataset, manifest, entry), key=lambda r: r["point_index"])
-    records = to_records([{"x": r["x"], "y": r["y"]} for r in rows], ["x", "y"], [], entry.get("int_values", {}), {})
-    target.write_text(json.dumps([[r["x"], r["y"]] for r in records], indent=0))
+def _write_can_bus_file(dataset, manifest: dict, entry: dict, target: Path) -> None:
+    """A CAN bus file (`nuparquet.can_bus.files`), in the source's layout: messages on one line, meta and route
+    one value a line (`indent=0`)."""
+    content = CanBusFiles(dataset).entry_content(entry)
+    target.write_text(json.dumps(content) if entry["kind"] == "can_bus_messages" else json.dumps(content, indent=0))
 
 
 def _write_inferred_table(dataset, manifest: dict, entry: dict, target: Path) -> None:
@@ -164,9 +144,9 @@ def _write_map_expansion(dataset, manifest: dict, entry: dict, target: Path) -> 
 WRITERS: dict[str, Callable[[object, dict, dict, Path], None]] = {
     "table": _write_table_file,
     "table_inferred": _write_inferred_table,
-    "can_bus_messages": _write_can_bus_messages,
-    "can_bus_meta": _write_can_bus_meta,
-    "can_bus_route": _write_can_bus_route,
+    "can_bus_messages": _write_can_bus_file,
+    "can_bus_meta": _write_can_bus_file,
+    "can_bus_route": _write_can_bus_file,
     "map_expansion": _write_map_expansion,
 }
 

@@ -190,23 +190,30 @@ def to_records(rows: list[dict], keys: list[str], json_fields: list[str], int_va
                key_orders: dict[int, list[str]], offset: int = 0) -> list[dict]:
     """Records back from Arrow rows (`to_pylist`), undoing what `to_columns` recorded. `offset`: the global index
     of `rows[0]` (a file's records within the columns of several files)."""
-    n = len(rows)
+    return records_from_columns({k: [row[k] for row in rows] for k in keys}, len(rows), keys, json_fields,
+                                int_values, key_orders, offset)
+
+
+def records_from_columns(columns: dict[str, list], n: int, keys: list[str], json_fields: list[str],
+                         int_values: dict[str, list], key_orders: dict, offset: int = 0) -> list[dict]:
+    """`to_records` from columns: `columns[k]` the n Python values of field k (changed in place), records in the
+    first record's key order `keys` unless `key_orders` gives a record's own."""
     for name in json_fields:
-        for row in rows:
-            if row[name] is not None:
-                row[name] = json.loads(row[name])
+        columns[name] = [None if v is None else json.loads(v) for v in columns[name]]
     for name, positions in int_values.items():
+        values = columns[name]
         for p in positions:
             if isinstance(p, list):
                 i, j = p[0] - offset, p[1]
                 if 0 <= i < n:
-                    rows[i][name][j] = _as_int(rows[i][name][j])
+                    values[i][j] = _as_int(values[i][j])
             elif 0 <= p - offset < n:
-                rows[p - offset][name] = _as_int(rows[p - offset][name])
-    out = []
-    for i, row in enumerate(rows):
-        order = key_orders.get(i + offset) or key_orders.get(str(i + offset)) or keys
-        out.append({k: row[k] for k in order})
+                values[p - offset] = _as_int(values[p - offset])
+    out = [dict(zip(keys, values)) for values in zip(*(columns[k] for k in keys))] if keys else [{} for _ in range(n)]
+    for i, order in key_orders.items():
+        i = int(i) - offset
+        if 0 <= i < n and order:
+            out[i] = {k: out[i][k] for k in order}
     return out
 
 
