@@ -24,6 +24,7 @@ from nuparquet.errors import InputError, UsageError
 from nuparquet.evaluation.boxes import Boxes
 from nuparquet.evaluation.classes import BIKE_RACK_CATEGORY, CATEGORY_TO_DETECTION
 from nuparquet.evaluation.splits import split_scene_names
+from nuparquet.geometry.cuboids import Cuboids
 
 ANNOTATION_COLUMNS = ("token", "sample_token", "category_name", "attribute_names", "translation", "size", "rotation",
                       "velocity", "num_lidar_pts", "num_radar_pts")
@@ -154,11 +155,10 @@ def _boxes(df: pl.DataFrame, class_index: np.ndarray | None) -> Boxes:
     # the first attribute (one_attribute=False lets several through: the tracking evaluation reads none)
     attribute = df["attribute_names"].list.first().fill_null("").to_numpy().astype(object) if n else np.zeros(0, object)
     return Boxes(
+        cuboids=Cuboids(to_numpy(df["translation"], (3,), writable=True), to_numpy(df["size"], (3,), writable=True),
+                        to_numpy(df["rotation"], (4,), writable=True)),
         sample_index=df["_sample_index"].to_numpy().astype(np.int64),
         class_index=class_index if class_index is not None else np.full(n, -1, np.int64),
-        translation_m=to_numpy(df["translation"], (3,), writable=True),
-        size_wlh_m=to_numpy(df["size"], (3,), writable=True),
-        rotation_wxyz=to_numpy(df["rotation"], (4,), writable=True),
         velocity_mps=to_numpy(df["velocity"], (3,), writable=True)[:, :2].copy(),
         attribute=attribute,
         score=np.full(n, -1.0),

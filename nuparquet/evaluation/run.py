@@ -37,7 +37,7 @@ from nuparquet.evaluation.tasks import task_function
 from nuparquet.options import resolve
 from nuparquet.evaluation.slices import dimension, needed_columns, parse_bins
 from nuparquet.evaluation.splits import is_predefined
-from nuparquet.evaluation.submission import Submission, check_samples, read_submission
+from nuparquet.evaluation.submission import SubmittedBoxes, check_samples, read_submission, restricted_to_split
 from nuparquet.evaluation.tables import ground_truth_table, predictions_table
 from nuparquet.progress import OnProgress, Reporter
 
@@ -99,7 +99,7 @@ class EvalResult:
     notes: list[str] = field(default_factory=list)
 
 
-def _prediction_boxes(sub: Submission, sample_of: dict, class_names: tuple[str, ...]) -> tuple[Boxes, np.ndarray]:
+def _prediction_boxes(sub: SubmittedBoxes, sample_of: dict, class_names: tuple[str, ...]) -> tuple[Boxes, np.ndarray]:
     """The submission as Boxes (sample_index into the evaluated samples), and (N,) sample index per box."""
     sample_index = np.array([sample_of[t] for t in sub.sample_tokens.tolist()], dtype=np.int64)
     class_of = {name: i for i, name in enumerate(class_names)}
@@ -107,26 +107,9 @@ def _prediction_boxes(sub: Submission, sample_of: dict, class_names: tuple[str, 
     names, inverse = np.unique(sub.detection_name.astype(str), return_inverse=True)
     class_index = np.array([class_of[name] for name in names.tolist()], dtype=np.int64)[inverse.reshape(-1)] \
         if len(sub) else np.zeros(0, np.int64)
-    boxes = Boxes(sample_index=box_sample, class_index=class_index, translation_m=sub.translation_m,
-                  size_wlh_m=sub.size_wlh_m, rotation_wxyz=sub.rotation_wxyz, velocity_mps=sub.velocity_mps,
-                  attribute=sub.attribute_name, score=sub.detection_score, num_pts=sub.num_pts)
+    boxes = Boxes(cuboids=sub.cuboids, sample_index=box_sample, class_index=class_index,
+                  velocity_mps=sub.velocity_mps, attribute=sub.attribute_name, score=sub.detection_score, num_pts=sub.num_pts)
     return boxes, box_sample
-
-
-def _restricted_to_split(sub: Submission, sample_tokens: np.ndarray) -> Submission:
-    """A custom split (devkit `load_prediction_of_sample_tokens`): the split's samples only, in their order."""
-    position = {token: i for i, token in enumerate(sub.sample_tokens.tolist())}
-    keep = np.array([position[t] for t in sample_tokens.tolist()], dtype=np.int64)
-    new_index = np.full(len(sub.sample_tokens), -1, dtype=np.int64)
-    new_index[keep] = np.arange(len(keep))
-    rows = np.flatnonzero(new_index[sub.box_sample] >= 0)
-    rows = rows[np.argsort(new_index[sub.box_sample[rows]], kind="stable")]
-    return Submission(meta=sub.meta, sample_tokens=sub.sample_tokens[keep], box_sample=new_index[sub.box_sample[rows]],
-                      box_index=sub.box_index[rows], translation_m=sub.translation_m[rows],
-                      size_wlh_m=sub.size_wlh_m[rows], rotation_wxyz=sub.rotation_wxyz[rows],
-                      velocity_mps=sub.velocity_mps[rows], detection_name=sub.detection_name[rows],
-                      detection_score=sub.detection_score[rows], attribute_name=sub.attribute_name[rows],
-                      num_pts=sub.num_pts[rows])
 
 
 def _check_out(out: Path, dataset, overwrite: bool) -> None:
@@ -186,7 +169,7 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
         custom = not is_predefined(options.split)
         check_samples(sub, gt.samples.token.tolist(), split=options.split, path=results, allow_extra=custom)
         if custom:
-            sub = _restricted_to_split(sub, gt.samples.token)
+            sub = restricted_to_split(sub, gt.samples.token)
         rep.advance(step="filter")
         sample_of = {token: i for i, token in enumerate(gt.samples.token.tolist())}
         pred, pred_sample = _prediction_boxes(sub, sample_of, config.class_names)

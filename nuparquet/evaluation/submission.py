@@ -32,13 +32,15 @@ from __future__ import annotations
 
 import json
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
 from nuparquet.errors import InputError, UsageError
 from nuparquet.evaluation.classes import ATTRIBUTE_NAMES, DETECTION_NAMES
+from nuparquet.geometry.cuboids import CuboidRows, Cuboids
 
 MAX_LISTED = 10  # problems named in one error message
 VECTOR_FIELDS = {"translation": 3, "size": 3, "rotation": 4, "velocity": 2}
@@ -78,73 +80,45 @@ REQUIRED_FIELDS = DETECTION_FIELDS.required
 
 
 @dataclass(frozen=True)
-class SubmittedBoxes:
-    """A submission of either kind as aligned arrays, boxes in file order (see `Submission` for the order).
+class SubmittedBoxes(CuboidRows):
+    """A submission of either kind as aligned arrays, boxes in file order (samples in the order of the file's keys,
+    each sample's boxes in list order: the devkit's `EvalBoxes.all` order, which decides ties in score).
 
-    meta, sample_tokens, box_sample, box_index, translation_m, size_wlh_m, rotation_wxyz, velocity_mps, num_pts:
-    as in `Submission`; class_name: (N,) str (detection_name / tracking_name); score: (N,) float64;
-    labels: {field: (N,) str} the kind's further string fields (attribute_name / tracking_id)."""
+    cuboids: (N,) the boxes, global (`translation_m`, `size_wlh_m` [width, length, height], `rotation_wxyz`).
+    meta: the file's "meta" object. sample_tokens: (S,) the samples, in file order.
+    box_sample: (N,) int64 index into sample_tokens; box_index: (N,) int64 position in the sample's list.
+    velocity_mps: (N, 2) global frame. class_name: (N,) str (detection_name / tracking_name); score: (N,) float64;
+    labels: {field: (N,) str} the kind's further string fields (attribute_name, '' for none / tracking_id);
+    num_pts: (N,) int64, -1 where the box does not say (the devkit's default)."""
+
+    unaligned: ClassVar[tuple[str, ...]] = ("meta", "sample_tokens")
 
     meta: dict
     sample_tokens: np.ndarray
     box_sample: np.ndarray
     box_index: np.ndarray
-    translation_m: np.ndarray
-    size_wlh_m: np.ndarray
-    rotation_wxyz: np.ndarray
     velocity_mps: np.ndarray
     class_name: np.ndarray
     score: np.ndarray
     labels: dict
     num_pts: np.ndarray
 
-    def __len__(self) -> int:
-        return len(self.box_sample)
-
     def box_counts(self) -> np.ndarray:
         """(S,) boxes per sample."""
         return np.bincount(self.box_sample, minlength=len(self.sample_tokens))
 
-    def detections(self) -> Submission:
-        """The detection submission these columns hold."""
-        return Submission(meta=self.meta, sample_tokens=self.sample_tokens, box_sample=self.box_sample,
-                          box_index=self.box_index, translation_m=self.translation_m, size_wlh_m=self.size_wlh_m,
-                          rotation_wxyz=self.rotation_wxyz, velocity_mps=self.velocity_mps,
-                          detection_name=self.class_name, detection_score=self.score,
-                          attribute_name=self.labels["attribute_name"], num_pts=self.num_pts)
+    # a detection submission's fields by the devkit's names
+    @property
+    def detection_name(self) -> np.ndarray:
+        return self.class_name
 
+    @property
+    def detection_score(self) -> np.ndarray:
+        return self.score
 
-@dataclass(frozen=True)
-class Submission:
-    """A submission as aligned arrays, boxes in file order (samples in the order of the file's keys, each
-    sample's boxes in list order: the devkit's `EvalBoxes.all` order, which decides ties in score).
-
-    meta: the file's "meta" object. sample_tokens: (S,) the samples, in file order.
-    box_sample: (N,) int64 index into sample_tokens; box_index: (N,) int64 position in the sample's list.
-    translation_m, size_wlh_m: (N, 3); rotation_wxyz: (N, 4); velocity_mps: (N, 2) global frame.
-    detection_name, attribute_name: (N,) str ('' for no attribute); detection_score: (N,) float64;
-    num_pts: (N,) int64, -1 where the box does not say (the devkit's default).
-    """
-
-    meta: dict
-    sample_tokens: np.ndarray
-    box_sample: np.ndarray
-    box_index: np.ndarray
-    translation_m: np.ndarray
-    size_wlh_m: np.ndarray
-    rotation_wxyz: np.ndarray
-    velocity_mps: np.ndarray
-    detection_name: np.ndarray
-    detection_score: np.ndarray
-    attribute_name: np.ndarray
-    num_pts: np.ndarray
-
-    def __len__(self) -> int:
-        return len(self.box_sample)
-
-    def box_counts(self) -> np.ndarray:
-        """(S,) boxes per sample."""
-        return np.bincount(self.box_sample, minlength=len(self.sample_tokens))
+    @property
+    def attribute_name(self) -> np.ndarray:
+        return self.labels["attribute_name"]
 
 
 class _Problems:
@@ -173,12 +147,12 @@ class _Problems:
 
 
 def read_submission(path: str | Path, *, max_boxes_per_sample: int | None = None,
-                    class_names: Sequence[str] = DETECTION_NAMES) -> Submission:
+                    class_names: Sequence[str] = DETECTION_NAMES) -> SubmittedBoxes:
     """Read and check the detection submission at `path` (see the module docstring); InputError listing the
     problems. `class_names`: the detection classes a box may name; `max_boxes_per_sample`: the configuration's limit.
     """
     return read_boxes(path, DETECTION_FIELDS, max_boxes_per_sample=max_boxes_per_sample,
-                      class_names=class_names).detections()
+                      class_names=class_names)
 
 
 def read_boxes(path: str | Path, fields: BoxFields, *, max_boxes_per_sample: int | None = None,
@@ -195,7 +169,7 @@ def read_boxes(path: str | Path, fields: BoxFields, *, max_boxes_per_sample: int
     return submission
 
 
-def check_samples(submission: Submission | SubmittedBoxes, expected_tokens: Sequence[str], *, split: str, path: str | Path,
+def check_samples(submission: SubmittedBoxes, expected_tokens: Sequence[str], *, split: str, path: str | Path,
                   allow_extra: bool = False) -> None:
     """The devkit's "Samples in split doesn't match samples in predictions", naming the samples: every sample
     of the split must be in the submission (with an empty list if nothing was detected), and no other (unless
@@ -225,11 +199,7 @@ def restricted_to_split(sub: SubmittedBoxes, sample_tokens: np.ndarray) -> Submi
     new_index[keep] = np.arange(len(keep))
     rows = np.flatnonzero(new_index[sub.box_sample] >= 0)
     rows = rows[np.argsort(new_index[sub.box_sample[rows]], kind="stable")]
-    return SubmittedBoxes(meta=sub.meta, sample_tokens=sub.sample_tokens[keep], box_sample=new_index[sub.box_sample[rows]],
-                          box_index=sub.box_index[rows], translation_m=sub.translation_m[rows],
-                          size_wlh_m=sub.size_wlh_m[rows], rotation_wxyz=sub.rotation_wxyz[rows],
-                          velocity_mps=sub.velocity_mps[rows], class_name=sub.class_name[rows], score=sub.score[rows],
-                          labels={name: values[rows] for name, values in sub.labels.items()}, num_pts=sub.num_pts[rows])
+    return replace(sub.take(rows), sample_tokens=sub.sample_tokens[keep], box_sample=new_index[sub.box_sample[rows]])
 
 
 class _Unreadable(Exception):
@@ -303,8 +273,7 @@ def _read_with_duckdb(path: Path, fields: BoxFields) -> SubmittedBoxes:
     return SubmittedBoxes(
         meta=meta, sample_tokens=tokens, box_sample=box_sample,
         box_index=np.arange(len(box_sample), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts),
-        translation_m=columns["translation"], size_wlh_m=columns["size"], rotation_wxyz=columns["rotation"],
-        velocity_mps=columns["velocity"],
+        cuboids=Cuboids(columns["translation"], columns["size"], columns["rotation"]), velocity_mps=columns["velocity"],
         class_name=unnested[fields.name].to_numpy().astype(object),
         score=unnested[fields.score].to_numpy().astype(np.float64),
         labels=labels, num_pts=unnested["num_pts"].fill_null(-1).to_numpy().astype(np.int64),
@@ -326,9 +295,9 @@ class _Duplicate:
         self.key = key
 
 
-def _read_with_python(path: Path) -> Submission:
+def _read_with_python(path: Path) -> SubmittedBoxes:
     """The strict reader of a detection submission (`_read_boxes_with_python`)."""
-    return _read_boxes_with_python(path, DETECTION_FIELDS).detections()
+    return _read_boxes_with_python(path, DETECTION_FIELDS)
 
 
 def _read_boxes_with_python(path: Path, fields: BoxFields) -> SubmittedBoxes:
@@ -414,8 +383,7 @@ def _read_boxes_with_python(path: Path, fields: BoxFields) -> SubmittedBoxes:
     return SubmittedBoxes(
         meta=data["meta"], sample_tokens=np.array(tokens, dtype=object),
         box_sample=np.array(box_sample, dtype=np.int64), box_index=np.array(box_index, dtype=np.int64),
-        translation_m=vectors("translation"), size_wlh_m=vectors("size"), rotation_wxyz=vectors("rotation"),
-        velocity_mps=vectors("velocity"), class_name=np.array(values[fields.name], dtype=object),
+        cuboids=Cuboids(vectors("translation"), vectors("size"), vectors("rotation")), velocity_mps=vectors("velocity"), class_name=np.array(values[fields.name], dtype=object),
         score=np.array(values[fields.score], dtype=np.float64),
         labels={name: np.array(values[name], dtype=object) for name in fields.labels},
         num_pts=np.array(values["num_pts"], dtype=np.int64),

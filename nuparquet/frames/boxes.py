@@ -15,13 +15,14 @@ numpy and the interpolation runs once over all sweep pairs (`geometry.interp_two
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 import polars as pl
 
 from nuparquet import columns, geometry
 from nuparquet.geometry import quaternions
+from nuparquet.geometry.cuboids import CuboidRows, Cuboids
 
 FRAME_COLUMNS = ("token", "sample_token", "timestamp", "is_key_frame")
 ANNOTATION_COLUMNS = ("token", "sample_token", "instance_token", "category_name", "translation", "size", "rotation")
@@ -38,37 +39,42 @@ def lazy_with(frame: pl.DataFrame | pl.LazyFrame, needed: tuple[str, ...], what:
 
 
 @dataclass(frozen=True)
-class FrameBoxes:
-    """M (frame, box) pairs as aligned arrays, ordered by frame then annotation.
+class FramedCuboids(CuboidRows):
+    """Cuboids placed on frames, ground truth or predictions: the global-frame `cuboids` and, per box, where it is
+    shown and where it came from (what projection, overlays and the bird's-eye view need).
 
     Attributes:
+        cuboids: (M,) the boxes, at "global".
         frame_index: (M,) int64 row of the `frames` passed in.
-        frame_token, annotation_token, instance_token, category_name: (M,) str. For an interpolated sweep box
-            the annotation is the current sample's (as the devkit's `Box.token`).
-        translation_m: (M, 3) box centre in the global frame, metres.
-        size_wlh_m: (M, 3) [width, length, height], metres.
-        rotation_wxyz: (M, 4) orientation in the global frame, quaternion [w, x, y, z].
-        interpolated: (M,) bool, interpolated between two samples.
-        annotation_index: (M,) int64 row of the box's annotation among the `annotations` rows of the frames'
-            samples (and the sweeps' previous samples), in the order given.
+        source_index: (M,) int64 row of the box among the boxes it came from (the annotations, or the predictions):
+            the boxes of one source row share their size and, unless interpolated, their orientation.
+        interpolated: (M,) bool, interpolated between two samples (its orientation is its own).
     """
 
     frame_index: np.ndarray
+    source_index: np.ndarray
+    interpolated: np.ndarray
+
+
+@dataclass(frozen=True)
+class FrameBoxes(FramedCuboids):
+    """M (frame, annotation) boxes, ordered by frame then annotation: `FramedCuboids` whose sources are the
+    `annotations` rows of the frames' samples (and the sweeps' previous samples), in the order given.
+
+    Attributes:
+        frame_token, annotation_token, instance_token, category_name: (M,) str. For an interpolated sweep box
+            the annotation is the current sample's (as the devkit's `Box.token`).
+    """
+
     frame_token: np.ndarray
     annotation_token: np.ndarray
     instance_token: np.ndarray
     category_name: np.ndarray
-    translation_m: np.ndarray
-    size_wlh_m: np.ndarray
-    rotation_wxyz: np.ndarray
-    interpolated: np.ndarray
-    annotation_index: np.ndarray
 
-    def __len__(self) -> int:
-        return len(self.frame_index)
-
-    def take(self, rows) -> FrameBoxes:
-        return FrameBoxes(**{f.name: getattr(self, f.name)[rows] for f in fields(self)})
+    @property
+    def annotation_index(self) -> np.ndarray:
+        """(M,) int64 row of each box's annotation (its `source_index`)."""
+        return self.source_index
 
     def to_polars(self) -> pl.DataFrame:
         """The columns of `boxes_for_frames`."""
@@ -150,16 +156,14 @@ def frame_boxes(
                                                            geometry.slerp_amount(t, t0, t1))
 
     return FrameBoxes(
+        cuboids=Cuboids(translation_m, columns.to_numpy(boxes["size"], (3,))[annotation_index], rotation_wxyz),
         frame_index=frame_index,
+        source_index=annotation_index,
+        interpolated=interpolate,
         frame_token=frame_samples["frame_token"].to_numpy()[frame_index],
         annotation_token=boxes["token"].to_numpy()[annotation_index],
         instance_token=boxes["instance_token"].to_numpy()[annotation_index],
         category_name=boxes["category_name"].cast(pl.String).to_numpy()[annotation_index],
-        translation_m=translation_m,
-        size_wlh_m=columns.to_numpy(boxes["size"], (3,))[annotation_index],
-        rotation_wxyz=rotation_wxyz,
-        interpolated=interpolate,
-        annotation_index=annotation_index,
     )
 
 

@@ -15,16 +15,18 @@ devkit functions reproduced: `NuScenes.get_sample_data`, `geometry_utils.view_po
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 import polars as pl
 
-from nuparquet.frames.boxes import FRAME_COLUMNS, FrameBoxes, frame_boxes, lazy_with
+from nuparquet import columns
+from nuparquet.frames.boxes import FRAME_COLUMNS, FramedCuboids, frame_boxes, lazy_with
 from nuparquet.frames.poses import CAMERA_COLUMNS, cameras_from_frames, pose_columns
 from nuparquet.geometry import Cameras, box_half_axes, corners_from_half_axes
 from nuparquet.geometry.box_projection import project_pairs
+from nuparquet.geometry.cuboids import CuboidRows
 
 Visibility = Literal["any", "all", "none"]
 VISIBILITIES: tuple[str, ...] = ("any", "all", "none")
@@ -43,7 +45,7 @@ class BoxesInCameras:
     corners_camera_m: np.ndarray
 
 
-def boxes_in_cameras(cameras: Cameras, boxes: FrameBoxes) -> BoxesInCameras:
+def boxes_in_cameras(cameras: Cameras, boxes: FramedCuboids) -> BoxesInCameras:
     """Move each box into its frame's camera (`boxes.frame_index` names it among the F `cameras`), as the devkit
     moves a `Box`: centre global -> ego -> camera, then the corners built in the camera frame (corners built in
     the global frame would carry ~1e3 m coordinates through the subtraction).
@@ -68,19 +70,19 @@ def _transposed(matrices: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.swapaxes(matrices, -1, -2))
 
 
-def _half_axes_global(boxes: FrameBoxes) -> np.ndarray:
+def _half_axes_global(boxes: FramedCuboids) -> np.ndarray:
     """(M, 3, 3) each box's half-axes in the global frame (`geometry.box_half_axes`), built once per annotation
     (a keyframe annotation is seen by up to six cameras) and once per interpolated sweep box."""
     table, row = half_axes_table(boxes)
     return table[row]
 
 
-def half_axes_table(boxes: FrameBoxes) -> tuple[np.ndarray, np.ndarray]:
+def half_axes_table(boxes: FramedCuboids) -> tuple[np.ndarray, np.ndarray]:
     """The distinct half-axes of M boxes, (K, 3, 3) global frame, and each box's row of them (M,): one row per
-    annotation (seen by up to six cameras) and one per interpolated sweep box."""
+    source box (an annotation is seen by up to six cameras) and one per interpolated sweep box."""
     moved = np.flatnonzero(boxes.interpolated)
     fixed = np.flatnonzero(~boxes.interpolated) if len(moved) else slice(None)
-    _, first, inverse = np.unique(boxes.annotation_index[fixed], return_index=True, return_inverse=True)
+    _, first, inverse = np.unique(boxes.source_index[fixed], return_index=True, return_inverse=True)
     once = np.arange(len(boxes))[fixed][first]
     per_annotation = box_half_axes(boxes.size_wlh_m[once], boxes.rotation_wxyz[once])
     if not len(moved):  # keyframes only: every box is its annotation's
@@ -93,10 +95,11 @@ def half_axes_table(boxes: FrameBoxes) -> tuple[np.ndarray, np.ndarray]:
 
 
 @dataclass(frozen=True)
-class ProjectedBoxes:
+class ProjectedBoxes(CuboidRows):
     """Boxes projected into camera frames: M (frame, box) rows as aligned arrays.
 
     Attributes:
+        cuboids: (M,) the boxes projected, in the global frame (`frame_boxes`' values).
         frame_index: (M,) int64 row of the `frames` passed to `project_boxes`.
         frame_token: (M,) str camera sample_data token.
         annotation_token: (M,) str sample_annotation token (for an interpolated sweep box, the current
@@ -133,15 +136,9 @@ class ProjectedBoxes:
     center_camera_m: np.ndarray
     distance_m: np.ndarray
 
-    def __len__(self) -> int:
-        return len(self.frame_token)
-
-    def take(self, rows) -> ProjectedBoxes:
-        """The subset at `rows` (an index array or boolean mask over M)."""
-        return ProjectedBoxes(**{f.name: getattr(self, f.name)[rows] for f in fields(self)})
-
     def to_polars(self) -> pl.DataFrame:
-        """One row per box; (M, k) arrays become Array columns (corners_px: Array(Array(f64, 2), 8))."""
+        """One row per box; (M, k) arrays become Array columns (corners_px: Array(Array(f64, 2), 8)); the cuboids
+        as `boxes_for_frames` names them (translation, size, rotation: global)."""
         return pl.DataFrame(
             [
                 pl.Series("frame_index", self.frame_index, dtype=pl.Int64),
@@ -149,6 +146,9 @@ class ProjectedBoxes:
                 pl.Series("annotation_token", self.annotation_token, dtype=pl.String),
                 pl.Series("instance_token", self.instance_token, dtype=pl.String),
                 pl.Series("category_name", self.category_name, dtype=pl.String),
+                columns.to_series("translation", self.translation_m),
+                columns.to_series("size", self.size_wlh_m),
+                columns.to_series("rotation", self.rotation_wxyz),
                 pl.Series("interpolated", self.interpolated, dtype=pl.Boolean),
                 pl.Series("corners_camera_m", self.corners_camera_m, dtype=pl.Array(pl.Float64, (8, 3))),
                 pl.Series("corners_px", self.corners_px, dtype=pl.Array(pl.Float64, (8, 2))),
@@ -212,6 +212,7 @@ def project_boxes(
     seen = project_pairs(cameras, boxes.frame_index, boxes.translation_m, half_axes, axes_row)
 
     projected = ProjectedBoxes(
+        cuboids=boxes.cuboids,
         frame_index=cameras_df["frame_index"].to_numpy().astype(np.int64)[boxes.frame_index],
         frame_token=boxes.frame_token,
         annotation_token=boxes.annotation_token,

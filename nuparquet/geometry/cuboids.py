@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Literal
+from typing import ClassVar, Literal
 
 import numpy as np
 
@@ -106,8 +106,11 @@ class Cuboids:
 class CuboidRows:
     """Base of a dataclass that holds `cuboids: Cuboids` and per-box columns: (N, ...) arrays aligned with them.
 
-    Gives `len`, `take(rows)` (every array field and the cuboids at `rows`; other fields kept as they are) and the
-    box fields (`translation_m`, `size_wlh_m`, `rotation_wxyz`) read through to the cuboids."""
+    Gives `len`, `take(rows)` (the cuboids, every array field and every dict of arrays at `rows`; the fields named
+    in `unaligned` and the other values kept as they are) and the box fields (`translation_m`, `size_wlh_m`,
+    `rotation_wxyz`) read through to the cuboids."""
+
+    unaligned: ClassVar[tuple[str, ...]] = ()  # array fields that are not one value per box (kept by `take`)
 
     cuboids: Cuboids
 
@@ -116,11 +119,15 @@ class CuboidRows:
 
     def take(self, rows):
         def taken(value):
-            if isinstance(value, (np.ndarray, Cuboids)):
-                return value[rows] if isinstance(value, np.ndarray) else value.take(rows)
+            if isinstance(value, Cuboids):
+                return value.take(rows)
+            if isinstance(value, np.ndarray):
+                return value[rows]
+            if isinstance(value, dict) and all(isinstance(v, np.ndarray) for v in value.values()):
+                return {key: v[rows] for key, v in value.items()}
             return value
-        return dataclasses.replace(self, **{f.name: taken(getattr(self, f.name))
-                                            for f in dataclasses.fields(self) if f.init})
+        return dataclasses.replace(self, **{f.name: taken(getattr(self, f.name)) for f in dataclasses.fields(self)
+                                            if f.init and f.name not in self.unaligned})
 
     @property
     def translation_m(self) -> np.ndarray:

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 import shapely
 
-from nuparquet.frames.boxes import FrameBoxes
+from nuparquet.frames.boxes import FrameBoxes, FramedCuboids
 from nuparquet.rendering.map_canvas import draw_lines, fill_polygons, layer_geometries
 from nuparquet.rendering.palette import category_rgb
 from nuparquet.geometry.quaternions import heading_from_quaternions
@@ -147,7 +147,7 @@ class BevTile(RowTile):
     clouds: CloudReader | None
     boxes: FrameBoxes
     label: str = "BEV"
-    predictions: FrameBoxes | None = None  # predicted boxes per lidar row (`render.predictions`), thin outlines
+    predictions: FramedCuboids | None = None  # predicted boxes per lidar row (`render.predictions`), thin outlines
     prediction_colors_rgb: np.ndarray | None = None  # (M, 3)
     tokens: tuple[str, ...] = ()  # (L,) sample_data token of each lidar frame (the frame index)
     timestamps_us: np.ndarray | None = None  # (L,)

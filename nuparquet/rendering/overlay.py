@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nuparquet.frames.boxes import FrameBoxes
+from nuparquet.frames.boxes import FramedCuboids
 from nuparquet.frames.projection import boxes_in_cameras
 from nuparquet.geometry import Cameras, box_visibility, perspective
 from nuparquet.rendering.palette import category_rgb
@@ -73,14 +73,16 @@ def segments_touch_image(segments_px: np.ndarray, keep: np.ndarray, size_px: np.
             & (low[:, 1] <= size_px[:, 1] - 1))
 
 
-def build_overlay(tile_cameras: Cameras, boxes: FrameBoxes, *, clip: bool = False,
+def build_overlay(tile_cameras: Cameras, boxes: FramedCuboids, *, clip: bool = False,
                   labels: str = "category", visibility: str = "any", colors_rgb: np.ndarray | None = None,
                   texts: list[str] | None = None) -> Overlay:
     """Project every box of every camera row into its tile, once, and order the boxes for drawing.
 
     Args:
         tile_cameras: (F,) one camera per camera row, resized to the tile (`Cameras.resized_to`).
-        boxes: the boxes of those rows (`frame_boxes` over the same rows: frame_index counts them).
+        boxes: the boxes of those rows (frame_index counts them): `frame_boxes` over the same rows (`FrameBoxes`:
+            their categories and instances give the colours and labels), or any `FramedCuboids` with `colors_rgb`
+            and `texts`.
         clip: clip edges at the near plane instead of keeping only the boxes the devkit draws.
         labels: "category", "track" or "none".
         visibility: the boxes the devkit draws (without `clip`): "any" (BoxVisibility.ANY) or "all" (every corner

@@ -22,7 +22,8 @@ import polars as pl
 
 from nuparquet.columns import to_numpy
 from nuparquet.errors import UsageError
-from nuparquet.frames.boxes import FrameBoxes
+from nuparquet.frames.boxes import FramedCuboids
+from nuparquet.geometry.cuboids import CuboidRows, Cuboids
 
 DEFAULT_SCORE_THRESHOLD = 0.3
 PREDICTED_RGB = (255, 0, 255)
@@ -52,23 +53,17 @@ def track_rgb(tracking_ids: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Predictions:
-    """The predicted boxes of one scene above the score threshold. sample_token, detection_name: (N,) str;
-    translation_m, size_wlh_m: (N, 3); rotation_wxyz: (N, 4); score: (N,); status: (N,) int8 (PREDICTED, or
-    TRUE_POSITIVE / FALSE_POSITIVE / FILTERED once evaluated)."""
+class Predictions(CuboidRows):
+    """The predicted boxes of one scene above the score threshold: `cuboids` (N,) global, and beside them
+    sample_token, detection_name: (N,) str; score: (N,); status: (N,) int8 (PREDICTED, or TRUE_POSITIVE /
+    FALSE_POSITIVE / FILTERED once evaluated)."""
 
     sample_token: np.ndarray
     detection_name: np.ndarray
-    translation_m: np.ndarray
-    size_wlh_m: np.ndarray
-    rotation_wxyz: np.ndarray
     score: np.ndarray
     status: np.ndarray
     tracking_id: np.ndarray | None = None  # (N,) str for a tracking submission
     evaluated: bool = False  # from an evaluation directory (status colours)
-
-    def __len__(self) -> int:
-        return len(self.sample_token)
 
     def colors_rgb(self, rows: np.ndarray) -> np.ndarray:
         if self.tracking_id is not None:
@@ -132,9 +127,8 @@ def _from_submission(path: Path, dataset, scene: str, score_threshold: float) ->
     box_sample = submission.sample_tokens[submission.box_sample] if len(submission) else np.zeros(0, object)
     in_scene = np.isin(box_sample, np.array(sorted(samples), dtype=object))
     keep = in_scene & (submission.score >= score_threshold)
-    return Predictions(sample_token=box_sample[keep], detection_name=submission.class_name[keep],
-                       translation_m=submission.translation_m[keep], size_wlh_m=submission.size_wlh_m[keep],
-                       rotation_wxyz=submission.rotation_wxyz[keep], score=submission.score[keep],
+    return Predictions(cuboids=submission.cuboids.take(keep), sample_token=box_sample[keep],
+                       detection_name=submission.class_name[keep], score=submission.score[keep],
                        status=np.full(int(keep.sum()), PREDICTED, dtype=np.int8),
                        tracking_id=submission.labels["tracking_id"][keep] if tracking else None)
 
@@ -157,17 +151,18 @@ def _from_evaluation(folder: Path, scene: str, score_threshold: float) -> Predic
                     "evaluated", tp_column).collect())
     status = np.where(~rows["evaluated"].to_numpy(), FILTERED,
                       np.where(rows[tp_column].is_not_null().to_numpy(), TRUE_POSITIVE, FALSE_POSITIVE))
-    return Predictions(sample_token=rows["sample_token"].to_numpy().astype(object),
+    return Predictions(cuboids=Cuboids(to_numpy(rows["translation"], (3,), writable=True),
+                                       to_numpy(rows["size"], (3,), writable=True),
+                                       to_numpy(rows["rotation"], (4,), writable=True)),
+                       sample_token=rows["sample_token"].to_numpy().astype(object),
                        detection_name=rows["detection_name"].to_numpy().astype(object),
-                       translation_m=to_numpy(rows["translation"], (3,), writable=True),
-                       size_wlh_m=to_numpy(rows["size"], (3,), writable=True),
-                       rotation_wxyz=to_numpy(rows["rotation"], (4,), writable=True),
                        score=rows["detection_score"].to_numpy(), status=status.astype(np.int8), evaluated=True)
 
 
-def prediction_boxes(frames: pl.DataFrame, predictions: Predictions) -> tuple[FrameBoxes, np.ndarray]:
-    """The predictions on each keyframe of `frames` (rows with token, sample_token, is_key_frame), as FrameBoxes
-    (frame_index = row of `frames`, category_name = the detection class), and (M,) the prediction row of each."""
+def prediction_boxes(frames: pl.DataFrame, predictions: Predictions) -> tuple[FramedCuboids, np.ndarray]:
+    """The predictions on each keyframe of `frames` (rows with token, sample_token, is_key_frame), placed on the
+    frames (frame_index = row of `frames`, source_index = the prediction's row), and (M,) the prediction row of
+    each."""
     keyframe = frames["is_key_frame"].to_numpy()
     frame_sample = frames["sample_token"].to_numpy().astype(object)
     order = np.argsort(predictions.sample_token, kind="stable")
@@ -176,12 +171,8 @@ def prediction_boxes(frames: pl.DataFrame, predictions: Predictions) -> tuple[Fr
     count = np.where(keyframe, np.searchsorted(sorted_samples, frame_sample, "right") - first, 0)
     frame = np.repeat(np.arange(len(frame_sample)), count)
     rows = order[np.repeat(first, count) + np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)]
-    m = len(rows)
-    boxes = FrameBoxes(frame_index=frame.astype(np.int64), frame_token=frames["token"].to_numpy().astype(object)[frame],
-                       annotation_token=np.full(m, "", dtype=object), instance_token=np.full(m, "", dtype=object),
-                       category_name=predictions.detection_name[rows], translation_m=predictions.translation_m[rows],
-                       size_wlh_m=predictions.size_wlh_m[rows], rotation_wxyz=predictions.rotation_wxyz[rows],
-                       interpolated=np.zeros(m, dtype=bool), annotation_index=rows.astype(np.int64))
+    boxes = FramedCuboids(cuboids=predictions.cuboids.take(rows), frame_index=frame.astype(np.int64),
+                          source_index=rows.astype(np.int64), interpolated=np.zeros(len(rows), dtype=bool))
     return boxes, rows
 
 

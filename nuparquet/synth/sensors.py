@@ -63,8 +63,9 @@ _FACE_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0])
 
 
 @dataclass(frozen=True)
-class FrameBoxes:
-    """The boxes one frame shows, in the global frame."""
+class GeneratedBoxes:
+    """The boxes one frame shows, in the global frame: the generator's own restatement (it shares no geometry with
+    the package it checks: `nuparquet.geometry.cuboids` is what the converted data is read into)."""
 
     center_m: np.ndarray  # (B, 3)
     wlh_m: np.ndarray  # (B, 3)
@@ -87,7 +88,7 @@ class SceneSensors:
         self._annotations_of_sample = [order[bounds[k]:bounds[k + 1]] for k in range(bounds.size - 1)]
         self._backgrounds: dict[int, np.ndarray] = {}  # per channel
 
-    def frame_boxes(self, frame: int) -> FrameBoxes:
+    def frame_boxes(self, frame: int) -> GeneratedBoxes:
         """The devkit's `get_boxes` for one frame, vectorised over the boxes."""
         w, tl = self.world, self.world.timeline
         k = int(tl.frame_sample_index[frame])
@@ -107,7 +108,7 @@ class SceneSensors:
                                                                             - w.annotation_translation_m[prev])
             rotation[has_prev] = quat_slerp(w.annotation_rotation[prev], rotation[has_prev],
                                             np.full(prev.size, amount))
-        return FrameBoxes(center, w.annotation_size_m[ann], rotation, w.instance_category[w.annotation_instance[ann]],
+        return GeneratedBoxes(center, w.annotation_size_m[ann], rotation, w.instance_category[w.annotation_instance[ann]],
                           w.annotation_num_lidar_pts[ann], w.annotation_num_radar_pts[ann])
 
     def box_velocity_mps(self, frame: int) -> np.ndarray:

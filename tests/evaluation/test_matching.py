@@ -8,13 +8,13 @@ import pytest
 
 from nuparquet.evaluation import matching
 from nuparquet.evaluation.boxes import Boxes
+from nuparquet.geometry.cuboids import Cuboids
 
 
 def _boxes(rng, n, samples, classes, *, grid: float, score=None) -> Boxes:
     xy = np.round(rng.uniform(0, 6, (n, 2)) / grid) * grid  # on a grid: equal distances happen
-    return Boxes(sample_index=rng.integers(0, samples, n), class_index=rng.integers(0, classes, n),
-                 translation_m=np.c_[xy, np.zeros(n)], size_wlh_m=np.ones((n, 3)),
-                 rotation_wxyz=np.tile([1.0, 0, 0, 0], (n, 1)),
+    return Boxes(cuboids=Cuboids(np.c_[xy, np.zeros(n)], np.ones((n, 3)), np.tile([1.0, 0, 0, 0], (n, 1))),
+                 sample_index=rng.integers(0, samples, n), class_index=rng.integers(0, classes, n),
                  velocity_mps=np.zeros((n, 2)), attribute=np.full(n, "", object),
                  score=np.round(rng.uniform(0, 1, n), 1) if score is None else score, num_pts=np.full(n, -1))
 

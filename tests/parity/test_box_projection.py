@@ -442,8 +442,14 @@ def test_projected_boxes_as_a_dataframe_hold_every_field_under_its_name_and_type
     frames, annotations, samples = small_tables(frame_timestamp=2000, is_key_frame=True)
     projected = project_boxes(frames, annotations, samples, visibility="none")
     df = projected.to_polars()
-    names = [f.name for f in dataclasses.fields(projected)]
-    assert df.columns == names and df.height == len(projected) > 0
+    fields = [f.name for f in dataclasses.fields(projected)]
+    assert fields[0] == "cuboids"  # the boxes, as columns translation, size, rotation after the category
+    names = [*fields[1:6], *fields[6:]]
+    assert df.columns == [*fields[1:6], "translation", "size", "rotation", *fields[6:]] and df.height == len(projected) > 0
+    for column, values in (("translation", projected.translation_m), ("size", projected.size_wlh_m),
+                           ("rotation", projected.rotation_wxyz)):
+        assert df.schema[column] == pl.Array(pl.Float64, values.shape[1])
+        np.testing.assert_array_equal(df[column].to_numpy(), values, err_msg=column)
     dtypes = {"frame_index": pl.Int64, "interpolated": pl.Boolean, "in_front": pl.Boolean, "visible": pl.Boolean,
               "distance_m": pl.Float64, "corners_camera_m": pl.Array(pl.Float64, (8, 3)),
               "corners_px": pl.Array(pl.Float64, (8, 2)), "depths": pl.Array(pl.Float64, 8),

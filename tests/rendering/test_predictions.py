@@ -63,9 +63,7 @@ def test_predictions_on_the_ground_truth_project_onto_its_outlines(synth_root, s
     only_detection = dataclasses.replace(rows, annotations=rows.annotations.filter(detection))
     everything = predicted.load_predictions(results[0], dataset, SCENE, score_threshold=0.0)
     on_gt = np.isin(everything.translation_m[:, 0], only_detection.annotations["translation"].arr.get(0).to_numpy())
-    exact = predicted.Predictions(everything.sample_token[on_gt], everything.detection_name[on_gt],
-                                  everything.translation_m[on_gt], everything.size_wlh_m[on_gt],
-                                  everything.rotation_wxyz[on_gt], everything.score[on_gt], everything.status[on_gt])
+    exact = everything.take(on_gt)
     layout = (("CAM_FRONT", "CAM_BACK"),)
     plan = camera_plan(only_detection, layout, synth_root, scale=0.5, mosaic=True, all_frames=False, fps=2,
                        predictions=exact)

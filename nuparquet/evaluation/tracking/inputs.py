@@ -81,8 +81,7 @@ def prepare(ds, results, config: TrackingConfig, split: str, *, annotation_colum
     pred_class = (np.array([class_of[n] for n in class_names.tolist()], np.int64)[inverse.reshape(-1)]
                   if len(sub) else np.zeros(0, np.int64))
     n = len(sub)
-    pred = Boxes(sample_index=pred_sample, class_index=pred_class, translation_m=sub.translation_m,
-                 size_wlh_m=sub.size_wlh_m, rotation_wxyz=sub.rotation_wxyz, velocity_mps=sub.velocity_mps,
+    pred = Boxes(cuboids=sub.cuboids, sample_index=pred_sample, class_index=pred_class, velocity_mps=sub.velocity_mps,
                  attribute=np.full(n, "", object), score=sub.score, num_pts=sub.num_pts)
     class_range = np.array([float(config.class_range[name]) for name in names])
     cycle = np.isin(np.array(names), CYCLE_CLASSES)

@@ -61,8 +61,8 @@ def devkit_distances_m(a_xy: np.ndarray, b_xy: np.ndarray) -> np.ndarray:
 def _locate(boxes: TrackedBoxes) -> Boxes:
     """The fields `candidate_pairs` reads."""
     n = len(boxes)
-    return Boxes(sample_index=boxes.sample, class_index=boxes.class_index, translation_m=boxes.translation_m,
-                 size_wlh_m=boxes.size_wlh_m, rotation_wxyz=boxes.rotation_wxyz, velocity_mps=np.zeros((n, 2)),
+    return Boxes(cuboids=boxes.cuboids, sample_index=boxes.sample, class_index=boxes.class_index,
+                 velocity_mps=np.zeros((n, 2)),
                  attribute=np.zeros(n, object), score=boxes.score, num_pts=np.zeros(n, np.int64))
 
 

@@ -18,6 +18,7 @@ boxes given the mean score of the track, and the gaps of every track filled in.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -203,7 +204,7 @@ def interpolate_tracks(boxes: TrackedBoxes, timeline: Timeline) -> TrackedBoxes:
     s_sorted = added.sample[within]
     first = np.searchsorted(s_sorted, s_sorted, "left")
     rank[within] = counts_own[s_sorted] + np.arange(len(pair)) - first
-    added = TrackedBoxes(**{**{f: getattr(added, f) for f in added.__dataclass_fields__}, "order": rank})
+    added = dataclasses.replace(added, order=rank)
     return TrackedBoxes(
         cuboids=Cuboids.concat([boxes.cuboids, added.cuboids]),
         **{f: np.concatenate([getattr(boxes, f), getattr(added, f)]) for f in
