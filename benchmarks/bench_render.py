@@ -57,7 +57,7 @@ def bare_mosaic_child(paths_json: str, video: str, fps: float) -> None:
 
 
 def render_child(out: str, scene: str, video: str, all_frames: bool, channel: str = CHANNEL) -> None:
-    from nuparquet.rendering.pipeline import RenderOptions, render
+    from nuparquet.rendering.video.pipeline import RenderOptions, render
 
     start = time.perf_counter()
     result = render(out, scene, video, RenderOptions(channel=channel, all_frames=all_frames, scale=SCALE))

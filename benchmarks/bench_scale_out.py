@@ -28,9 +28,9 @@ ENGINES = (("1 process", "serial", 1), ("2 processes", "process", 2), ("Ray, 2 C
 def child(out: str, engine: str, workers: int, out_dir: str) -> None:
     start = time.perf_counter()
     from nuparquet.engine import EngineOptions
-    from nuparquet.rendering.batch import render_scenes
+    from nuparquet.rendering.video.batch import render_scenes
     from nuparquet.dataset.selection import SceneSelection
-    from nuparquet.rendering.options import RenderOptions
+    from nuparquet.rendering.video.options import RenderOptions
 
     import_s = time.perf_counter() - start
     start_s = 0.0

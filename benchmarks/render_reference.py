@@ -20,7 +20,7 @@ import numpy as np
 import polars as pl
 
 from nuparquet.rendering.decode import decode_image
-from nuparquet.rendering.video import DEFAULT_CRF, DEFAULT_PRESET, VideoWriter
+from nuparquet.rendering.video.video import DEFAULT_CRF, DEFAULT_PRESET, VideoWriter
 
 
 def bare_decode_encode(
@@ -89,7 +89,7 @@ def bare_mosaic_decode_encode(
 
 
 def _time_render(out_dir: Path, scene: str, all_frames: bool, scale: float, video: Path) -> dict:
-    from nuparquet.rendering.pipeline import RenderOptions, render
+    from nuparquet.rendering.video.pipeline import RenderOptions, render
 
     start = time.perf_counter()
     result = render(out_dir, scene, video, RenderOptions(channel="CAM_FRONT", all_frames=all_frames, scale=scale))

@@ -125,7 +125,7 @@ GROUPS: dict[str, Group] = {
         ("tests/rendering/test_plan.py", "tests/parity/test_mosaic_devkit.py", "tests/rendering/test_render.py"),
         keyword="(mosaic or plan or keyframe) and not 12.0 and not 2.0", cache_conversions=True),
     "video": Group(
-        ("nuparquet/rendering/video.py",),
+        ("nuparquet/rendering/video/video.py",),
         ("tests/rendering/test_video_content.py",
          "tests/rendering/test_video.py::test_video_writer_rejects_frames_of_another_size",
          "tests/rendering/test_video.py::test_video_writer_pads_odd_sizes_and_writes_browser_playable_h264"),
@@ -191,13 +191,8 @@ GROUPS: dict[str, Group] = {
         ("tests/queries/",),
         keyword="not extract", cache_conversions=True),
     "rendering": Group(  # the scene render: the frame loop, tiles, overlays, sinks
-        ("nuparquet/rendering/*.py", "!nuparquet/rendering/plan.py", "!nuparquet/rendering/mosaic.py",
-         "!nuparquet/rendering/video.py", "!nuparquet/rendering/single.py", "!nuparquet/rendering/sample_data.py",
-         "!nuparquet/rendering/sample_grid.py", "!nuparquet/rendering/annotation.py",
-         "!nuparquet/rendering/map_views.py", "!nuparquet/rendering/map_canvas.py",
-         "!nuparquet/rendering/map_in_image.py", "!nuparquet/rendering/pointcloud_image.py",
-         "!nuparquet/rendering/topview.py", "!nuparquet/rendering/clouds.py", "!nuparquet/rendering/charts.py",
-         "!nuparquet/rendering/nuimages.py"),
+        ("nuparquet/rendering/*.py", "nuparquet/rendering/video/*.py", "!nuparquet/rendering/plan.py",
+         "!nuparquet/rendering/mosaic.py", "!nuparquet/rendering/video/video.py", "!nuparquet/rendering/map_canvas.py"),
         ("tests/rendering/test_render.py", "tests/rendering/test_bev.py", "tests/rendering/test_frame_index.py",
          "tests/rendering/test_lidar_colors.py", "tests/rendering/test_predictions.py",
          "tests/rendering/test_pipeline.py", "tests/rendering/test_rigs.py", "tests/rendering/test_video.py",
@@ -206,11 +201,8 @@ GROUPS: dict[str, Group] = {
          "tests/rendering/test_single_cli.py::test_what_cannot_be_drawn_is_a_usage_error"),
         keyword="not extract", cache_conversions=True),
     "pictures": Group(  # one picture of one thing: the devkit's render_* and their drawing
-        ("nuparquet/rendering/single.py", "nuparquet/rendering/sample_data.py", "nuparquet/rendering/sample_grid.py",
-         "nuparquet/rendering/annotation.py", "nuparquet/rendering/map_views.py",
-         "nuparquet/rendering/map_canvas.py", "nuparquet/rendering/map_in_image.py",
-         "nuparquet/rendering/pointcloud_image.py", "nuparquet/rendering/topview.py",
-         "nuparquet/rendering/clouds.py", "nuparquet/rendering/charts.py"),
+        ("nuparquet/rendering/pictures/*.py", "!nuparquet/rendering/pictures/nuimages.py",
+         "nuparquet/rendering/map_canvas.py"),
         ("tests/parity/test_single_renders_devkit.py", "tests/rendering/test_single_cli.py",
          "tests/rendering/test_topview.py", "tests/rendering/test_charts.py",
          # charts.write_plots in the test's process: the CAN bus charts' file names, the lidarseg chart
@@ -257,7 +249,7 @@ GROUPS: dict[str, Group] = {
         keyword="not extract"),
     "nuimages": Group(
         ("nuparquet/nuimages/*.py", "nuparquet/sources/nuimages.py", "nuparquet/conversion/builders/nuimages.py",
-         "nuparquet/rendering/nuimages.py"),
+         "nuparquet/rendering/pictures/nuimages.py"),
         ("tests/parity/test_nuimages_devkit.py", "tests/conversion/test_nuimages_convert.py", "tests/test_rle.py"),
         keyword="not extract"),
     "tracking": Group(  # the tracking benchmark: motmetrics' accumulator replayed, the devkit's metrics

@@ -32,8 +32,8 @@ _PUBLIC = {
     "validate": ("nuparquet.conversion", "validate"),
     "export_json": ("nuparquet.export.json_files", "export_json"),
     "synthesize": ("nuparquet.synth", "synthesize"),
-    "render": ("nuparquet.rendering.pipeline", "render"),
-    "render_scenes": ("nuparquet.rendering.batch", "render_scenes"),
+    "render": ("nuparquet.rendering.video.pipeline", "render"),
+    "render_scenes": ("nuparquet.rendering.video.batch", "render_scenes"),
     "build_index": ("nuparquet.index.build", "build_index"),
     "evaluate": ("nuparquet.evaluation.run", "evaluate"),
     "export_mcap": ("nuparquet.mcap.export", "export_mcap"),
@@ -46,7 +46,7 @@ _PUBLIC = {
     "EvalOptions": ("nuparquet.evaluation.options", "EvalOptions"),
     "IndexOptions": ("nuparquet.index.options", "IndexOptions"),
     "McapOptions": ("nuparquet.mcap.options", "McapOptions"),
-    "RenderOptions": ("nuparquet.rendering.options", "RenderOptions"),
+    "RenderOptions": ("nuparquet.rendering.video.options", "RenderOptions"),
     "ReportOptions": ("nuparquet.site.options", "ReportOptions"),
     "SceneSelection": ("nuparquet.dataset.selection", "SceneSelection"),
     "SynthOptions": ("nuparquet.synth.options", "SynthOptions"),
@@ -110,10 +110,10 @@ if TYPE_CHECKING:  # for readers and type checkers; at run time the names load o
     from nuparquet.mcap.export import export_mcap
     from nuparquet.mcap.options import McapOptions
     from nuparquet.problems import ProblemsFound
-    from nuparquet.rendering.batch import render_scenes
+    from nuparquet.rendering.video.batch import render_scenes
     from nuparquet.dataset.selection import SceneSelection
-    from nuparquet.rendering.options import RenderOptions
-    from nuparquet.rendering.pipeline import render
+    from nuparquet.rendering.video.options import RenderOptions
+    from nuparquet.rendering.video.pipeline import render
     from nuparquet.site.build import build_report as report
     from nuparquet.site.options import ReportOptions
     from nuparquet.synth import synthesize

@@ -233,11 +233,11 @@ def test_the_front_door_lists_the_face_and_every_name_resolves():
         "NuparquetError", "UsageError", "InputError", "FormatError", "QueryError",
         "EnvironmentFault", "ProblemsFound", "UnitsFailed"]
     import nuparquet.conversion.options  # noqa: F401 - packages imported first must not shadow the verbs
-    import nuparquet.rendering.options  # noqa: F401
+    import nuparquet.rendering.video.options  # noqa: F401
     from nuparquet.conversion import convert
     from nuparquet.dataset import Dataset
     from nuparquet.errors import NuparquetError
-    from nuparquet.rendering.pipeline import render
+    from nuparquet.rendering.video.pipeline import render
 
     assert nuparquet.convert is convert and nuparquet.render is render and nuparquet.Dataset is Dataset
     for name in nuparquet.__all__:

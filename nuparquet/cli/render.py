@@ -1,7 +1,7 @@
 """`nuparquet render OUT --scene NAME [--channel CHANNEL|all|bev] --out scene.mp4`: annotated scene videos (cameras
 and / or the bird's-eye view); `nuparquet render OUT --all-scenes --out-dir DIR [--engine ray]`: one video per scene,
 in parallel; `nuparquet render OUT --sample TOKEN | --sample-data TOKEN | --annotation TOKEN | --instance TOKEN |
---map LOCATION ... --out picture.png`: one picture (`nuparquet.rendering.single`).
+--map LOCATION ... --out picture.png`: one picture (`nuparquet.rendering.pictures.single`).
 
 The flags are generated from `RenderOptions`, `SceneSelection`, `EngineOptions` and `ImageOptions`
 (`nuparquet.cli.arguments.add_options`); only `OUT` and `--quiet` are the CLI's own.
@@ -17,8 +17,8 @@ from nuparquet.cli.progress import bars
 from nuparquet.engine.options import EngineOptions
 from nuparquet.errors import UsageError
 from nuparquet.dataset.selection import SceneSelection
-from nuparquet.rendering.image_options import ImageOptions
-from nuparquet.rendering.options import RenderOptions
+from nuparquet.rendering.pictures.image_options import ImageOptions
+from nuparquet.rendering.video.options import RenderOptions
 from nuparquet.sensors.options import SensorFiles
 
 _EPILOG = """\
@@ -126,7 +126,7 @@ def run(args) -> int:
     if args.scene is None:
         raise UsageError("say what to render: --scene NAME (with --out or --frames-dir), or --all-scenes, "
                          "--scenes A,B or --where SQL with --out-dir DIR")
-    from nuparquet.rendering.pipeline import render  # cv2 and PyAV load only when rendering
+    from nuparquet.rendering.video.pipeline import render  # cv2 and PyAV load only when rendering
 
     result = render(opened(args), args.scene, args.out, _render_options(args), frames_dir=args.frames_dir,
                     on_progress=bars(not args.quiet))
@@ -146,7 +146,7 @@ def run(args) -> int:
 
 def _run_many(args, selection: SceneSelection) -> int:
     from nuparquet.engine import UnitsFailed
-    from nuparquet.rendering.batch import render_scenes
+    from nuparquet.rendering.video.batch import render_scenes
 
     if args.scene is not None:
         raise UsageError("--scene renders one scene; with --all-scenes, --scenes or --where leave it out")
@@ -173,7 +173,7 @@ def _run_many(args, selection: SceneSelection) -> int:
 
 def _run_image(args, image: ImageOptions) -> int:
     """One picture to --out (PNG or JPEG)."""
-    from nuparquet.rendering.image_options import check_image_path
+    from nuparquet.rendering.pictures.image_options import check_image_path
 
     if args.scene is not None or args.all_scenes or args.out_dir is not None or args.where is not None:
         raise UsageError("one picture (--sample, --sample-data, --annotation, --instance, --map) or scenes (--scene, "
@@ -185,7 +185,7 @@ def _run_image(args, image: ImageOptions) -> int:
         raise UsageError(f"{', '.join(video_only)}: for scene videos; a picture of one thing takes none of them")
     image.check()
     out = check_image_path(args.out)
-    from nuparquet.rendering.single import render_image, save_image  # cv2 loads only when drawing
+    from nuparquet.rendering.pictures.single import render_image, save_image  # cv2 loads only when drawing
 
     picture = render_image(opened(args), image)
     save_image(picture, out)

@@ -134,7 +134,7 @@ def run(args) -> int:
                 print_frame(display(name, results[name]), "table", title=f"== {BY_NAME[name].title}",
                             max_rows=args.max_rows)
     if args.plots:
-        from nuparquet.rendering.charts import write_plots  # matplotlib only when asked for
+        from nuparquet.rendering.pictures.charts import write_plots  # matplotlib only when asked for
 
         paths = write_plots(ds, args.plots, scene=scene, results=results)
         stream = sys.stdout if args.format == "table" else sys.stderr

@@ -19,7 +19,7 @@ pre-check is `nuparquet.geometry`; points and labels come from the dataroot's fi
 operation with pyquaternion, so the results are bit-identical to the devkit's.
 
 The one-picture renderers (`render_sample_data`, `render_sample`, `render_pointcloud_in_image`,
-`render_annotation`, `render_instance`) draw with `nuparquet.rendering.single` and write `out_path`, draw on `ax`
+`render_annotation`, `render_instance`) draw with `nuparquet.rendering.pictures.single` and write `out_path`, draw on `ax`
 or show with matplotlib as the devkit does. Not served (each raises `NotServed` saying what does it): the scene
 videos and `render_egoposes_on_map` (`nuparquet render`), tables that were not converted.
 """

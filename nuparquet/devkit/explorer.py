@@ -1,6 +1,6 @@
 """`NuScenesExplorer`: the devkit's printers (`list_*`, `get_sample_lidarseg_stats`) and its one data call
 (`map_pointcloud_to_image`) over a `nuparquet.devkit.NuScenes`; its renderers (`devkit.renders`) draw with
-`nuparquet.rendering.single`.
+`nuparquet.rendering.pictures.single`.
 
 The printers print what the devkit prints, character for character. The two that walk every annotation
 (`list_categories`, `list_attributes`) read the few columns they need instead of building a million records:

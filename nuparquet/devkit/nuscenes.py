@@ -63,7 +63,7 @@ class NuScenes:
 
     Everything read-only the devkit's object offers is here (see the README's "Switching from the devkit"); the
     pictures (`render_sample_data`, `render_sample`, `render_pointcloud_in_image`, `render_annotation`,
-    `render_instance`) are drawn from the Parquet by `nuparquet.rendering.single` (`devkit.renders`), the scene
+    `render_instance`) are drawn from the Parquet by `nuparquet.rendering.pictures.single` (`devkit.renders`), the scene
     videos raise `NotServed` naming the `nuparquet render` command, and writes raise `ReadOnly`.
     """
 
@@ -305,7 +305,7 @@ class NuScenes:
     def list_sample(self, sample_token: str) -> None:
         self.explorer.list_sample(sample_token)
 
-    # --- renderers: `devkit.renders` (pictures from `nuparquet.rendering.single`; the videos refused) -------------
+    # --- renderers: `devkit.renders` (pictures from `nuparquet.rendering.pictures.single`; the videos refused) -------------
 
     def render_pointcloud_in_image(self, sample_token: str, dot_size: int = 5, pointsensor_channel: str = "LIDAR_TOP",
                                    camera_channel: str = "CAM_FRONT", out_path: str | None = None,

@@ -1,4 +1,4 @@
-"""The explorer's renderers, drawn by `nuparquet.rendering.single` from the Parquet instead of matplotlib.
+"""The explorer's renderers, drawn by `nuparquet.rendering.pictures.single` from the Parquet instead of matplotlib.
 
 Each takes the devkit's arguments in the devkit's order and puts the picture where the devkit's figure went:
 written to `out_path` (PNG or JPEG), drawn on `ax` (any matplotlib Axes: `ax.imshow`), else shown with
@@ -21,7 +21,7 @@ _WITH_DEVKIT = ("; with nuscenes-devkit installed, nuscenes.nuscenes.NuScenesExp
 
 
 def _single():
-    from nuparquet.rendering import single
+    from nuparquet.rendering.pictures import single
 
     return single
 
@@ -104,7 +104,7 @@ class ExplorerRenders:
 
     def render_egoposes_on_map(self, *args, **kwargs):
         raise NotServed("render_egoposes_on_map (the poses over the semantic prior PNG) is not served: "
-                        "nuparquet.rendering.single.render_egoposes_on_map(OUT, location) draws them over the map "
+                        "nuparquet.rendering.pictures.single.render_egoposes_on_map(OUT, location) draws them over the map "
                         "expansion (the map API's render_egoposes_on_fancy_map)"
                         + _WITH_DEVKIT.format(name="render_egoposes_on_map"))
 

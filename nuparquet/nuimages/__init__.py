@@ -2,7 +2,7 @@
 segmentation masks and its category and attribute counts, from `objects/` and `surfaces/`.
 
 Modules: `masks` (`masks`, the annotations of an image), `segmentation` (`segmentation`, `category_indices`),
-`counts` (`category_counts`, `attribute_counts`). Pictures are `nuparquet.rendering.nuimages`; the COCO file is
+`counts` (`category_counts`, `attribute_counts`). Pictures are `nuparquet.rendering.pictures.nuimages`; the COCO file is
 `nuparquet.export.coco`.
 """
 

@@ -22,7 +22,7 @@ from nuparquet.errors import UsageError
 from nuparquet.rendering.point_colors import intensity_levels, label_rgb
 from nuparquet.frames.poses import sensor_poses
 from nuparquet.frames.points_in_image import lidar_for_cameras, points_in_image
-from nuparquet.rendering.options import LIDAR_COLORS
+from nuparquet.rendering.video.options import LIDAR_COLORS
 
 _LABEL_COLUMN = {"lidarseg": "lidarseg_label", "panoptic": "panoptic_label"}
 _POINT_COLUMNS = ["x", "y", "z", "intensity"]

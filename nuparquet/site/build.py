@@ -14,7 +14,7 @@ Layout of DIR:
     assets/report.css, report.js    the only style and script (hand-written, no library)
     assets/plots/*.png              the charts of `nuparquet stats --plots`
 
-The statistics are the canned queries (`nuparquet.queries.summary`), the charts `nuparquet.rendering.charts`; the videos are
+The statistics are the canned queries (`nuparquet.queries.summary`), the charts `nuparquet.rendering.pictures.charts`; the videos are
 rendered through the many-scene render (`render.batch.render_scenes`: the engine, Ray included) and the scene
 assets through the same engine (`report.scene_assets`). The folder is written beside DIR and renamed into place
 when complete (`--overwrite` replaces an existing one).
@@ -85,8 +85,8 @@ def _videos(dataset, scenes: list[str], options: ReportOptions, engine: EngineOp
     """Every scene's video through the many-scene render (every camera tiled with the bird's-eye view when the
     dataset has a lidar); a scene that fails is reported, not fatal."""
     from nuparquet.dataset.selection import SceneSelection
-    from nuparquet.rendering.batch import render_scenes
-    from nuparquet.rendering.options import RenderOptions
+    from nuparquet.rendering.video.batch import render_scenes
+    from nuparquet.rendering.video.options import RenderOptions
 
     bev = dataset.channels.get("reference_lidar") is not None
     render_options = RenderOptions(channel="all", bev=bev, scale=options.video_scale)
@@ -146,7 +146,7 @@ def build_report(dataset, selection: SceneSelection | None = None, out=None, opt
     from nuparquet.atomic import atomic_directory, check_apart, check_target
     from nuparquet.dataset import as_dataset, select_scenes
     from nuparquet.queries import class_distribution
-    from nuparquet.rendering import charts
+    from nuparquet.rendering.pictures import charts
 
     selection, options, engine = resolve_all(fields, (SceneSelection, selection), (ReportOptions, options),
                                              (EngineOptions, engine))

@@ -54,8 +54,8 @@ class SceneAssets:
 def scene_assets(dataset, scene: str, out: Path, options: SceneAssetOptions) -> SceneAssets:
     """Write the keyframe renderings and CAN bus plots of `scene` into the folder `out` (a one-scene verb, run over
     every scene of a report by `engine.scene_files`)."""
-    from nuparquet.rendering.options import RenderOptions
-    from nuparquet.rendering.pipeline import render
+    from nuparquet.rendering.video.options import RenderOptions
+    from nuparquet.rendering.video.pipeline import render
 
     out.mkdir(parents=True, exist_ok=True)
     stills, plot_files, stills_error = [], [], None
@@ -76,7 +76,7 @@ def scene_assets(dataset, scene: str, out: Path, options: SceneAssetOptions) -> 
     if options.can_bus:
         import polars as pl
 
-        from nuparquet.rendering import charts as plots
+        from nuparquet.rendering.pictures import charts as plots
         from nuparquet.queries import can_bus
 
         speeds, steering = pl.collect_all([can_bus.speed_over_time(dataset, scene=scene),

@@ -224,7 +224,7 @@ def test_can_speed_chart_names_vehicle_monitor_speed_as_the_vehicle_speed(synth_
     """vehicle_monitor.vehicle_speed is the vehicle's speed (the devkit tutorial's "Vehicle speed"); the wheel
     speeds are zoe_veh_info's FL_wheel_speed, ... (issue 24: the chart called it "CAN wheel speed")."""
     from nuparquet.queries.can_bus import speed_over_time
-    from nuparquet.rendering import charts
+    from nuparquet.rendering.pictures import charts
 
     figures = []
     saved = charts._save

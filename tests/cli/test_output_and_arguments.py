@@ -58,7 +58,7 @@ def test_an_optional_number_flag_parses_as_its_number_type(capsys):
 
     from nuparquet.cli.arguments import add_options
     from nuparquet.engine import EngineOptions
-    from nuparquet.rendering.options import RenderOptions
+    from nuparquet.rendering.video.options import RenderOptions
 
     parser = argparse.ArgumentParser()
     add_options(parser, RenderOptions)

@@ -233,7 +233,7 @@ def test_missing_sensor_files_are_listed_and_warned_once_or_an_error_with_strict
 
 def test_stats_gains_lidarseg_sections_and_a_chart_when_labels_were_converted(labelled_out, tmp_path):
     import nuparquet
-    from nuparquet.rendering.charts import write_plots
+    from nuparquet.rendering.pictures.charts import write_plots
     from nuparquet.queries.sections import default_sections
 
     labelled = nuparquet.open(labelled_out)

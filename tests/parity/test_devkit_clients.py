@@ -204,7 +204,7 @@ def test_the_devkits_explorer_renders_sample_data_from_it_headlessly(synth_mappe
 
 
 def test_our_renderers_put_nuparquets_pictures_where_the_devkits_figures_go(extract, tmp_path):
-    """`render_*` of our NuScenes draw with `nuparquet.rendering.single` (checked against the devkit's pixels in
+    """`render_*` of our NuScenes draw with `nuparquet.rendering.pictures.single` (checked against the devkit's pixels in
     test_single_renders_devkit.py), take the devkit's arguments in its order, and write `out_path` / draw on `ax`."""
     import matplotlib
 
@@ -213,7 +213,7 @@ def test_our_renderers_put_nuparquets_pictures_where_the_devkits_figures_go(extr
     from PIL import Image
 
     import nuparquet
-    from nuparquet.rendering import single
+    from nuparquet.rendering.pictures import single
 
     ds, ours = nuparquet.open(extract.out), extract.ours
     sample = extract.theirs.sample[3]
@@ -267,11 +267,11 @@ def test_our_explorers_video_renderers_name_the_nuparquet_command_that_renders(e
 
 def test_our_pointcloud_in_image_draws_the_lidarseg_predictions_it_is_given(lidarseg_root, lidarseg_out, tmp_path):
     """`render_pointcloud_in_image(..., show_lidarseg=True, lidarseg_preds_bin_path=...)` of our NuScenes and its
-    explorer colour the points by the prediction file, as `nuparquet.rendering.single` does with the same file
+    explorer colour the points by the prediction file, as `nuparquet.rendering.pictures.single` does with the same file
     (checked against the devkit's pixels in test_single_renders_devkit.py); the predictions (every point labelled
     class 1) change the picture from the ground-truth one."""
     import nuparquet
-    from nuparquet.rendering import single
+    from nuparquet.rendering.pictures import single
 
     ours = NuScenes(SYNTH_VERSION, dataroot=str(lidarseg_root), parquet=lidarseg_out, verbose=False)
     ds = nuparquet.open(lidarseg_out, dataroot=lidarseg_root)
@@ -291,10 +291,10 @@ def test_our_pointcloud_in_image_draws_the_lidarseg_predictions_it_is_given(lida
 
 def test_our_render_sample_draws_only_the_lidarseg_classes_it_is_asked_for(lidarseg_root, lidarseg_out):
     """`render_sample(token, show_lidarseg=True, filter_lidarseg_labels=[...])` of our NuScenes is
-    `nuparquet.rendering.single.render_sample` with the same filter (checked against the devkit's pixels in
+    `nuparquet.rendering.pictures.single.render_sample` with the same filter (checked against the devkit's pixels in
     test_single_renders_devkit.py); the filter changes the picture."""
     import nuparquet
-    from nuparquet.rendering import single
+    from nuparquet.rendering.pictures import single
 
     ours = NuScenes(SYNTH_VERSION, dataroot=str(lidarseg_root), parquet=lidarseg_out, verbose=False)
     ds = nuparquet.open(lidarseg_out, dataroot=lidarseg_root)
@@ -333,7 +333,7 @@ def test_the_renderers_not_served_name_the_devkit_call_that_draws_them(synth_roo
 def test_our_render_sample_data_takes_the_devkits_arguments_in_order_and_shows_by_default(synth_root, synth_out,
                                                                                           monkeypatch):
     """`render_sample_data` of our NuScenes and its explorer take the devkit's arguments positionally (token,
-    with_anns, box_vis_level, ...), draw what `nuparquet.rendering.single` draws with them, and, as the devkit's
+    with_anns, box_vis_level, ...), draw what `nuparquet.rendering.pictures.single` draws with them, and, as the devkit's
     `verbose=True` default does, show the figure when called with no out_path or ax (plt.show once per call)."""
     import matplotlib
 
@@ -341,7 +341,7 @@ def test_our_render_sample_data_takes_the_devkits_arguments_in_order_and_shows_b
     import matplotlib.pyplot as plt
 
     import nuparquet
-    from nuparquet.rendering import single
+    from nuparquet.rendering.pictures import single
 
     ours = NuScenes(SYNTH_VERSION, dataroot=str(synth_root), parquet=synth_out, verbose=False)
     ds = nuparquet.open(synth_out, dataroot=synth_root)

@@ -12,7 +12,7 @@ import pytest
 
 import nuparquet
 from nuparquet.rendering.plan import camera_rows_per_output
-from nuparquet.rendering.scene import load_scene
+from nuparquet.rendering.video.scene import load_scene
 from conftest import IRREGULAR_VERSION
 
 os.environ.setdefault("MPLBACKEND", "Agg")  # the devkit's explorer imports pyplot; never open a window

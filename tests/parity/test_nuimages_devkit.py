@@ -20,7 +20,7 @@ from nuparquet.errors import UsageError
 from nuparquet.export.coco import coco_instances, export_coco
 from nuparquet.nuimages.counts import attribute_counts, category_counts
 from nuparquet.nuimages.segmentation import category_indices, segmentation
-from nuparquet.rendering.nuimages import render_nuimage
+from nuparquet.rendering.pictures.nuimages import render_nuimage
 from nuparquet.synth import synthesize
 
 VERSION = "v1.0-mini"

@@ -1,4 +1,4 @@
-"""Pictures of one thing (`nuparquet.rendering.single`) against the devkit's geometry: the boxes the devkit's
+"""Pictures of one thing (`nuparquet.rendering.pictures.single`) against the devkit's geometry: the boxes the devkit's
 `get_sample_data` gives (camera, flat ego frame), the points its `from_file_multisweep` / `map_pointcloud_to_image`
 give, its radar velocity arrows, its choice of camera for an annotation and of annotation for an instance, its map
 polygons, masks, centrelines and ego poses, each computed here with the devkit and found on the drawn pixels.
@@ -16,7 +16,7 @@ import pytest
 
 import nuparquet
 from conftest import SYNTH_VERSION
-from nuparquet.rendering import single
+from nuparquet.rendering.pictures import single
 from nuparquet.rendering.palette import MAP_LAYER_RGB, category_rgb
 
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -406,7 +406,7 @@ def test_sample_with_lidarseg_paints_each_camera_with_the_devkits_lidarseg_point
 def test_annotation_camera_is_the_devkits_choice(nusc, ds):
     from nuscenes.utils.geometry_utils import BoxVisibility
 
-    from nuparquet.rendering.annotation import camera_seeing
+    from nuparquet.rendering.pictures.annotation import camera_seeing
 
     checked = 0
     for ann in nusc.sample_annotation[::7]:
@@ -460,7 +460,7 @@ def test_annotation_picture_draws_the_box_in_the_lidar_view_and_the_camera(nusc,
 
 
 def test_instance_annotation_is_the_devkits_closest(nusc, ds):
-    from nuparquet.rendering.annotation import instance_annotation
+    from nuparquet.rendering.pictures.annotation import instance_annotation
 
     for instance in nusc.instance[::3]:
         closest = [np.inf, None]
@@ -693,7 +693,7 @@ def test_point_colours_and_legend_classes_are_the_devkits(nusc, ds, sample):
     from nuscenes.lidarseg.lidarseg_utils import colormap_to_colors, get_labels_in_coloring, paint_points_label
     from nuscenes.panoptic.panoptic_utils import paint_panop_points_label, stuff_cat_ids
 
-    from nuparquet.rendering.clouds import category_names
+    from nuparquet.rendering.pictures.clouds import category_names
     from nuparquet.rendering.point_colors import class_filter, label_rgb, legend_classes
 
     names = category_names(ds)
@@ -742,7 +742,7 @@ def test_map_lines_and_centrelines_are_at_least_as_wide_as_the_devkits_line_and_
     import shapely
 
     from nuparquet.rendering.map_canvas import MapCanvas
-    from nuparquet.rendering.map_views import draw_layers
+    from nuparquet.rendering.pictures.map_views import draw_layers
 
     divider = max(nusc_map.lane_divider, key=lambda r: nusc_map.extract_line(r["line_token"]).length)
     line = nusc_map.extract_line(divider["line_token"])
@@ -791,7 +791,7 @@ def test_clipping_behind_the_camera_is_the_devkits(nusc):
     plane dropped, each crossing edge ending on it; a polygon wholly behind gives no point, as a (3, 0) array."""
     from nuscenes.map_expansion.map_api import NuScenesMapExplorer
 
-    from nuparquet.rendering.map_in_image import NEAR_PLANE_M, clip_behind_camera
+    from nuparquet.rendering.pictures.map_in_image import NEAR_PLANE_M, clip_behind_camera
 
     rng = np.random.default_rng(5)
     for _ in range(50):

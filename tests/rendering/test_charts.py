@@ -1,4 +1,4 @@
-"""The PNG charts of `nuparquet stats --plots` (`nuparquet.rendering.charts`), drawn in this process and read back
+"""The PNG charts of `nuparquet stats --plots` (`nuparquet.rendering.pictures.charts`), drawn in this process and read back
 from the matplotlib figure: what each bar and line shows, against the chart's input counted in plain Python."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import polars as pl
 import pytest
 
 import nuparquet
-from nuparquet.rendering import charts
+from nuparquet.rendering.pictures import charts
 
 
 @pytest.fixture

@@ -15,7 +15,7 @@ from nuparquet.cli.main import main
 
 KILL_ONCE_WRITING = """
 import os, signal, sys
-from nuparquet.rendering import video
+from nuparquet.rendering.video import video
 original = video.VideoWriter.write
 def write(self, image):
     original(self, image)
@@ -44,7 +44,7 @@ def test_a_render_killed_midway_leaves_no_video_and_the_next_run_cleans_up(synth
 
 
 def test_an_interrupted_render_exits_130_and_leaves_nothing(synth_out, tmp_path, monkeypatch):
-    from nuparquet.rendering import video
+    from nuparquet.rendering.video import video
 
     original = video.VideoWriter.write
 
@@ -135,7 +135,7 @@ def test_bad_images_are_reported_and_never_drawn_on(synth_out, tmp_path, capsys,
 @pytest.mark.parametrize("filename, refused", [("samples/CAM_FRONT/a.jpg", False), ("../../etc/passwd", True),
                                                ("samples/../../x.jpg", True), ("/etc/passwd", True)])
 def test_filenames_leaving_the_dataroot_are_refused(tmp_path, filename, refused):
-    from nuparquet.rendering.pipeline import _image_path
+    from nuparquet.rendering.video.pipeline import _image_path
 
     path = _image_path(tmp_path, filename)
     assert path.endswith("(outside the dataroot: refused)") is refused

@@ -1,4 +1,4 @@
-"""The frame loop's decode threads (nuparquet.rendering.loop): a render that stops on a missing file returns only
+"""The frame loop's decode threads (nuparquet.rendering.video.loop): a render that stops on a missing file returns only
 after the reads already running have ended, so no thread of it still reads files (which the caller may be about
 to delete) once the error reaches the caller."""
 
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from nuparquet.errors import InputError
-from nuparquet.rendering.loop import render_frames
+from nuparquet.rendering.video.loop import render_frames
 from nuparquet.rendering.plan import TileLoad, TilePlan
 
 READ_S = 0.4  # a slow read: far longer than it takes to raise and look at the threads

@@ -10,8 +10,8 @@ from nuparquet.cli import render as render_cli
 from nuparquet.cli.arguments import options_from
 from nuparquet.engine import EngineOptions
 from nuparquet.dataset.selection import SceneSelection
-from nuparquet.rendering.options import RenderOptions
-from nuparquet.rendering.pipeline import render
+from nuparquet.rendering.video.options import RenderOptions
+from nuparquet.rendering.video.pipeline import render
 
 
 def test_render_reports_one_frame_per_output_picture(synth_out, tmp_path):
@@ -42,7 +42,7 @@ def test_every_cli_render_option_is_a_flag_with_the_library_default():
     assert (parsed.out, parsed.frames_dir, parsed.dataroot) == ("v.mp4", "d", "root")  # targets and inputs
     # Every field is either a flag or explicitly library-only; the other flags choose scenes and the engine, or
     # what one picture draws, or say where to write and where the sensor files are.
-    from nuparquet.rendering.image_options import ImageOptions
+    from nuparquet.rendering.pictures.image_options import ImageOptions
     from nuparquet.sensors.options import SensorFiles
 
     flagged = {f.name for option_class in (RenderOptions, SceneSelection, EngineOptions, ImageOptions, SensorFiles)

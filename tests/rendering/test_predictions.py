@@ -16,8 +16,8 @@ from nuparquet.cli.main import main
 from nuparquet.evaluation import evaluate
 from nuparquet.evaluation.classes import CATEGORY_TO_DETECTION
 from nuparquet.rendering import predictions as predicted
-from nuparquet.rendering.pipeline import camera_plan
-from nuparquet.rendering.scene import load_scene
+from nuparquet.rendering.video.pipeline import camera_plan
+from nuparquet.rendering.video.scene import load_scene
 
 SCENE = "scene-0001"  # the synthetic scenes are in the devkit's train list
 

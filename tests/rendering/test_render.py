@@ -16,8 +16,8 @@ from nuparquet.frames.poses import cameras_from_frames
 from nuparquet.rendering import draw
 from nuparquet.rendering.mosaic import match_frames_by_time, time_steps_us
 from nuparquet.rendering.overlay import build_overlay, segments_touch_image
-from nuparquet.rendering.pipeline import RenderOptions, render
-from nuparquet.rendering.scene import load_scene
+from nuparquet.rendering.video.pipeline import RenderOptions, render
+from nuparquet.rendering.video.scene import load_scene
 
 K = np.array([[1000.0, 0.0, 800.0], [0.0, 1000.0, 450.0], [0.0, 0.0, 1.0]])
 SIZE = np.array([[1600.0, 900.0]])

@@ -16,7 +16,7 @@ import pytest
 import ray
 
 from nuparquet.cli.main import main
-from nuparquet.rendering.options import SUMMARY_NAME
+from nuparquet.rendering.video.options import SUMMARY_NAME
 
 pytestmark = pytest.mark.xdist_group("ray")  # one worker, one Ray session (make test: --dist loadgroup)
 
@@ -239,7 +239,7 @@ def test_a_second_run_keeps_the_summary_entries_of_scenes_it_did_not_render_and_
     """The summary lists every video in the folder: rendering one more scene keeps the entries of the scenes an
     earlier run rendered there (their files are present); a summary that is not a summary (a JSON list, `scenes`
     not an object) is read as none, not a crash."""
-    from nuparquet.rendering.options import SUMMARY_NAME
+    from nuparquet.rendering.video.options import SUMMARY_NAME
 
     out_dir = tmp_path / "videos"
     assert main(["render", str(scenes_out), "--scenes", "scene-0001", "--out-dir", str(out_dir), "--engine", "serial",

@@ -149,7 +149,7 @@ def test_the_map_lies_under_the_views_from_above_unless_told_not_to(synth_out, t
     """`render_image(sample=...)` and `render_image(sample_data=LIDAR)` (what `render --sample` / `--sample-data`
     draw) lay the map under the lidar and radar views by default (ImageOptions.underlay_map) and not with
     underlay_map=False: the views from above differ, the cameras do not."""
-    from nuparquet.rendering.single import render_image
+    from nuparquet.rendering.pictures.single import render_image
 
     ds = nuparquet.open(synth_out)
     with_map = render_image(ds, sample=tokens["sample"], scale=0.2)
@@ -172,7 +172,7 @@ def test_a_sample_picture_reads_its_files_from_the_dataroot_given(synth_out, tok
     from pathlib import Path
 
     from nuparquet.errors import InputError
-    from nuparquet.rendering.single import render_image
+    from nuparquet.rendering.pictures.single import render_image
 
     ds = nuparquet.open(synth_out)
     (tmp_path / "empty").mkdir()

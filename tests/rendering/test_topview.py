@@ -10,7 +10,7 @@ import pytest
 import shapely
 
 from nuparquet.rendering.bev import BACKGROUND_BGR, MAP_STYLE
-from nuparquet.rendering.topview import PlaneView
+from nuparquet.rendering.pictures.topview import PlaneView
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 BACKGROUND = np.array(BACKGROUND_BGR)

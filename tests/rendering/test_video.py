@@ -13,7 +13,7 @@ import pytest
 
 import nuparquet
 from nuparquet.cli.main import main
-from nuparquet.rendering.video import VideoWriter
+from nuparquet.rendering.video.video import VideoWriter
 
 
 def _probe(path: Path) -> dict:

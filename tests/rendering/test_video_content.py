@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from nuparquet.cli.main import main
-from nuparquet.rendering.video import VideoWriter
+from nuparquet.rendering.video.video import VideoWriter
 from conftest import IRREGULAR_EMPTY_VERSION
 
 
@@ -84,7 +84,7 @@ def test_a_rendered_video_shows_the_camera_images_in_the_devkits_sample_order(ir
 
 from fractions import Fraction  # noqa: E402
 
-from nuparquet.rendering.video import frame_rate, pad_to_even  # noqa: E402
+from nuparquet.rendering.video.video import frame_rate, pad_to_even  # noqa: E402
 
 
 @pytest.mark.parametrize("height, width", [(3, 5), (3, 4), (2, 5), (2, 4)])

@@ -463,8 +463,8 @@ def test_keyframe_renderings_draw_the_reference_lidar_when_the_dataset_has_one(s
     process: the session's report is built during another test.)"""
     import numpy as np
 
-    from nuparquet.rendering.options import RenderOptions
-    from nuparquet.rendering.pipeline import render
+    from nuparquet.rendering.video.options import RenderOptions
+    from nuparquet.rendering.video.pipeline import render
     from nuparquet.site.scene_assets import STILL_SCALE
 
     scene = SCENES[1]

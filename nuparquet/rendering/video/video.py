@@ -1,6 +1,6 @@
 """H.264 MP4 writing with PyAV: libx264, yuv420p, `+faststart`, even frame sizes — a file a web browser plays.
 
-Modelled on av2-api's `rendering/video.py`, but streaming (one frame at a time, constant memory) instead of
+Modelled on av2-api's `rendering/video/video.py`, but streaming (one frame at a time, constant memory) instead of
 taking the whole (N, H, W, 3) video as one array, and with `movflags` set on the muxer, where it takes effect.
 """
 
@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from nuparquet.atomic import move_into_place, partial_path, remove_stale
-from nuparquet.rendering.options import DEFAULT_CRF, DEFAULT_PRESET
+from nuparquet.rendering.video.options import DEFAULT_CRF, DEFAULT_PRESET
 
 
 

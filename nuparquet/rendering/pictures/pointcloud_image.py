@@ -19,7 +19,7 @@ from nuparquet.frames.points_in_image import POINT_MIN_DEPTH_M, points_in_image
 from nuparquet.frames.poses import cameras_from_frames, sensor_poses
 from nuparquet.frames.sweeps import frame_cloud, keyframe_rows
 from nuparquet.rendering import draw, legend
-from nuparquet.rendering.clouds import category_names, frame_frame, lidar_cloud
+from nuparquet.rendering.pictures.clouds import category_names, frame_frame, lidar_cloud
 from nuparquet.rendering.decode import decode_image
 from nuparquet.rendering.palette import category_rgb
 from nuparquet.rendering.point_colors import class_filter, intensity_levels, label_rgb, legend_classes, scalar_rgb

@@ -20,11 +20,11 @@ from nuparquet import columns, geometry
 from nuparquet.dataset import as_dataset
 from nuparquet.errors import UsageError
 from nuparquet.rendering import legend
-from nuparquet.rendering.clouds import frame_frame, lidar_cloud
+from nuparquet.rendering.pictures.clouds import frame_frame, lidar_cloud
 from nuparquet.rendering.overlay import category_colors
 from nuparquet.rendering.point_colors import scalar_rgb
-from nuparquet.rendering.sample_data import camera_image, reference_keyframe, visibility_name
-from nuparquet.rendering.topview import PlaneView
+from nuparquet.rendering.pictures.sample_data import camera_image, reference_keyframe, visibility_name
+from nuparquet.rendering.pictures.topview import PlaneView
 
 INSTANCE_CHOICES = ("closest", "middle")
 

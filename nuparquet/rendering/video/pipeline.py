@@ -31,14 +31,14 @@ from nuparquet.frames.poses import cameras_from_frames
 from nuparquet.options import resolve
 from nuparquet.progress import OnProgress, Reporter
 from nuparquet.rendering import draw
-from nuparquet.rendering.camera_tile import CameraTile
-from nuparquet.rendering.loop import render_frames
-from nuparquet.rendering.options import BEV_CHANNEL, RenderOptions, check_targets
+from nuparquet.rendering.video.camera_tile import CameraTile
+from nuparquet.rendering.video.loop import render_frames
+from nuparquet.rendering.video.options import BEV_CHANNEL, RenderOptions, check_targets
 from nuparquet.rendering.overlay import DrawStyle, build_overlay
 from nuparquet.rendering.plan import TilePlan, camera_rows_per_output, tile_size
-from nuparquet.rendering.scene import SceneRows, cameras_to_render, load_scene, reference_lidar
-from nuparquet.rendering.sink import FrameSink
-from nuparquet.rendering.video import even_size
+from nuparquet.rendering.video.scene import SceneRows, cameras_to_render, load_scene, reference_lidar
+from nuparquet.rendering.video.sink import FrameSink
+from nuparquet.rendering.video.video import even_size
 from nuparquet.sensors.reader import inside
 
 __all__ = ["RenderOptions", "RenderResult", "render"]
@@ -126,7 +126,7 @@ def bev_plan(dataset, rows: SceneRows, options: RenderOptions, dataroot: Path,
              predictions=None) -> tuple[TilePlan, float]:
     """`--channel bev`: one square tile per reference-lidar keyframe (or frame), and the video's frame rate (the
     lidar's own with --all-frames unless --fps says otherwise)."""
-    from nuparquet.rendering.bev_scene import bev_source
+    from nuparquet.rendering.video.bev_scene import bev_source
 
     size = (options.bev_size, options.bev_size)
     tile, times_us = bev_source(dataset, rows, dataroot, _bev_view(options, size), lidar_color=options.lidar_color,
@@ -140,7 +140,7 @@ def bev_plan(dataset, rows: SceneRows, options: RenderOptions, dataroot: Path,
 def with_bev_tile(plan: TilePlan, dataset, rows: SceneRows, options: RenderOptions, dataroot: Path,
                   predictions=None) -> TilePlan:
     """The camera plan with the bird's-eye view appended to its first row, at the camera tile size."""
-    from nuparquet.rendering.bev_scene import bev_source
+    from nuparquet.rendering.video.bev_scene import bev_source
 
     tile, _ = bev_source(dataset, rows, dataroot, _bev_view(options, plan.tile_size), times_us=plan.times_us,
                          lidar_color=options.lidar_color, predictions=predictions)

@@ -2,7 +2,7 @@
 `nuparquet.devkit.NuScenes.render_*` is a thin call), and `save_image` to write one as PNG or JPEG.
 
 ```python
-from nuparquet.rendering import single
+from nuparquet.rendering.pictures import single
 ds = nuparquet.open("OUT")
 image = single.render_sample_data(ds, token, nsweeps=5)          # camera with boxes, or lidar / radar from above
 image = single.render_pointcloud_in_image(ds, sample_token, show_lidarseg=True, show_lidarseg_legend=True)
@@ -28,16 +28,16 @@ from nuparquet.atomic import atomic_file
 from nuparquet.dataset import as_dataset
 from nuparquet.errors import EnvironmentFault, UsageError
 from nuparquet.options import resolve
-from nuparquet.rendering.annotation import instance_annotation, render_annotation, render_instance
-from nuparquet.rendering.image_options import ImageOptions, check_image_path
-from nuparquet.rendering.map_in_image import render_map_in_image
-from nuparquet.rendering.map_views import (
+from nuparquet.rendering.pictures.annotation import instance_annotation, render_annotation, render_instance
+from nuparquet.rendering.pictures.image_options import ImageOptions, check_image_path
+from nuparquet.rendering.pictures.map_in_image import render_map_in_image
+from nuparquet.rendering.pictures.map_views import (
     ego_poses_on_map, render_centerlines, render_egoposes_on_map, render_layers, render_map_mask, render_map_patch,
     render_next_roads, render_record,
 )
-from nuparquet.rendering.pointcloud_image import render_pointcloud_in_image
-from nuparquet.rendering.sample_data import render_sample_data
-from nuparquet.rendering.sample_grid import render_sample
+from nuparquet.rendering.pictures.pointcloud_image import render_pointcloud_in_image
+from nuparquet.rendering.pictures.sample_data import render_sample_data
+from nuparquet.rendering.pictures.sample_grid import render_sample
 
 __all__ = [
     "ImageOptions", "ego_poses_on_map", "instance_annotation", "render_annotation", "render_centerlines",
@@ -89,7 +89,7 @@ def render_image(dataset, options: ImageOptions | None = None, **fields) -> np.n
                              axes_limit=options.axes_limit, underlay_map=options.underlay_map,
                              **labelled)
     if options.sample_data is not None and dataset.source_format == "nuimages":  # an image with boxes and masks
-        from nuparquet.rendering.nuimages import render_nuimage
+        from nuparquet.rendering.pictures.nuimages import render_nuimage
 
         return render_nuimage(dataset, options.sample_data, with_category=labels != "none",
                               render_scale=options.scale or 1.0)

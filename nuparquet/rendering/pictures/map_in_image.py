@@ -23,7 +23,7 @@ from nuparquet.frames.poses import sensor_poses
 from nuparquet.frames.sweeps import keyframe_rows
 from nuparquet.map.layers import POLYGON_LAYERS
 from nuparquet.rendering import legend
-from nuparquet.rendering.clouds import frame_frame
+from nuparquet.rendering.pictures.clouds import frame_frame
 from nuparquet.rendering.decode import decode_image
 from nuparquet.rendering.map_canvas import clip_ring, fill_polygons, layer_geometries
 from nuparquet.rendering.palette import MAP_LAYER_RGB

@@ -19,7 +19,7 @@ from nuparquet.progress import Reporter
 from nuparquet.rendering import draw
 from nuparquet.rendering.mosaic import compose
 from nuparquet.rendering.plan import TileLoad, TilePlan
-from nuparquet.rendering.sink import FrameSink
+from nuparquet.rendering.video.sink import FrameSink
 
 DECODE_AHEAD = 6  # outputs read ahead of the one being drawn
 

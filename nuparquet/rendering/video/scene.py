@@ -16,7 +16,7 @@ from nuparquet.channels import default_camera
 from nuparquet.errors import UsageError
 from nuparquet.frames.boxes import ANNOTATION_COLUMNS
 from nuparquet.frames.poses import CAMERA_COLUMNS, MATRIX_COLUMNS
-from nuparquet.rendering.options import ALL_CHANNELS
+from nuparquet.rendering.video.options import ALL_CHANNELS
 
 FRAME_COLUMNS = ("token", "sample_token", "scene_token", "channel", "timestamp", "is_key_frame", "filename",
                  *MATRIX_COLUMNS, *CAMERA_COLUMNS)

@@ -24,9 +24,9 @@ from nuparquet.engine.scene_files import SceneFiles, SceneVerb, write_scene_file
 from nuparquet.errors import UsageError
 from nuparquet.options import resolve_all
 from nuparquet.progress import OnProgress
-from nuparquet.rendering.options import ALL_CHANNELS, SUMMARY_NAME, RenderOptions
+from nuparquet.rendering.video.options import ALL_CHANNELS, SUMMARY_NAME, RenderOptions
 
-RENDER = SceneVerb("nuparquet.rendering.pipeline:render", ".mp4")
+RENDER = SceneVerb("nuparquet.rendering.video.pipeline:render", ".mp4")
 
 
 def render_scenes(dataset, selection: SceneSelection | None, out, options: RenderOptions | None = None, *,

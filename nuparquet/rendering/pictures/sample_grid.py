@@ -15,10 +15,10 @@ import polars as pl
 from nuparquet.dataset import as_dataset
 from nuparquet.errors import InputError, UsageError
 from nuparquet.rendering import draw
-from nuparquet.rendering.clouds import frame_frame
+from nuparquet.rendering.pictures.clouds import frame_frame
 from nuparquet.rendering.mosaic import compose
-from nuparquet.rendering.pointcloud_image import points_on_image
-from nuparquet.rendering.sample_data import camera_image, top_view, visibility_name
+from nuparquet.rendering.pictures.pointcloud_image import points_on_image
+from nuparquet.rendering.pictures.sample_data import camera_image, top_view, visibility_name
 
 
 def _square_in_tile(square: np.ndarray, size: tuple[int, int]) -> np.ndarray:

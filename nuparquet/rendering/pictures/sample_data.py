@@ -28,14 +28,14 @@ from nuparquet.frames.boxes import frame_boxes
 from nuparquet.frames.poses import cameras_from_frames, sensor_poses
 from nuparquet.frames.sweeps import keyframe_rows, multisweep
 from nuparquet.rendering import legend
-from nuparquet.rendering.clouds import category_names, frame_frame, lidar_cloud
+from nuparquet.rendering.pictures.clouds import category_names, frame_frame, lidar_cloud
 from nuparquet.rendering.decode import decode_image
 from nuparquet.rendering.overlay import DrawStyle, build_overlay, category_colors
 from nuparquet.rendering.palette import category_rgb
 from nuparquet.rendering.point_colors import (
     class_filter, intensity_levels, label_rgb, legend_classes, scalar_rgb,
 )
-from nuparquet.rendering.topview import PlaneView
+from nuparquet.rendering.pictures.topview import PlaneView
 
 TOP_VIEW_PX = 900  # the devkit's 9 x 9 inch figure at 100 dpi
 POINT_PX = {"lidar": 2, "radar": 6}  # the devkit's scatter sizes 0.2 and 3.0, at this picture size

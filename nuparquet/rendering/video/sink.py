@@ -12,9 +12,9 @@ import numpy as np
 
 from nuparquet.atomic import move_into_place, partial_path, remove_stale
 from nuparquet.rendering.decode import write_image
-from nuparquet.rendering.frame_index import INDEX_NAME, index_for_video, write_index
-from nuparquet.rendering.options import existing_frames
-from nuparquet.rendering.video import VideoWriter
+from nuparquet.rendering.video.frame_index import INDEX_NAME, index_for_video, write_index
+from nuparquet.rendering.video.options import existing_frames
+from nuparquet.rendering.video.video import VideoWriter
 
 
 class FrameSink:

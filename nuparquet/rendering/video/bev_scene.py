@@ -15,7 +15,7 @@ from nuparquet.frames.boxes import frame_boxes
 from nuparquet.frames.poses import sensor_poses
 from nuparquet.rendering.bev import BevTile, MapRaster, View, scene_extent
 from nuparquet.rendering.points import CloudReader
-from nuparquet.rendering.scene import SceneRows
+from nuparquet.rendering.video.scene import SceneRows
 
 
 def _map_layers(dataset, location: str | None):
