@@ -4,7 +4,7 @@
 
 The renderings are the one-scene renderer's own frames (`render`, --frames-dir: the default camera with its boxes
 and, when the dataset has a lidar, the reference lidar's points), `stills` of them kept, evenly spaced over the
-scene's keyframes; the plots are `rendering.charts.plot_can_speed` and `plot_steering`.
+scene's keyframes; the plots are `rendering.pictures.charts.plot_can_speed` and `plot_steering`.
 """
 
 from __future__ import annotations
