@@ -197,6 +197,7 @@ GROUPS: dict[str, Group] = {
          "tests/rendering/test_lidar_colors.py", "tests/rendering/test_predictions.py",
          "tests/rendering/test_pipeline.py", "tests/rendering/test_rigs.py", "tests/rendering/test_video.py",
          "tests/rendering/test_decode.py", "tests/rendering/test_legend.py", "tests/rendering/test_loop.py",
+         "tests/rendering/test_colorings.py",
          # ImageOptions.check (image_options.py is this group's) refuses a map picture without --map here
          "tests/rendering/test_single_cli.py::test_what_cannot_be_drawn_is_a_usage_error"),
         keyword="not extract", cache_conversions=True),
@@ -217,7 +218,7 @@ GROUPS: dict[str, Group] = {
         ("nuparquet/devkit/**/*.py",),
         ("tests/devkit/", "tests/parity/test_devkit_tables.py", "tests/parity/test_devkit_boxes.py",
          "tests/parity/test_devkit_utils.py", "tests/parity/test_devkit_printers.py",
-         "tests/parity/test_devkit_clients.py"),
+         "tests/parity/test_devkit_clients.py", "tests/rendering/test_colorings.py"),
         keyword="not extract", cache_conversions=True),
     "evaluation": Group(
         ("nuparquet/evaluation/*.py",),

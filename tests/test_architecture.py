@@ -155,6 +155,26 @@ def test_every_import_follows_an_arrow_of_the_architecture_table():
     assert wrong == [], "imports no arrow of docs/ARCHITECTURE.md allows"
 
 
+def test_the_rendering_rooms_import_only_the_drawing_they_share():
+    """rendering/video/ (the scene video) and rendering/pictures/ (one picture of one thing) import neither the
+    other, and the drawing both use (rendering/*.py) imports neither room."""
+    rooms = ("nuparquet.rendering.video", "nuparquet.rendering.pictures")
+
+    def room(module: str) -> str | None:
+        return next((r for r in rooms if module == r or module.startswith(r + ".")), None)
+
+    wrong = []
+    graph = _graph()
+    for name, imported in graph.items():
+        if not name.startswith("nuparquet.rendering"):
+            continue
+        for target in imported:
+            if target.startswith("nuparquet.rendering") and room(target) is not None and room(target) != room(name):
+                wrong.append(f"{name} -> {target}")
+    assert wrong == [], "imports across the rendering rooms"
+    assert any(room(m) == rooms[0] for m in graph) and any(room(m) == rooms[1] for m in graph)
+
+
 def test_outputs_are_renamed_into_place_only_by_the_atomic_module():
     """One convention for atomic outputs (nuparquet/atomic.py): no other module renames files itself, so none
     invents its own partial names that the stale-partial sweep would not know."""

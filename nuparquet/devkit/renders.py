@@ -15,9 +15,20 @@ from __future__ import annotations
 import numpy as np
 
 from nuparquet.devkit.errors import NotServed
+from nuparquet.errors import UsageError
 
 _WITH_DEVKIT = ("; with nuscenes-devkit installed, nuscenes.nuscenes.NuScenesExplorer(nusc).{name}(...) also "
                 "accepts this object")
+
+
+def _point_color(render_intensity: bool = False, show_lidarseg: bool = False, show_panoptic: bool = False) -> str:
+    """The devkit's three colouring flags as the one point colour of `rendering.point_colors` (lidarseg wins
+    over panoptic, as the devkit's `if show_lidarseg: ... elif show_panoptic` does; intensity with labels, which the
+    devkit asserts against, is refused)."""
+    if render_intensity and (show_lidarseg or show_panoptic):
+        raise UsageError("colour by intensity or by labels, not both")
+    return ("lidarseg" if show_lidarseg else "panoptic" if show_panoptic else
+            "intensity" if render_intensity else "depth")
 
 
 def _single():
@@ -62,9 +73,11 @@ class ExplorerRenders:
                            verbose: bool = True, show_panoptic: bool = False) -> np.ndarray:
         """A camera image with its boxes, or lidar / radar points from above."""
         image = _single().render_sample_data(
-            self._ds, sample_data_token, with_anns, box_vis_level, axes_limit, nsweeps, underlay_map,
-            use_flat_vehicle_coordinates, show_lidarseg, show_lidarseg_legend, filter_lidarseg_labels,
-            lidarseg_preds_bin_path, show_panoptic)
+            self._ds, sample_data_token, with_anns=with_anns, box_vis_level=box_vis_level, axes_limit=axes_limit,
+            nsweeps=nsweeps, underlay_map=underlay_map, use_flat_vehicle_coordinates=use_flat_vehicle_coordinates,
+            point_color=_point_color(show_lidarseg=show_lidarseg, show_panoptic=show_panoptic),
+            show_lidarseg_legend=show_lidarseg_legend, filter_lidarseg_labels=filter_lidarseg_labels,
+            lidarseg_preds_bin_path=lidarseg_preds_bin_path)
         return _place(image, out_path, ax) if verbose or out_path is not None or ax is not None else image
 
     def render_sample(self, token: str, box_vis_level="any", nsweeps: int = 1, out_path: str | None = None,
@@ -72,8 +85,10 @@ class ExplorerRenders:
                       lidarseg_preds_bin_path: str | None = None, verbose: bool = True,
                       show_panoptic: bool = False) -> np.ndarray:
         """Every sensor of a sample in one picture."""
-        image = _single().render_sample(self._ds, token, box_vis_level, nsweeps, show_lidarseg,
-                                        filter_lidarseg_labels, lidarseg_preds_bin_path, show_panoptic)
+        image = _single().render_sample(
+            self._ds, token, box_vis_level=box_vis_level, nsweeps=nsweeps,
+            point_color=_point_color(show_lidarseg=show_lidarseg, show_panoptic=show_panoptic),
+            filter_lidarseg_labels=filter_lidarseg_labels, lidarseg_preds_bin_path=lidarseg_preds_bin_path)
         return _place(image, out_path) if verbose or out_path is not None else image
 
     def render_pointcloud_in_image(self, sample_token: str, dot_size: int = 5, pointsensor_channel: str = "LIDAR_TOP",
@@ -84,8 +99,10 @@ class ExplorerRenders:
                                    show_panoptic: bool = False) -> np.ndarray:
         """A sample's lidar or radar points on one of its camera images."""
         image = _single().render_pointcloud_in_image(
-            self._ds, sample_token, dot_size, pointsensor_channel, camera_channel, render_intensity, show_lidarseg,
-            filter_lidarseg_labels, show_lidarseg_legend, lidarseg_preds_bin_path, show_panoptic)
+            self._ds, sample_token, dot_size=dot_size, pointsensor_channel=pointsensor_channel,
+            camera_channel=camera_channel, point_color=_point_color(render_intensity, show_lidarseg, show_panoptic),
+            filter_lidarseg_labels=filter_lidarseg_labels, show_lidarseg_legend=show_lidarseg_legend,
+            lidarseg_preds_bin_path=lidarseg_preds_bin_path)
         return _place(image, out_path, ax) if verbose or out_path is not None or ax is not None else image
 
     def render_annotation(self, anntoken: str, margin: float = 10, view: np.ndarray | None = None,

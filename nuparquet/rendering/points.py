@@ -19,10 +19,10 @@ import polars as pl
 
 from nuparquet.geometry import Cameras
 from nuparquet.errors import UsageError
+from nuparquet.rendering.colorings import LIDAR_COLORS
 from nuparquet.rendering.point_colors import intensity_levels, label_rgb
 from nuparquet.frames.poses import sensor_poses
 from nuparquet.frames.points_in_image import lidar_for_cameras, points_in_image
-from nuparquet.rendering.video.options import LIDAR_COLORS
 
 _LABEL_COLUMN = {"lidarseg": "lidarseg_label", "panoptic": "panoptic_label"}
 _POINT_COLUMNS = ["x", "y", "z", "intensity"]

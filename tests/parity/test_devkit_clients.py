@@ -280,9 +280,9 @@ def test_our_pointcloud_in_image_draws_the_lidarseg_predictions_it_is_given(lida
     points = (lidarseg_root / lidar["filename"]).stat().st_size // (5 * 4)
     predictions = tmp_path / "predictions.bin"
     np.ones(points, np.uint8).tofile(predictions)
-    expected = single.render_pointcloud_in_image(ds, sample["token"], show_lidarseg=True,
+    expected = single.render_pointcloud_in_image(ds, sample["token"], point_color="lidarseg",
                                                  lidarseg_preds_bin_path=str(predictions))
-    truth = single.render_pointcloud_in_image(ds, sample["token"], show_lidarseg=True)
+    truth = single.render_pointcloud_in_image(ds, sample["token"], point_color="lidarseg")
     assert not np.array_equal(expected, truth)
     for render in (ours.render_pointcloud_in_image, ours.explorer.render_pointcloud_in_image):
         drawn = render(sample["token"], show_lidarseg=True, lidarseg_preds_bin_path=str(predictions), verbose=False)
@@ -301,8 +301,8 @@ def test_our_render_sample_draws_only_the_lidarseg_classes_it_is_asked_for(lidar
     sample = ours.sample[1]
     labels = np.fromfile(lidarseg_root / ours.get("lidarseg", sample["data"]["LIDAR_TOP"])["filename"], np.uint8)
     kept = int(np.bincount(labels).argmax())
-    expected = single.render_sample(ds, sample["token"], show_lidarseg=True, filter_lidarseg_labels=[kept])
-    assert not np.array_equal(expected, single.render_sample(ds, sample["token"], show_lidarseg=True))
+    expected = single.render_sample(ds, sample["token"], point_color="lidarseg", filter_lidarseg_labels=[kept])
+    assert not np.array_equal(expected, single.render_sample(ds, sample["token"], point_color="lidarseg"))
     drawn = ours.render_sample(sample["token"], show_lidarseg=True, filter_lidarseg_labels=[kept], verbose=False)
     assert np.array_equal(drawn, expected)
 

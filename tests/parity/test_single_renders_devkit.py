@@ -189,7 +189,7 @@ def test_lidarseg_from_above_takes_the_class_colours_and_the_filter(nusc, ds, sa
     from nuscenes.lidarseg.lidarseg_utils import paint_points_label
 
     token = sample["data"]["LIDAR_TOP"]
-    picture = single.render_sample_data(ds, token, with_anns=False, underlay_map=False, show_lidarseg=True)
+    picture = single.render_sample_data(ds, token, with_anns=False, underlay_map=False, point_color="lidarseg")
     _, _, _ = _devkit_flat_view(nusc, token, 1)
     labels_file = os.path.join(nusc.dataroot, nusc.get("lidarseg", token)["filename"])
     colours = np.rint(paint_points_label(labels_file, None, nusc.lidarseg_name2idx_mapping, nusc.colormap)[:, :3]
@@ -201,7 +201,7 @@ def test_lidarseg_from_above_takes_the_class_colours_and_the_filter(nusc, ds, sa
     # filter_lidarseg_labels keeps the classes asked for, hides the others
     labels = np.fromfile(labels_file, dtype=np.uint8)
     kept_class = int(np.bincount(labels).argmax())
-    filtered = single.render_sample_data(ds, token, with_anns=False, underlay_map=False, show_lidarseg=True,
+    filtered = single.render_sample_data(ds, token, with_anns=False, underlay_map=False, point_color="lidarseg",
                                          filter_lidarseg_labels=[kept_class])
     hidden = lonely & (labels != kept_class)
     shown = lonely & (labels == kept_class)
@@ -241,7 +241,7 @@ def test_panoptic_from_above_takes_the_devkits_panoptic_colours(nusc, ds, sample
     from nuscenes.panoptic.panoptic_utils import paint_panop_points_label
 
     token = sample["data"]["LIDAR_TOP"]
-    picture = single.render_sample_data(ds, token, with_anns=False, underlay_map=False, show_panoptic=True)
+    picture = single.render_sample_data(ds, token, with_anns=False, underlay_map=False, point_color="panoptic")
     labels_file = os.path.join(nusc.dataroot, nusc.get("panoptic", token)["filename"])
     colours = np.rint(paint_panop_points_label(labels_file, None, nusc.lidarseg_name2idx_mapping, nusc.colormap)[:, :3]
                       * 255).astype(int)
@@ -333,7 +333,7 @@ def test_pointcloud_in_image_lidarseg_colours_and_filter(nusc, ds, sample):
     kept = int(np.bincount(np.fromfile(labels_file, np.uint8)).argmax())
     points, coloring, _ = nusc.explorer.map_pointcloud_to_image(lidar, camera, show_lidarseg=True,
                                                                filter_lidarseg_labels=[kept])
-    picture = single.render_pointcloud_in_image(ds, sample["token"], camera_channel="CAM_BACK", show_lidarseg=True,
+    picture = single.render_pointcloud_in_image(ds, sample["token"], camera_channel="CAM_BACK", point_color="lidarseg",
                                                 filter_lidarseg_labels=[kept])
     px = np.rint(points[:2].T).astype(int)
     shown = coloring[:, 3] == 1  # the devkit hides the other classes (alpha 0)
@@ -358,7 +358,7 @@ def test_sample_with_lidarseg_paints_each_camera_with_the_devkits_lidarseg_point
     kept = int(np.bincount(np.fromfile(labels_file, np.uint8)).argmax())
     points, coloring, _ = nusc.explorer.map_pointcloud_to_image(lidar, camera, show_lidarseg=True,
                                                                filter_lidarseg_labels=[kept])
-    picture = single.render_sample(ds, sample["token"], show_lidarseg=True, filter_lidarseg_labels=[kept], scale=1.0,
+    picture = single.render_sample(ds, sample["token"], point_color="lidarseg", filter_lidarseg_labels=[kept], scale=1.0,
                                    underlay_map=False)
     raw = cv2.imread(str(synth_root / nusc.get("sample_data", camera)["filename"]))[..., ::-1]
     height, width = raw.shape[:2]

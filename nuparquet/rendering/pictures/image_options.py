@@ -14,6 +14,7 @@ from typing import Literal
 
 from nuparquet.errors import UsageError
 from nuparquet.options import check_choices, option
+from nuparquet.rendering.colorings import LidarColor
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 MAP_PICTURES = ("map_patch", "map_record", "map_mask", "centerlines", "ego_poses", "next_roads")
@@ -85,7 +86,7 @@ class ImageOptions:
     scale: float | None = option(None, cli=False, help="camera pictures' size relative to the images (default: "
                                  "full size, as the devkit shows them; a sample's grid of every sensor: 0.35)")
     labels: Literal["category", "track", "none"] = option("none", cli=False, help="box labels")
-    lidar_color: Literal["depth", "intensity", "lidarseg", "panoptic"] = option(
+    lidar_color: LidarColor = option(
         "depth", cli=False, help="how lidar points are coloured")
     scenes: tuple[str, ...] = option((), cli=False, help="--ego-poses: these scenes (default: every scene there)")
 

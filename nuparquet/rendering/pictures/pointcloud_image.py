@@ -19,6 +19,8 @@ from nuparquet.frames.points_in_image import POINT_MIN_DEPTH_M, points_in_image
 from nuparquet.frames.poses import cameras_from_frames, sensor_poses
 from nuparquet.frames.sweeps import frame_cloud, keyframe_rows
 from nuparquet.rendering import draw, legend
+from nuparquet.rendering import colorings
+from nuparquet.rendering.colorings import PointColor
 from nuparquet.rendering.pictures.clouds import category_names, frame_frame, lidar_cloud
 from nuparquet.rendering.decode import decode_image
 from nuparquet.rendering.palette import category_rgb
@@ -31,16 +33,17 @@ def dot_px(dot_size: float, scale: float) -> int:
 
 
 def points_on_image(dataset, camera_rows, point_rows, root: Path, *, scale: float = 1.0, dot_size: float = 5,
-                    render_intensity: bool = False, label_mode: str | None = None,
-                    keep_classes: Sequence[int] | None = None, legend_on: bool = False, preds_path=None,
+                    point_color: PointColor = "depth", keep_classes: Sequence[int] | None = None, legend_on: bool = False, preds_path=None,
                     min_dist: float = POINT_MIN_DEPTH_M, radar_filters: bool = True) -> np.ndarray:
     """(H, W, 3) BGR: the point frame `point_rows` (one row) drawn on the camera frame `camera_rows` (one row)."""
     camera = camera_rows.row(0, named=True)
     sensor = point_rows.row(0, named=True)
+    label_mode = colorings.label_mode(point_color)
+    render_intensity = point_color == "intensity"
+    if point_color == "height":
+        raise UsageError("points on an image are coloured by depth, intensity or labels; height is a view from above's")
     if (render_intensity or label_mode) and sensor["modality"] != "lidar":
         raise UsageError(f"intensity and labels colour lidar points; {sensor['channel']} is a {sensor['modality']}")
-    if render_intensity and label_mode:
-        raise UsageError("colour by intensity or by labels, not both")
     if label_mode and not sensor["is_key_frame"]:
         raise UsageError(f"{label_mode} labels exist for lidar keyframes only")
     size = (max(2, round(camera["width"] * scale)), max(2, round(camera["height"] * scale)))
@@ -76,13 +79,13 @@ def points_on_image(dataset, camera_rows, point_rows, root: Path, *, scale: floa
 
 
 def render_pointcloud_in_image(dataset_or_path, sample_token: str, dot_size: float = 5,
-                               pointsensor_channel: str | None = None, camera_channel: str | None = None,
-                               render_intensity: bool = False, show_lidarseg: bool = False,
-                               filter_lidarseg_labels: Sequence[int] | None = None, show_lidarseg_legend: bool = False,
-                               lidarseg_preds_bin_path: str | Path | None = None, show_panoptic: bool = False, *,
+                               pointsensor_channel: str | None = None, camera_channel: str | None = None, *,
+                               point_color: PointColor = "depth", filter_lidarseg_labels: Sequence[int] | None = None,
+                               show_lidarseg_legend: bool = False, lidarseg_preds_bin_path: str | Path | None = None,
                                min_dist: float = POINT_MIN_DEPTH_M, scale: float = 1.0, radar_filters: bool = True) -> np.ndarray:
     """The sample's `pointsensor_channel` keyframe (default: the reference lidar) on its `camera_channel` keyframe
-    image (default: the default camera); the devkit's arguments, plus `scale` (the image's) and `radar_filters`. The
+    image (default: the default camera), its points coloured as `point_color` says; the devkit's other arguments, plus
+    `scale` (the image's) and `radar_filters`. The
     files are read through the dataset's sensor reader (its `dataroot`). See the module docstring."""
     dataset = as_dataset(dataset_or_path)
     root = dataset.sensors.root()
@@ -93,10 +96,9 @@ def render_pointcloud_in_image(dataset_or_path, sample_token: str, dot_size: flo
     camera_channel = camera_channel or default_camera(facts["cameras"], facts["camera_layout"])
     keyframes = keyframe_rows(dataset, sample_token, [pointsensor_channel, camera_channel])
     token_of = dict(zip(keyframes["channel"].to_list(), keyframes["token"].to_list()))
-    label_mode = "lidarseg" if show_lidarseg else "panoptic" if show_panoptic else None
     image = points_on_image(dataset, frame_frame(dataset, token_of[camera_channel]),
                             frame_frame(dataset, token_of[pointsensor_channel]), root, scale=scale, dot_size=dot_size,
-                            render_intensity=render_intensity, label_mode=label_mode,
+                            point_color=point_color,
                             keep_classes=filter_lidarseg_labels, legend_on=show_lidarseg_legend,
                             preds_path=lidarseg_preds_bin_path, min_dist=min_dist, radar_filters=radar_filters)
     return np.ascontiguousarray(image[..., ::-1])

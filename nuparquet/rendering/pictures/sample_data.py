@@ -28,6 +28,8 @@ from nuparquet.frames.boxes import frame_boxes
 from nuparquet.frames.poses import cameras_from_frames, sensor_poses
 from nuparquet.frames.sweeps import keyframe_rows, multisweep
 from nuparquet.rendering import legend
+from nuparquet.rendering import colorings
+from nuparquet.rendering.colorings import PointColor
 from nuparquet.rendering.pictures.clouds import category_names, frame_frame, lidar_cloud
 from nuparquet.rendering.decode import decode_image
 from nuparquet.rendering.overlay import DrawStyle, build_overlay, category_colors
@@ -40,7 +42,6 @@ from nuparquet.rendering.pictures.topview import PlaneView
 TOP_VIEW_PX = 900  # the devkit's 9 x 9 inch figure at 100 dpi
 POINT_PX = {"lidar": 2, "radar": 6}  # the devkit's scatter sizes 0.2 and 3.0, at this picture size
 RADAR_VELOCITY_SCALE, RADAR_VELOCITY_CLIP_M = 6.0, 20.0  # render_sample_data's "arbitrary scaling" and clipping
-COLORS = ("distance", "height", "intensity")
 
 
 def visibility_name(box_vis_level) -> str:
@@ -59,13 +60,13 @@ def to_rgb(image_bgr: np.ndarray) -> np.ndarray:
 
 def render_sample_data(dataset_or_path, sample_data_token: str, with_anns: bool = True, box_vis_level="any",
                        axes_limit: float = 40, nsweeps: int = 1, underlay_map: bool = True,
-                       use_flat_vehicle_coordinates: bool = True, show_lidarseg: bool = False,
+                       use_flat_vehicle_coordinates: bool = True, *, point_color: PointColor = "depth",
                        show_lidarseg_legend: bool = False, filter_lidarseg_labels: Sequence[int] | None = None,
-                       lidarseg_preds_bin_path: str | Path | None = None, show_panoptic: bool = False, *,
-                       color: str | None = None, radar_filters: bool = True, labels: str = "none",
+                       lidarseg_preds_bin_path: str | Path | None = None, radar_filters: bool = True, labels: str = "none",
                        scale: float = 1.0, size_px: int = TOP_VIEW_PX, truth_beside_preds: bool = False) -> np.ndarray:
     """The picture of sample_data `sample_data_token` (see the module docstring); the devkit's arguments, plus
-    `color` (lidar: "distance" (default), "height", "intensity"), `radar_filters` (False: every radar return, the
+    `point_color` (`point_colors.PointColor`: lidar or radar by "depth", the devkit's distance colouring (default), or
+    "height"; lidar by "intensity", "lidarseg" or "panoptic"), `radar_filters` (False: every radar return, the
     devkit's `disable_filters()`), `labels` (box labels in camera images: "none", "category", "track"), `scale`
     (camera images) and `size_px` (the top view's side). The sensor files are read through the dataset's sensor reader
     (converted points, else the files under its `dataroot`)."""
@@ -81,8 +82,8 @@ def render_sample_data(dataset_or_path, sample_data_token: str, with_anns: bool 
     if row["modality"] not in ("lidar", "radar"):
         raise UsageError(f"{row['channel']} is a {row['modality']} channel: no picture for it")
     options = dict(with_anns=with_anns, axes_limit=axes_limit, nsweeps=nsweeps, underlay_map=underlay_map,
-                   flat=use_flat_vehicle_coordinates, show_lidarseg=show_lidarseg, show_panoptic=show_panoptic,
-                   legend_on=show_lidarseg_legend, keep_classes=filter_lidarseg_labels, color=color,
+                   flat=use_flat_vehicle_coordinates, point_color=point_color,
+                   legend_on=show_lidarseg_legend, keep_classes=filter_lidarseg_labels,
                    radar_filters=radar_filters, size_px=size_px)
     image = top_view(dataset, [row], root, preds_path=lidarseg_preds_bin_path, **options)
     if truth_beside_preds and lidarseg_preds_bin_path is not None:
@@ -154,11 +155,12 @@ def flat_boxes(dataset, ref_rows: pl.DataFrame, *, flat: bool = True,
 
 
 def top_view(dataset, rows: Sequence[dict], root: Path, *, with_anns: bool, axes_limit: float, nsweeps: int,
-             underlay_map: bool, flat: bool, show_lidarseg: bool, show_panoptic: bool, legend_on: bool, keep_classes,
-             color: str | None, radar_filters: bool, size_px: int, preds_path, caption: str | None = None) -> np.ndarray:
+             underlay_map: bool, flat: bool, point_color: PointColor, legend_on: bool, keep_classes, radar_filters: bool, size_px: int, preds_path, caption: str | None = None) -> np.ndarray:
     """(size_px, size_px, 3) BGR: the view from above of the lidar or radar frames `rows` of one sample (several:
     the devkit's "Fused RADARs" of `render_sample`, each coloured on its own), as the module docstring says."""
-    label_mode = "lidarseg" if show_lidarseg else "panoptic" if show_panoptic else None
+    label_mode = colorings.label_mode(point_color)
+    if point_color == "intensity" and rows[0]["modality"] != "lidar":
+        raise UsageError(f"intensity colours lidar points; {rows[0]['channel']} is a {rows[0]['modality']}")
     first = rows[0]
     modality = first["modality"]
     if label_mode and modality != "lidar":
@@ -167,9 +169,6 @@ def top_view(dataset, rows: Sequence[dict], root: Path, *, with_anns: bool, axes
         raise UsageError(f"{label_mode} labels exist for lidar keyframes only: a keyframe and nsweeps=1")
     if underlay_map and not flat:
         raise UsageError("underlay_map needs use_flat_vehicle_coordinates (the map lies in the flat ego frame)")
-    color = color or "distance"
-    if color not in COLORS:
-        raise UsageError(f"color must be one of {', '.join(COLORS)}, got {color!r}")
     ref_rows = reference_keyframe(dataset, first["sample_token"])
     ref = ref_rows.row(0, named=True)
     view_from_ref, ego_xy, yaw = flat_pose(ref_rows) if flat else (np.eye(4), None, 0.0)
@@ -193,9 +192,9 @@ def top_view(dataset, rows: Sequence[dict], root: Path, *, with_anns: bool, axes
             shown = class_filter(labels, label_mode, keep_classes, len(names))
             colours = label_rgb(labels, label_mode, names)
             shown_labels.append(labels[shown])
-        elif color == "height":
+        elif point_color == "height":
             colours = scalar_rgb(xyz[:, 2])
-        elif color == "intensity" and modality == "lidar":
+        elif point_color == "intensity":
             colours = scalar_rgb(intensity_levels(points[:, 3]))
         else:  # the devkit's distance colouring, from the reference sensor, saturating at the view's corner
             distance = np.sqrt(np.sum(np.asarray(points[:, :2], np.float64) ** 2, axis=1))

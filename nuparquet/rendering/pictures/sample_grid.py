@@ -15,6 +15,8 @@ import polars as pl
 from nuparquet.dataset import as_dataset
 from nuparquet.errors import InputError, UsageError
 from nuparquet.rendering import draw
+from nuparquet.rendering import colorings
+from nuparquet.rendering.colorings import PointColor
 from nuparquet.rendering.pictures.clouds import frame_frame
 from nuparquet.rendering.mosaic import compose
 from nuparquet.rendering.pictures.pointcloud_image import points_on_image
@@ -30,12 +32,14 @@ def _square_in_tile(square: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     return tile
 
 
-def render_sample(dataset_or_path, token: str, box_vis_level="any", nsweeps: int = 1, show_lidarseg: bool = False,
-                  filter_lidarseg_labels: Sequence[int] | None = None, lidarseg_preds_bin_path=None,
-                  show_panoptic: bool = False, *, scale: float = 0.35, axes_limit: float = 40,
+def render_sample(dataset_or_path, token: str, box_vis_level="any", nsweeps: int = 1, *,
+                  point_color: PointColor = "depth", filter_lidarseg_labels: Sequence[int] | None = None,
+                  lidarseg_preds_bin_path=None, scale: float = 0.35, axes_limit: float = 40,
                   underlay_map: bool = True, radar_filters: bool = True) -> np.ndarray:
     """Sample `token`'s keyframes of every sensor in one picture (the module docstring); `scale` sizes the camera
-    tiles (the views from above are as high as they are)."""
+    tiles (the views from above are as high as they are); `point_color` "lidarseg" or "panoptic" colours the
+    reference lidar's view and its points on every camera by their labels (the devkit's `show_lidarseg`,
+    `show_panoptic`), "depth" (default) draws the cameras with their boxes."""
     dataset = as_dataset(dataset_or_path)
     root = dataset.sensors.root()
     visibility = visibility_name(box_vis_level)
@@ -48,10 +52,12 @@ def render_sample(dataset_or_path, token: str, box_vis_level="any", nsweeps: int
     cameras = keyframes.filter(pl.col("modality") == "camera")
     size = (max(2, round(int(cameras["width"].max()) * scale)), max(2, round(int(cameras["height"].max()) * scale))) \
         if cameras.height else (round(900 * scale), round(900 * scale))
-    label_mode = "lidarseg" if show_lidarseg else "panoptic" if show_panoptic else None
+    label_mode = colorings.label_mode(point_color)
+    if point_color not in ("depth", *colorings.LABEL_COLORS):
+        raise UsageError(f"a sample's picture colours points by depth, lidarseg or panoptic, not {point_color}")
     reference = dataset.channels.get("reference_lidar")
     views = dict(with_anns=True, axes_limit=axes_limit, nsweeps=nsweeps, underlay_map=underlay_map, flat=True,
-                 show_panoptic=False, legend_on=False, keep_classes=filter_lidarseg_labels, color=None,
+                 point_color="depth", legend_on=False, keep_classes=filter_lidarseg_labels,
                  radar_filters=radar_filters, size_px=size[1])
     top_tiles = []
     for modality in ("lidar", "radar"):
@@ -59,12 +65,12 @@ def render_sample(dataset_or_path, token: str, box_vis_level="any", nsweeps: int
         if modality == "lidar":
             for row in rows:
                 labelled = label_mode is not None and row["channel"] == reference
-                top_tiles.append(top_view(dataset, [row], root, show_lidarseg=labelled and label_mode == "lidarseg",
+                top_tiles.append(top_view(dataset, [row], root,
                                           preds_path=lidarseg_preds_bin_path if labelled else None,
-                                          **(views | {"show_panoptic": labelled and label_mode == "panoptic",
+                                          **(views | {"point_color": point_color if labelled else "depth",
                                                       "nsweeps": 1 if labelled else nsweeps})))
         elif rows:
-            top_tiles.append(top_view(dataset, rows, root, show_lidarseg=False, preds_path=None, **views))
+            top_tiles.append(top_view(dataset, rows, root, preds_path=None, **views))
     layout: list[list[np.ndarray]] = [[_square_in_tile(t, size) for t in top_tiles]] if top_tiles else []
     for channels in dataset.channels.get("camera_layout", []):
         row_tiles = []
@@ -76,7 +82,7 @@ def render_sample(dataset_or_path, token: str, box_vis_level="any", nsweeps: int
             try:
                 if label_mode and reference in by_channel:
                     tile = points_on_image(dataset, camera_rows, frame_frame(dataset, by_channel[reference]["token"]),
-                                           root, scale=scale, label_mode=label_mode,
+                                           root, scale=scale, point_color=point_color,
                                            keep_classes=filter_lidarseg_labels, preds_path=lidarseg_preds_bin_path)
                 else:
                     tile = camera_image(dataset, camera_rows, root, visibility=visibility, scale=scale)

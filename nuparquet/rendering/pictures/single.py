@@ -5,7 +5,7 @@
 from nuparquet.rendering.pictures import single
 ds = nuparquet.open("OUT")
 image = single.render_sample_data(ds, token, nsweeps=5)          # camera with boxes, or lidar / radar from above
-image = single.render_pointcloud_in_image(ds, sample_token, show_lidarseg=True, show_lidarseg_legend=True)
+image = single.render_pointcloud_in_image(ds, sample_token, point_color="lidarseg", show_lidarseg_legend=True)
 image = single.render_annotation(ds, annotation_token)           # lidar view beside the camera that sees it
 image = single.render_instance(ds, instance_token)
 image = single.render_sample(ds, sample_token)                   # every sensor in one picture
@@ -70,9 +70,8 @@ def render_image(dataset, options: ImageOptions | None = None, **fields) -> np.n
     dataset = as_dataset(dataset)
     labels, lidar_color, scenes = options.labels, options.lidar_color, options.scenes
     sized = {} if options.scale is None else {"scale": options.scale}  # else each picture's own default (full size)
-    show_lidarseg, show_panoptic = lidar_color == "lidarseg", lidar_color == "panoptic"
-    labelled = dict(show_lidarseg=show_lidarseg, show_panoptic=show_panoptic,
-                    filter_lidarseg_labels=options.class_indices(), lidarseg_preds_bin_path=options.lidarseg_preds)
+    labelled = dict(point_color=lidar_color, filter_lidarseg_labels=options.class_indices(),
+                    lidarseg_preds_bin_path=options.lidarseg_preds)
     if options.map is not None:
         return _map_picture(dataset, options, scenes)
     if options.sample is not None:
@@ -82,12 +81,11 @@ def render_image(dataset, options: ImageOptions | None = None, **fields) -> np.n
         if options.pointcloud_in_image:
             return render_pointcloud_in_image(dataset, options.sample, pointsensor_channel=options.pointsensor_channel,
                                               camera_channel=options.camera_channel,
-                                              render_intensity=lidar_color == "intensity",
                                               show_lidarseg_legend=options.lidarseg_legend, **sized,
                                               **labelled)
         return render_sample(dataset, options.sample, options.box_vis_level, options.nsweeps, **sized,
                              axes_limit=options.axes_limit, underlay_map=options.underlay_map,
-                             **labelled)
+                             **(labelled | {"point_color": "depth" if lidar_color == "intensity" else lidar_color}))
     if options.sample_data is not None and dataset.source_format == "nuimages":  # an image with boxes and masks
         from nuparquet.rendering.pictures.nuimages import render_nuimage
 
@@ -97,7 +95,7 @@ def render_image(dataset, options: ImageOptions | None = None, **fields) -> np.n
         return render_sample_data(dataset, options.sample_data, box_vis_level=options.box_vis_level,
                                   axes_limit=options.axes_limit, nsweeps=options.nsweeps,
                                   underlay_map=options.underlay_map, show_lidarseg_legend=options.lidarseg_legend,
-                                  color="intensity" if lidar_color == "intensity" else None, labels=labels,
+                                  labels=labels,
                                   **sized, truth_beside_preds=True, **labelled)
     common = dict(box_vis_level=options.box_vis_level, extra_info=options.extra_info, labels=labels, **sized)
     if options.annotation is not None:

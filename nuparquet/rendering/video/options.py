@@ -14,13 +14,13 @@ from typing import Literal
 from nuparquet.channels import DEFAULT_CAMERA, DEFAULT_REFERENCE_LIDAR
 from nuparquet.errors import UsageError
 from nuparquet.options import check_choices, option
+from nuparquet.rendering.colorings import LidarColor
 
 ALL_CHANNELS = "all"
 BEV_CHANNEL = "bev"  # the bird's-eye view (map, lidar points, boxes, ego), a channel of its own
 LABEL_MODES = ("category", "track", "none")
 FRAME_FORMATS = ("jpg", "png")
 ON_MISSING = ("skip", "error")
-LIDAR_COLORS = ("depth", "intensity", "lidarseg", "panoptic")
 KEYFRAME_FPS = 2.0  # nuScenes keyframes are 2 Hz
 ALL_FRAMES_FPS = 12.0  # cameras run at ~12 Hz
 DEFAULT_CRF = 23  # x264 quality: visually clean at a modest size
@@ -61,7 +61,7 @@ class RenderOptions:
     lidar: bool = option(
         False, help=f"draw the keyframe points of the reference lidar ({DEFAULT_REFERENCE_LIDAR} when the dataset has it, "
         "else its first lidar), coloured by depth, into keyframe images")
-    lidar_color: Literal["depth", "intensity", "lidarseg", "panoptic"] = option(
+    lidar_color: LidarColor = option(
         "depth", help="colour the --lidar points by depth (default), intensity, lidarseg class or panoptic "
         "instance (labels need `convert --sensors lidar` of a dataset with lidarseg/panoptic files). Points come "
         "from lidar_points/ when converted, else from the .pcd.bin files; a colour other than depth implies --lidar. "
