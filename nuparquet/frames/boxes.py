@@ -78,17 +78,23 @@ class FrameBoxes(FramedCuboids):
 
     def to_polars(self) -> pl.DataFrame:
         """The columns of `boxes_for_frames`."""
-        return pl.DataFrame([
-            pl.Series("frame_index", self.frame_index, dtype=pl.UInt32),
-            pl.Series("frame_token", self.frame_token, dtype=pl.String),
-            pl.Series("annotation_token", self.annotation_token, dtype=pl.String),
-            pl.Series("instance_token", self.instance_token, dtype=pl.String),
-            pl.Series("category_name", self.category_name, dtype=pl.String),
-            columns.to_series("translation", self.translation_m),
-            columns.to_series("size", self.size_wlh_m),
-            columns.to_series("rotation", self.rotation_wxyz),
-            pl.Series("interpolated", self.interpolated, dtype=pl.Boolean),
-        ])
+        return pl.DataFrame(box_series(self, pl.UInt32))
+
+
+def box_series(boxes, frame_index_dtype) -> list[pl.Series]:
+    """The columns of `boxes_for_frames` from boxes with its fields (`FrameBoxes`, `ProjectedBoxes`): frame_index
+    (as `frame_index_dtype`), the tokens and category, translation, size, rotation, interpolated."""
+    return [
+        pl.Series("frame_index", boxes.frame_index, dtype=frame_index_dtype),
+        pl.Series("frame_token", boxes.frame_token, dtype=pl.String),
+        pl.Series("annotation_token", boxes.annotation_token, dtype=pl.String),
+        pl.Series("instance_token", boxes.instance_token, dtype=pl.String),
+        pl.Series("category_name", boxes.category_name, dtype=pl.String),
+        columns.to_series("translation", boxes.translation_m),
+        columns.to_series("size", boxes.size_wlh_m),
+        columns.to_series("rotation", boxes.rotation_wxyz),
+        pl.Series("interpolated", boxes.interpolated, dtype=pl.Boolean),
+    ]
 
 
 def boxes_for_frames(

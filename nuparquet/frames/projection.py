@@ -21,8 +21,7 @@ from typing import Literal
 import numpy as np
 import polars as pl
 
-from nuparquet import columns
-from nuparquet.frames.boxes import FRAME_COLUMNS, FramedCuboids, frame_boxes, lazy_with
+from nuparquet.frames.boxes import FRAME_COLUMNS, FramedCuboids, box_series, frame_boxes, lazy_with
 from nuparquet.frames.poses import CAMERA_COLUMNS, cameras_from_frames, pose_columns
 from nuparquet.geometry import Cameras, box_half_axes, corners_from_half_axes
 from nuparquet.geometry.box_projection import project_pairs
@@ -141,15 +140,7 @@ class ProjectedBoxes(CuboidRows):
         as `boxes_for_frames` names them (translation, size, rotation: global)."""
         return pl.DataFrame(
             [
-                pl.Series("frame_index", self.frame_index, dtype=pl.Int64),
-                pl.Series("frame_token", self.frame_token, dtype=pl.String),
-                pl.Series("annotation_token", self.annotation_token, dtype=pl.String),
-                pl.Series("instance_token", self.instance_token, dtype=pl.String),
-                pl.Series("category_name", self.category_name, dtype=pl.String),
-                columns.to_series("translation", self.translation_m),
-                columns.to_series("size", self.size_wlh_m),
-                columns.to_series("rotation", self.rotation_wxyz),
-                pl.Series("interpolated", self.interpolated, dtype=pl.Boolean),
+                *box_series(self, pl.Int64),
                 pl.Series("corners_camera_m", self.corners_camera_m, dtype=pl.Array(pl.Float64, (8, 3))),
                 pl.Series("corners_px", self.corners_px, dtype=pl.Array(pl.Float64, (8, 2))),
                 pl.Series("depths", self.depths, dtype=pl.Array(pl.Float64, 8)),
