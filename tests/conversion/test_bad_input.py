@@ -14,6 +14,7 @@ import pytest
 
 from conftest import SYNTH_VERSION
 from nuparquet.cli.main import main
+from nuparquet.problems import MAX_REPORTED
 
 V = SYNTH_VERSION
 
@@ -645,3 +646,64 @@ def test_a_missing_version_folder_lists_the_folders_holding_tables(tmp_path):
     with pytest.raises(UsageError) as error:
         version_dir(tmp_path / "maps", "v1.0-trainval")
     assert str(error.value) == f"version folder {tmp_path / 'maps' / 'v1.0-trainval'} does not exist"
+
+
+@pytest.mark.parametrize("table,field,expected", [
+    ("sample_annotation", "translation", "must have 3 numbers"),
+    ("sample_annotation", "size", "must have 3 numbers"),
+    ("sample_annotation", "rotation", "must have 4 numbers"),
+    ("ego_pose", "translation", "must have 3 numbers"),
+    ("calibrated_sensor", "rotation", "must have 4 numbers"),
+])
+def test_an_empty_list_in_a_fixed_size_field_is_refused_by_validate_and_convert(root, tmp_path, capsys, table,
+                                                                                 field, expected):
+    """`[]` is a list of the right kind with no numbers: only a field declared so (`camera_intrinsic`, a lidar's or
+    radar's) may be empty; in translation, size or rotation it is refused naming the record and the field, by the
+    validator and by the converter's compiled scanner alike."""
+    records = load(root, table)
+    index = 2
+    records[index][field] = []
+    save(root, table, records)
+    named = f"{table}.json[{index}] token={records[index]['token']}: field '{field}' {expected}"
+    code, message = validate(root, capsys)
+    assert code == 1 and named in message
+    code, message = convert(root, tmp_path, capsys)
+    assert code == 1 and named in message
+
+
+def test_an_empty_camera_intrinsic_is_a_non_camera_sensors_and_converts(root, tmp_path, capsys):
+    """The one fixed-size field declared as possibly empty: a lidar's `camera_intrinsic` `[]` (as nuScenes writes
+    it) validates and converts, stored as null in the Array(Float64, 9) column (export-json writes `[]` back)."""
+    records = load(root, "calibrated_sensor")
+    sensors = {s["token"]: s for s in load(root, "sensor")}
+    lidar = next(i for i, r in enumerate(records) if sensors[r["sensor_token"]]["modality"] == "lidar")
+    assert records[lidar]["camera_intrinsic"] == []  # the generator writes nuScenes' own []
+    assert validate(root, capsys)[0] == 0
+    code, _ = convert(root, tmp_path, capsys)
+    assert code == 0
+    table = pl.read_parquet(tmp_path / "out" / "tables" / "calibrated_sensor")
+    assert table.schema["camera_intrinsic"] == pl.Array(pl.Float64, 9)
+    assert table.filter(pl.col("token") == records[lidar]["token"])["camera_intrinsic"].to_list() == [None]
+
+
+@pytest.mark.parametrize("dangling", [MAX_REPORTED, MAX_REPORTED + 1])
+def test_allow_dangling_lists_exactly_the_bound_of_one_field_without_a_summary(root, dangling):
+    """`validate(allow_dangling=True)` with exactly the warning bound of dangling references in one field lists
+    every one and adds no "0 more like the above"; one more lists the bound and a summary of 1."""
+    import nuparquet
+
+    records = load(root, "sample_data")
+    assert len(records) > dangling
+    for r in records[:dangling]:
+        r["calibrated_sensor_token"] = "0" * 32
+    save(root, "sample_data", records)
+    found = nuparquet.validate(root, V, allow_dangling=True)
+    assert found.ok
+    listed = [w for w in found.warnings if w.file == "sample_data.json" and not w.omitted]
+    summaries = [w for w in found.warnings if w.omitted]
+    assert [w.index for w in listed] == list(range(MAX_REPORTED))
+    assert all("calibrated_sensor_token '" + "0" * 32 + "' does not resolve" in w.message for w in listed)
+    if dangling == MAX_REPORTED:
+        assert summaries == [] and not any("more like the above" in w.message for w in found.warnings)
+    else:
+        assert [(w.message, w.omitted) for w in summaries] == [("1 more like the above", 1)]

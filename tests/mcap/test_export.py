@@ -520,3 +520,41 @@ def test_an_unreadable_point_file_stops_the_export_with_the_reason(synth_out, sy
         export_mcap(ds, SCENE, tmp_path / "b.mcap", options)
     assert str(raised.value).startswith(f"sensor file {dataroot / frames[0]}: 22 bytes is not a whole number of "
                                         "5-float32 points")
+
+
+def _documented_rank(topic: str) -> tuple:
+    """The stream order `mcap.export` documents for messages of equal log time: the map, /tf, each sensor channel
+    by name (a camera's camera_info before its image), the boxes, the CAN bus messages by name."""
+    if topic == "/map":
+        return (0,)
+    if topic == "/tf":
+        return (1,)
+    if topic == "/markers/annotations":
+        return (3,)
+    if topic.startswith("/can_bus/"):
+        return (4, topic)
+    channel, _, kind = topic[1:].partition("/")
+    return (2, channel, {"": 0, "camera_info": 0, "image_rect_compressed": 1}[kind])
+
+
+def test_messages_of_equal_log_time_keep_the_documented_stream_order(exported):
+    """A frame's /tf comes before its camera_info and its image, a camera's calibration before its image, and every
+    group of messages sharing a log time is in the documented stream order (a sort by time alone would leave the
+    ties to the merge's whims)."""
+    from mcap.reader import NonSeekingReader
+
+    result, _, _ = exported
+    with open(result.out, "rb") as f:
+        records = [(message.log_time, channel.topic) for _, channel, message
+                   in NonSeekingReader(f, validate_crcs=True).iter_messages()]
+    by_time = defaultdict(list)
+    for time_ns, topic in records:
+        by_time[time_ns].append(topic)
+    ties = {t: topics for t, topics in by_time.items() if len(set(topics)) > 1}
+    assert len(ties) > 10  # the scene has frames whose /tf, calibration and image share a time
+    for time_ns, topics in ties.items():
+        ranks = [_documented_rank(topic) for topic in topics]
+        assert ranks == sorted(ranks), (time_ns, topics)
+    camera_ties = [topics for topics in ties.values() if any(t.endswith("/image_rect_compressed") for t in topics)]
+    assert camera_ties and all(topics.index("/tf") < min(i for i, t in enumerate(topics) if t.endswith("/camera_info"))
+                               for topics in camera_ties if "/tf" in topics)

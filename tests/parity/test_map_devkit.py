@@ -275,3 +275,20 @@ def test_arcline_helpers_equal_arcline_path_utils(maps):
                 assert curvature == devkit.get_curvature_at_distance_along_lane(distance, lane)
                 curved += curvature > 0
     assert curved > 5  # arcs as well as straight segments
+
+
+@pytest.mark.parametrize(("distance_m", "expected"), [(1.0, 0.2), (4.0, 0.2), (4.5, 0.0), (1.5, 0.0), (2.5, 0.2), (0.0, 0.2)])
+def test_curvature_exactly_at_a_paths_or_segments_end_belongs_to_it_like_the_devkit(distance_m, expected):
+    """arcline_path_utils' `_find_index` takes the first cumulative end >= the distance (`<=`): a distance exactly
+    at path 0's end (4.0) or at its first segment's end (1.0) is path 0's last / first segment, an arc (1 / 5),
+    where a strict `<` would take the straight that follows."""
+    from nuscenes.map_expansion import arcline_path_utils as devkit
+
+    from nuparquet.map import arcline
+
+    lane = [{"start_pose": [0.0, 0.0, 0.0], "end_pose": [4.0, 0.0, 0.0], "shape": "LSL", "radius": 5.0,
+             "segment_length": [1.0, 1.0, 2.0]},
+            {"start_pose": [4.0, 0.0, 0.0], "end_pose": [8.0, 0.0, 0.0], "shape": "SSS", "radius": 10.0,
+             "segment_length": [2.0, 1.0, 1.0]}]
+    assert devkit.get_curvature_at_distance_along_lane(distance_m, lane) == expected
+    assert arcline.curvature_at_distance(distance_m, lane) == expected

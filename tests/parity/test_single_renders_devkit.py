@@ -801,3 +801,33 @@ def test_clipping_behind_the_camera_is_the_devkits(nusc):
     behind = np.array([[0.0, 1.0, 1.0], [0.0, 0.0, 1.0], [-1.0, -2.0, -0.5]])
     assert NuScenesMapExplorer._clip_points_behind_camera(behind, NEAR_PLANE_M).size == 0
     assert clip_behind_camera(behind).shape == (3, 0)
+
+
+def test_lidar_points_beyond_axes_limit_are_coloured_by_distance_over_limit_root_two_like_the_devkit(nusc, ds, sample):
+    """render_sample_data colours lidar points by `min(1, dists / axes_limit / sqrt(2))` (then scatter's min-max
+    scaling through viridis): a point between axes_limit and axes_limit * sqrt(2) from the sensor (the view's
+    corners) takes its own colour, not the saturated end of the map. Checked at isolated points of that band, in
+    a view narrow enough to hold many of them."""
+    from scipy.spatial import cKDTree
+
+    from nuparquet.rendering.point_colors import scalar_rgb
+    from nuscenes.utils.data_classes import LidarPointCloud
+
+    limit = 12.0
+    token = sample["data"]["LIDAR_TOP"]
+    picture = single.render_sample_data(ds, token, with_anns=False, underlay_map=False, axes_limit=limit)
+    points_xy, _, _ = _devkit_flat_view(nusc, token, 1)
+    pc = LidarPointCloud.from_file(str(nusc.get_sample_data_path(token)))
+    dists = np.sqrt(np.sum(pc.points[:2, :] ** 2, axis=0))
+    expected = scalar_rgb(np.minimum(1, dists / limit / np.sqrt(2)))  # scatter(c=colors): min-max over the cloud
+    s = SIZE / (2 * limit)
+    px = np.c_[(points_xy[:, 0] + limit) * s - 0.5, (limit - points_xy[:, 1]) * s - 0.5]
+    neighbours = cKDTree(px).query(px, k=2)[0][:, 1]
+    band = (dists > limit * 1.02) & (dists < limit * np.sqrt(2) * 0.98)
+    keep = band & (neighbours > 4) & _inside(px, picture.shape, 4) & _away_from_corners(px, picture.shape)
+    assert keep.sum() > 20
+    u, v = np.rint(px[keep]).astype(int).T
+    drawn = picture[v, u].astype(int)
+    assert len(np.unique(expected[keep], axis=0)) > 5  # many colours in the band: not one saturated end
+    close = np.abs(drawn - expected[keep].astype(int)).max(axis=1) <= 2
+    assert close.mean() > 0.9
