@@ -152,3 +152,38 @@ def test_interpolation_is_the_devkits_box_for_box():
             assert ours.score[row] == box.tracking_score
             assert ours.class_index[row] == classes[box.tracking_name]
             assert track_ids.setdefault(int(ours.track[row]), box.tracking_id) == box.tracking_id
+
+
+def test_a_tracks_first_box_is_its_earliest_in_time_then_in_sample_order():
+    """The tracks tables name each track by its first box (scene, class, tracking_id): the box of the smallest
+    position, ties by the order in the sample, whatever the rows' order (a class that changes along a track
+    shows its first class)."""
+    from types import SimpleNamespace
+
+    from nuparquet.evaluation.tracking.tables import _first_box_per_track
+
+    tracks = SimpleNamespace(track=np.array([1, 0, 1, 0, 2, 1]), position=np.array([2, 1, 0, 3, 5, 0]),
+                             order=np.array([0, 0, 1, 0, 0, 0]))
+    # track 0: rows 1 (position 1), 3 (3) -> row 1; track 1: rows 0 (2), 2 (0, order 1), 5 (0, order 0) -> row 5
+    assert _first_box_per_track(tracks, 4).tolist() == [1, 5, 4, -1]  # track 3 has no box: -1
+    empty = SimpleNamespace(track=np.zeros(0, np.int64), position=np.zeros(0, np.int64), order=np.zeros(0, np.int64))
+    assert _first_box_per_track(empty, 0).tolist() == []
+
+
+def test_each_kept_prediction_names_the_ground_truth_it_matched_and_minus_one_otherwise():
+    """`slicing.matched_ground_truth`: with every prediction kept, a prediction matched to a real (not interpolated)
+    ground-truth box gets that box's kept row; unmatched ones, and matches of interpolated boxes, get -1."""
+    from types import SimpleNamespace
+
+    from nuparquet.evaluation.tracking.slicing import matched_ground_truth
+
+    inputs = SimpleNamespace(pred_kept=np.arange(4))
+    gt_tracks = SimpleNamespace(source=np.array([0, 1, -1]))  # row 2 is an interpolated box
+    pred_tracks = SimpleNamespace(source=np.array([3, 0, 2, -1]))
+    car = SimpleNamespace(every=SimpleNamespace(matched_pred=np.array([[1, -1, 3]])), gt_rows=np.array([0, 1, 2]),
+                          pred_rows=np.array([0, 1, 2, 3]))
+    unevaluated = SimpleNamespace(every=None, gt_rows=np.zeros(0, np.int64), pred_rows=np.zeros(0, np.int64))
+    evaluation = SimpleNamespace(classes={"car": car, "bus": unevaluated})
+    out = matched_ground_truth(inputs, evaluation, gt_tracks, pred_tracks)
+    # gt row 0 matched pred row 1 (source 0); gt row 2 (interpolated) matched pred row 3: no slice of its own
+    assert out.dtype == np.int64 and out.tolist() == [0, -1, -1, -1]
