@@ -245,7 +245,8 @@ GROUPS: dict[str, Group] = {
     # --- this stage (issues 36-41) ---------------------------------------------------------------------------------
     "sensors": Group(  # the one sensor reader: converted points or files, local or remote
         ("nuparquet/sensors/*.py",),
-        ("tests/dataset/test_object_store.py", "tests/parity/test_sweeps_devkit.py", "tests/rendering/test_lidar_colors.py",
+        ("tests/dataset/test_object_store.py", "tests/dataset/test_sensor_reader.py", "tests/parity/test_sweeps_devkit.py",
+         "tests/rendering/test_lidar_colors.py",
          "tests/mcap/test_export.py::test_an_unreadable_point_file_stops_the_export_with_the_reason"),
         keyword="not extract"),
     "nuimages": Group(

@@ -128,16 +128,17 @@ class SensorReader:
         else:
             records = np.array(read_radar_pcd(path))  # a copy: the file's buffer is read-only
             frame = pl.DataFrame({name: records[name] for name in records.dtype.names})
-        return frame.select([c for c in columns if c in frame.columns])
+        return frame if columns is None else frame.select([c for c in columns if c in frame.columns])
 
-    def sensor_fields(self, modality: str) -> list[str]:
+    def sensor_fields(self, modality: str) -> list[str] | None:
         """The sensor fields of a frame of `modality` as the converted dataset stores them (lidar: x, y, z,
-        intensity, ring and the labels; radar: the PCD fields), or the file's (lidar) when not converted."""
+        intensity, ring and the labels; radar: the PCD fields), or, when not converted, the lidar file's; None for
+        a radar not converted (every field its PCD file holds)."""
         from nuparquet.frames.points import FRAME_COLUMNS
 
         converted = [c for c in self.converted_columns(modality)
                      if c not in FRAME_COLUMNS and c != "passes_default_filters"]
-        return converted or list(LIDAR_FIELDS)
+        return converted or (list(LIDAR_FIELDS) if modality == "lidar" else None)
 
     def lidar(self, token: str, filename: str, *, labels: str | None = None) -> tuple[np.ndarray, np.ndarray | None]:
         """(P, 4) float32 x, y, z, intensity of a lidar frame as the devkit's `LidarPointCloud.from_file` loads them

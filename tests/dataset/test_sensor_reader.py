@@ -1,0 +1,100 @@
+"""The one sensor reader (`ds.sensors`, `nuparquet.sensors.reader`) on an output converted without its points:
+every frame read from its file under the dataroot, compared with the file read another way (numpy for the lidar's
+float32 rows, the devkit's `RadarPointCloud.from_file` for the radar's PCD), the label files as the devkit reads
+them, and the one rule for filenames that leave the dataroot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import polars as pl
+import pytest
+
+import nuparquet
+from nuparquet.errors import InputError, UsageError
+from nuparquet.sensors.reader import inside
+
+
+@pytest.fixture(scope="module")
+def ds(lidarseg_out, lidarseg_root):
+    return nuparquet.open(lidarseg_out, dataroot=lidarseg_root)
+
+
+def _frame(ds, modality: str, key_frame: bool = True) -> dict:
+    return (ds.scan("frames").filter((pl.col("modality") == modality) & (pl.col("is_key_frame") == key_frame))
+            .sort("token").first().collect().row(0, named=True))
+
+
+@pytest.mark.parametrize("filename, expected", [
+    ("samples/LIDAR_TOP/a.pcd.bin", "samples/LIDAR_TOP/a.pcd.bin"), ("samples/../../x.bin", None),
+    ("../x.bin", None), ("/etc/passwd", None), ("samples/..x/y.bin", "samples/..x/y.bin")])
+def test_a_filename_leaving_the_dataroot_is_refused_and_only_that(tmp_path, ds, filename, expected):
+    assert inside(tmp_path, filename) == (None if expected is None else tmp_path / expected)
+    if expected is None:
+        with pytest.raises(InputError, match=f"^{filename}: outside the dataroot, refused$"):
+            ds.sensors.path(filename)
+    else:
+        assert ds.sensors.path(filename) == Path(ds.dataroot) / expected
+
+
+def test_lidar_points_come_from_the_file_with_every_field(ds):
+    row = _frame(ds, "lidar")
+    assert ds.sensors.converted_columns("lidar") == []  # not converted: the file is the source
+    assert ds.sensors.sensor_fields("lidar") == ["x", "y", "z", "intensity", "ring"]
+    frame = ds.sensors.points(row["token"], row["filename"], "lidar")
+    raw = np.fromfile(Path(ds.dataroot) / row["filename"], dtype=np.float32).reshape(-1, 5)
+    assert frame.columns == ["x", "y", "z", "intensity", "ring"] and frame.height == len(raw) > 100
+    np.testing.assert_array_equal(frame.to_numpy(), raw)
+    assert ds.sensors.points(row["token"], row["filename"], "lidar", ["z", "x", "lidarseg_label"]).columns == ["z", "x"]
+
+
+def test_radar_points_are_the_pcd_fields_the_devkit_reads_unfiltered(ds):
+    from nuscenes.utils.data_classes import RadarPointCloud
+
+    row = _frame(ds, "radar")
+    frame = ds.sensors.points(row["token"], row["filename"], "radar")
+    RadarPointCloud.disable_filters()
+    try:
+        pc = RadarPointCloud.from_file(str(Path(ds.dataroot) / row["filename"]))
+    finally:
+        RadarPointCloud.default_filters()
+    assert frame.columns[:3] == ["x", "y", "z"] and len(frame.columns) == pc.points.shape[0]
+    assert frame.height == pc.points.shape[1] > 0
+    np.testing.assert_array_equal(frame.to_numpy().astype(np.float32).T, pc.points.astype(np.float32))
+
+
+def test_lidar_with_labels_reads_the_label_file_the_table_names(ds):
+    row = _frame(ds, "lidar")
+    points, labels = ds.sensors.lidar(row["token"], row["filename"], labels="lidarseg")
+    raw = np.fromfile(Path(ds.dataroot) / row["filename"], dtype=np.float32).reshape(-1, 5)
+    np.testing.assert_array_equal(points, raw[:, :4])
+    name = ds.scan("tables/lidarseg").filter(pl.col("sample_data_token") == row["token"]).collect()["filename"][0]
+    expected = np.fromfile(Path(ds.dataroot) / name, dtype=np.uint8).astype(np.int64)
+    assert labels.dtype == np.int64 and len(labels) == len(points)
+    np.testing.assert_array_equal(labels, expected)
+    np.testing.assert_array_equal(ds.sensors.label_file(row["token"], "lidarseg"), expected)
+
+
+def test_panoptic_labels_are_the_npz_data_array_as_the_devkit_loads_it(ds):
+    from nuscenes.utils.data_io import load_bin_file
+
+    row = _frame(ds, "lidar")
+    name = ds.scan("tables/panoptic").filter(pl.col("sample_data_token") == row["token"]).collect()["filename"][0]
+    expected = load_bin_file(str(Path(ds.dataroot) / name), type="panoptic").astype(np.int64)
+    assert (expected // 1000 > 0).any() and (expected % 1000 > 0).any()  # classes and instances, not all zero
+    np.testing.assert_array_equal(ds.sensors.label_file(row["token"], "panoptic"), expected)
+
+
+def test_labels_that_do_not_exist_are_refused_saying_why(ds, extract_out, extract_root):
+    sweep = _frame(ds, "lidar", key_frame=False)
+    with pytest.raises(UsageError, match=f"sample_data {sweep['token']} has no lidarseg labels \\(only lidar "
+                                         "keyframes have them\\)"):
+        ds.sensors.label_file(sweep["token"], "lidarseg")
+    real = nuparquet.open(extract_out, dataroot=extract_root)  # the real extract holds no label tables
+    lidar = _frame(real, "lidar")
+    with pytest.raises(UsageError, match="has no panoptic labels \\(the dataroot had no panoptic.json when "
+                                         "converted\\)"):
+        real.sensors.label_file(lidar["token"], "panoptic")
+    with pytest.raises(UsageError, match="has no lidarseg labels"):
+        real.sensors.lidar(lidar["token"], lidar["filename"], labels="lidarseg")
