@@ -204,3 +204,53 @@ def test_the_one_verb_and_the_cli_write_the_devkit_dict(labelled_out, devkit_nus
     printed = capsys.readouterr().out
     assert (tmp_path / "cli" / "lidarseg_results.json").read_text() == written
     assert f"mIoU: {theirs['miou']:.4f}" in printed and "driveable_surface" in printed
+
+
+def test_settings_of_other_tasks_a_file_and_an_empty_split_are_refused(labelled_out, submission):
+    from nuparquet.errors import InputError, UsageError
+    from nuparquet.evaluation.segmentation import evaluate_lidarseg
+
+    with pytest.raises(UsageError, match="--by, --config and --config-file do not apply to --task lidarseg"):
+        evaluate_lidarseg(labelled_out, submission, split="train", by=("scene",))
+    with pytest.raises(UsageError, match="a lidarseg submission is a folder"):
+        evaluate_lidarseg(labelled_out, submission / "train" / "submission.json", split="train")
+    (submission / "mini_val").mkdir()
+    (submission / "mini_val" / "submission.json").write_text(json.dumps({"meta": META}))
+    (submission / "lidarseg" / "mini_val").mkdir()
+    with pytest.raises(InputError, match="split mini_val: the dataset holds no keyframe LIDAR_TOP reading"):
+        evaluate_lidarseg(labelled_out, submission, split="mini_val")
+
+
+class _Categories:
+    """A dataset stand-in holding only a category table."""
+
+    root = "OUT"
+
+    def __init__(self, rows: dict):
+        import polars as pl
+
+        self.table = pl.LazyFrame(rows)
+
+    def scan(self, name: str):
+        assert name == "tables/category"
+        return self.table
+
+
+def test_the_class_lookup_is_the_devkit_mappers_and_refuses_what_it_cannot_map():
+    from nuscenes.eval.lidarseg.utils import LidarsegClassMapper
+
+    from nuparquet.errors import InputError
+    from nuparquet.evaluation.segmentation.classes import fine_to_coarse_lookup
+
+    from nuparquet.evaluation.segmentation.classes import FINE_TO_COARSE
+
+    names = list(FINE_TO_COARSE)
+    order = np.random.default_rng(4).permutation(len(names))  # indices in another order than the names
+    nusc = type("Stub", (), {"lidarseg_name2idx_mapping": {names[i]: j for j, i in enumerate(order.tolist())}})
+    expected = LidarsegClassMapper(nusc).fine_idx_2_coarse_idx_mapping
+    lookup = fine_to_coarse_lookup(_Categories({"name": [names[i] for i in order], "index": list(range(len(names)))}))
+    assert lookup.tolist() == [expected[i] for i in range(len(names))]
+    with pytest.raises(InputError, match="category 'vehicle.spaceship' has a lidarseg index"):
+        fine_to_coarse_lookup(_Categories({"name": ["vehicle.car", "vehicle.spaceship"], "index": [0, 1]}))
+    with pytest.raises(InputError, match="no `index` column"):
+        fine_to_coarse_lookup(_Categories({"name": ["vehicle.car"]}))
