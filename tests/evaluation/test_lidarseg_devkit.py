@@ -254,3 +254,18 @@ def test_the_class_lookup_is_the_devkit_mappers_and_refuses_what_it_cannot_map()
         fine_to_coarse_lookup(_Categories({"name": ["vehicle.car", "vehicle.spaceship"], "index": [0, 1]}))
     with pytest.raises(InputError, match="no `index` column"):
         fine_to_coarse_lookup(_Categories({"name": ["vehicle.car"]}))
+
+
+def test_a_label_that_is_no_categorys_index_names_the_frame(labelled_out, submission, monkeypatch):
+    from nuparquet.errors import InputError
+    from nuparquet.evaluation.segmentation import classes, evaluate_lidarseg, run
+
+    lookup = classes.fine_to_coarse_lookup(__import__("nuparquet").open(labelled_out))
+    lookup[:] = -1  # as if no category held any of the indices the labels use
+    monkeypatch.setattr(run, "fine_to_coarse_lookup", lambda dataset: lookup)
+    with pytest.raises(InputError, match="lidarseg label .* at point 0 of lidar sample_data .* is the index of no "
+                       "category"):
+        evaluate_lidarseg(labelled_out, submission, split="train")
+    monkeypatch.setattr(run, "fine_to_coarse_lookup", lambda dataset: lookup[:0])
+    with pytest.raises(InputError, match="is the index of no category"):
+        evaluate_lidarseg(labelled_out, submission, split="train")
