@@ -37,7 +37,8 @@ arguments (unknown split, configuration or slice; an --out that holds files with
 def register(sub) -> None:
     p = sub.add_parser(
         "eval",
-        help="evaluate a detection submission (mAP, TP errors, NDS) exactly as nuscenes-devkit, per slice too",
+        help="evaluate a submission (detection: mAP, NDS; tracking: AMOTA; lidarseg: mIoU) exactly as "
+        "nuscenes-devkit, per slice too",
         description="Compute the nuScenes detection metrics of a submission (results.json) from the converted "
         "dataset, exactly as nuscenes-devkit's DetectionEval does (class ranges, bike-rack filter, greedy "
         "centre-distance matching, 101-point precision, TP errors, NDS), optionally per slice (--by), and write "
