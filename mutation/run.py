@@ -259,6 +259,10 @@ GROUPS: dict[str, Group] = {
         ("tests/evaluation/test_tracking_devkit.py", "tests/evaluation/test_tracking_matching.py",
          "tests/evaluation/test_tracking_submission.py"),
         keyword="not extract", cache_conversions=True),
+    "segmentation": Group(  # the lidarseg benchmark: the devkit's class mapper and confusion-matrix arithmetic
+        ("nuparquet/evaluation/segmentation/*.py",),
+        ("tests/evaluation/test_lidarseg_devkit.py",),
+        keyword="not extract", cache_conversions=True),
     "synth": Group(  # the generator makes every fixture: its own mutants must make theirs
         ("nuparquet/synth/*.py",),
         ("tests/synth/", "tests/parity/test_synth_devkit.py"),

@@ -37,7 +37,8 @@ arguments (unknown split, configuration or slice; an --out that holds files with
 def register(sub) -> None:
     p = sub.add_parser(
         "eval",
-        help="evaluate a detection submission (mAP, TP errors, NDS) exactly as nuscenes-devkit, per slice too",
+        help="evaluate a submission (detection: mAP, NDS; tracking: AMOTA; lidarseg: mIoU) exactly as "
+        "nuscenes-devkit, per slice too",
         description="Compute the nuScenes detection metrics of a submission (results.json) from the converted "
         "dataset, exactly as nuscenes-devkit's DetectionEval does (class ranges, bike-rack filter, greedy "
         "centre-distance matching, 101-point precision, TP errors, NDS), optionally per slice (--by), and write "
@@ -46,8 +47,9 @@ def register(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
-    p.add_argument("--results", metavar="RESULTS.json", required=True, help="the detection submission, nuScenes "
-                   "format: {\"meta\": {...}, \"results\": {sample_token: [box, ...]}}")
+    p.add_argument("--results", metavar="RESULTS.json", required=True, help="the submission, nuScenes format: "
+                   "detection/tracking {\"meta\": {...}, \"results\": {sample_token: [box, ...]}}; lidarseg a folder "
+                   "of lidarseg/<split>/<token>_lidarseg.bin and <split>/submission.json")
     p.add_argument("--out", metavar="DIR", help="write metrics_summary.json, metrics_details.json, plots/, "
                    "predictions/, ground_truth/ (and slices/ with --by) here; without it the metrics are only printed")
     add_options(p, EvalOptions)
@@ -78,6 +80,16 @@ def print_summary(summary: dict) -> None:
                                                                  errors["attr_err"])))
 
 
+def print_lidarseg(metrics: dict) -> None:
+    """The devkit's result dict, one class a line (LidarSegEval's verbose printout is its JSON dump)."""
+    print(f"mIoU: {metrics['miou']:.4f}")
+    print(f"fwIoU: {metrics['freq_weighted_iou']:.4f}")
+    print()
+    print("Per-class IoU:")
+    for name, iou in metrics["iou_per_class"].items():
+        print(f"{name:<20}\t{_number(iou)}")
+
+
 def run(args) -> int:
     from nuparquet.cli.output import print_frame
     from nuparquet.evaluation.run import evaluate
@@ -88,6 +100,8 @@ def run(args) -> int:
         from nuparquet.evaluation.tracking.output import format_summary
 
         print(format_summary(result.summary))
+    elif options.task == "lidarseg":
+        print_lidarseg(result.metrics)
     else:
         print_summary(result.summary)
     if result.slices is not None:

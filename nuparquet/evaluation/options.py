@@ -19,9 +19,10 @@ class EvalOptions:
     """How to evaluate a submission: which benchmark, which split, which settings, which slices (the submission and
     where the metrics go are the verb's arguments: `evaluate(ds, results, out, ...)`)."""
 
-    task: Literal["detection", "tracking"] = option(
+    task: Literal["detection", "tracking", "lidarseg"] = option(
         "detection", help="the benchmark: detection (DetectionEval: mAP, TP errors, NDS; default), tracking "
-        "(TrackingEval: AMOTA, AMOTP, MOTA, IDS...)")
+        "(TrackingEval: AMOTA, AMOTP, MOTA, IDS...), lidarseg (LidarSegEval: mIoU, frequency-weighted IoU; "
+        "--results is the submission folder)")
     split: str = option("val", help="the split evaluated: train, val, test, mini_train, mini_val, train_detect, "
                         "train_track, or a custom split of <dataroot>/<version>/splits.json (default val)")
     config: str | None = option(None, metavar="NAME",

@@ -8,6 +8,7 @@ import importlib
 
 TASKS = {
     "tracking": "nuparquet.evaluation.tracking.run:evaluate_tracking",
+    "lidarseg": "nuparquet.evaluation.segmentation.run:evaluate_lidarseg",
 }
 
 
