@@ -46,15 +46,14 @@ def same(ours, theirs) -> bool:
     if isinstance(theirs, np.ndarray):
         return (isinstance(ours, np.ndarray) and ours.shape == theirs.shape and ours.dtype == theirs.dtype
                 and np.array_equal(ours, theirs))
-    if isinstance(theirs, float) and np.isnan(theirs):
-        return np.isnan(ours)
-    return type(ours) is type(theirs) and ours == theirs or (not isinstance(theirs, list) and ours == theirs)
+    if isinstance(theirs, (float, np.floating)) and np.isnan(theirs):
+        return bool(np.isnan(ours))
+    return ours == theirs
 
 
 def test_future_and_past_of_every_agent_of_the_chosen_samples(helpers):
     pair, ours, theirs = helpers
     samples = chosen_samples(pair.theirs)
-    assert any(i["nbr_annotations"] == 1 for i in pair.theirs.instance) or pair.name != "synth"
     compared = 0
     for sample in samples:
         for seconds in SECONDS:
@@ -72,8 +71,11 @@ def test_future_and_past_of_every_agent_of_the_chosen_samples(helpers):
 
 def test_first_and_last_annotation_of_every_track(helpers):
     pair, ours, theirs = helpers
-    shapes = set()
-    for instance in pair.theirs.instance:
+    shapes, lengths = set(), set()
+    # the extract's 900-odd tracks: its one-annotation tracks and the first 60 others keep the test short
+    instances = [i for i in pair.theirs.instance if i["nbr_annotations"] == 1] + pair.theirs.instance[:60]
+    for instance in (instances if pair.name == "extract" else pair.theirs.instance):
+        lengths.add(instance["nbr_annotations"])
         for end in ("first_annotation_token", "last_annotation_token"):
             sample = pair.theirs.get("sample_annotation", instance[end])["sample_token"]
             token = instance["token"]
@@ -93,6 +95,7 @@ def test_first_and_last_annotation_of_every_track(helpers):
                     got = getattr(ours, method)(token, sample, max_time_diff=max_time_diff)
                     want = getattr(theirs, method)(token, sample, max_time_diff=max_time_diff)
                     assert same(got, want), (method, token, sample, max_time_diff, got, want)
+    assert 1 in lengths  # a track of one annotation
     assert (0,) in shapes  # the devkit's empty window: np.array([]) of shape (0,), not (0, 2)
 
 
