@@ -1,8 +1,8 @@
 """nuparquet.devkit.prediction.PredictHelper against nuscenes-devkit 1.2.0's `nuscenes.prediction.helper.PredictHelper`
 on the devkit's own NuScenes over the same dataroot: every public method, on the synthetic set, the irregular profile
-and the real extract, for every agent of a few samples (a scene's first, middle and last keyframe, and the samples of
-one-annotation tracks), every track's first and last annotation, seconds 0, 0.3, 0.5, 3, 6, 100, both frames and
-both `just_xy`.
+(and its version without annotations), the irregular JSON layouts and the real extract, for every agent of a few
+samples (each scene's first, middle and last keyframe, and the samples of one-annotation tracks), every track's first
+and last annotation, seconds 0, 0.3, 0.5, 3, 6, 100, both frames and both `just_xy`.
 
 Equality is exact (`np.array_equal` with shape and dtype, records `==`, NaN where the devkit gives NaN): the helper
 replays the devkit's arithmetic through the same BLAS calls numpy makes for one item (the module's docstring), so no
@@ -21,7 +21,7 @@ from nuparquet.devkit.prediction import helper as our_module
 SECONDS = (0, 0.3, 0.5, 3, 6, 100)
 
 
-@pytest.fixture(scope="module", params=["synth", "irregular", "extract"])
+@pytest.fixture(scope="module", params=["synth", "irregular", "layouts", "extract"])
 def helpers(request, devkit):
     from nuscenes.prediction import helper as their_module
 
@@ -140,6 +140,18 @@ def test_the_devkits_own_helper_runs_on_our_nuscenes(helpers, devkit):
         for record in theirs.get_annotations_for_sample(sample):
             assert same(on_ours.get_acceleration_for_agent(record["instance_token"], sample),
                         theirs.get_acceleration_for_agent(record["instance_token"], sample))
+
+
+def test_a_version_without_annotations(request, devkit):
+    from nuscenes.prediction.helper import PredictHelper as TheirHelper
+
+    pair = open_pair(request, devkit, "irregular_empty")
+    ours, theirs = PredictHelper(pair.ours), TheirHelper(pair.theirs)
+    for sample in chosen_samples(pair.theirs):
+        assert ours.get_annotations_for_sample(sample) == theirs.get_annotations_for_sample(sample) == []
+        for method in ("get_future_for_sample", "get_past_for_sample"):
+            assert getattr(ours, method)(sample, 6, True) == getattr(theirs, method)(sample, 6, True) == {}
+        assert ours.get_map_name_from_sample_token(sample) == theirs.get_map_name_from_sample_token(sample)
 
 
 def test_the_module_functions_are_the_devkits():
