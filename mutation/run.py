@@ -218,7 +218,8 @@ GROUPS: dict[str, Group] = {
         ("nuparquet/devkit/**/*.py",),
         ("tests/devkit/", "tests/parity/test_devkit_tables.py", "tests/parity/test_devkit_boxes.py",
          "tests/parity/test_devkit_utils.py", "tests/parity/test_devkit_printers.py",
-         "tests/parity/test_devkit_clients.py", "tests/rendering/test_colorings.py"),
+         "tests/parity/test_devkit_clients.py", "tests/rendering/test_colorings.py",
+         "tests/parity/test_predict_helper_devkit.py"),
         keyword="not extract", cache_conversions=True),
     "evaluation": Group(
         ("nuparquet/evaluation/*.py",),

@@ -8,8 +8,9 @@ nusc = NuScenes("v1.0-trainval", dataroot="/data/nuscenes", parquet="/data/nusc.
 The import paths mirror the devkit's where user code imports from: `nuparquet.devkit.nuscenes` (`NuScenes`,
 `NuScenesExplorer`), `nuparquet.devkit.utils.data_classes` (`Box`, `LidarPointCloud`, `RadarPointCloud`),
 `...utils.geometry_utils` (`view_points`, `box_in_image`, `BoxVisibility`, `transform_matrix`, `points_in_box`),
-`...utils.splits`, `...utils.color_map`, `...utils.map_mask`, `...utils.data_io`, and
-`nuparquet.devkit.can_bus.can_bus_api` (`NuScenesCanBus`, over the converted `can_bus/` datasets).
+`...utils.splits`, `...utils.color_map`, `...utils.map_mask`, `...utils.data_io`,
+`nuparquet.devkit.can_bus.can_bus_api` (`NuScenesCanBus`, over the converted `can_bus/` datasets) and
+`nuparquet.devkit.prediction` (`PredictHelper`, over the converted annotation and sample tables).
 
 A skin, not a second engine: the records come from the converted tables (`tables/<name>`), rebuilt exactly as
 `json.load` gave them; which boxes a frame shows follows `nuparquet.frames.boxes`' rule; the batch visibility
