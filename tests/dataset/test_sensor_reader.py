@@ -98,3 +98,20 @@ def test_labels_that_do_not_exist_are_refused_saying_why(ds, extract_out, extrac
         real.sensors.label_file(lidar["token"], "panoptic")
     with pytest.raises(UsageError, match="has no lidarseg labels"):
         real.sensors.lidar(lidar["token"], lidar["filename"], labels="lidarseg")
+
+
+def test_a_converted_frame_is_read_from_the_points_dataset_with_its_sensor_fields(synth_points_out, synth_root):
+    """On an output converted with its points the reader takes the frame from `lidar_points/` / `radar_points/`:
+    by default every sensor field the dataset stores (no frame columns, no filter flag), the same rows and
+    values as `ds.points` / `ds.radar_points`; the file under the dataroot is not needed."""
+    from nuparquet.frames.points import FRAME_COLUMNS
+
+    converted = nuparquet.open(synth_points_out, dataroot=synth_root)
+    for modality, read in (("lidar", converted.points), ("radar", converted.radar_points)):
+        row = _frame(converted, modality)
+        stored = converted.scan(f"{modality}_points").collect_schema().names()
+        fields = [c for c in stored if c not in FRAME_COLUMNS and c != "passes_default_filters"]
+        assert fields and converted.sensors.sensor_fields(modality) == fields
+        frame = converted.sensors.points(row["token"], "samples/not-there.bin", modality)  # no file read
+        assert frame.columns == fields
+        assert frame.equals(read(row["token"], columns=fields))
