@@ -53,6 +53,18 @@ def check_out_dir(out_dir) -> Path:
     return Path(out_dir)
 
 
+def scene_job(dataset, selection: SceneSelection, out) -> tuple:
+    """What a many-scene verb checks before any work, in its order: `out` a folder (`check_out_dir`), the dataset
+    opened (`as_dataset`), the selection coherent, its scenes in the dataset. Returns (dataset, scene names, out
+    folder)."""
+    from nuparquet.dataset.core import as_dataset
+
+    out_dir = check_out_dir(out)
+    dataset = as_dataset(dataset)
+    selection.check()
+    return dataset, select_scenes(dataset, selection.scenes, selection.where), out_dir
+
+
 def select_scenes(dataset, scenes: tuple[str, ...] = (), where: str | None = None) -> list[str]:
     """The scene names of `dataset` that `scenes` (names; empty: all) and `where` (SQL on the scenes dataset) pick,
     sorted by name.

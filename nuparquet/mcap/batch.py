@@ -13,7 +13,7 @@ many-scene job (`nuparquet.engine.scene_files`).
 
 from __future__ import annotations
 
-from nuparquet.dataset.selection import SceneSelection, check_out_dir
+from nuparquet.dataset.selection import SceneSelection, scene_job
 from nuparquet.engine.options import EngineOptions
 from nuparquet.engine.run import check_engine
 from nuparquet.engine.scene_files import SceneFiles, SceneVerb, write_scene_files
@@ -36,14 +36,9 @@ def export_scenes(dataset, selection: SceneSelection | None, out, options: McapO
         UnitsFailed: scenes failed (each named with its error). Without `engine.keep_going` the first failure
             stops the job and nothing is committed; with it the other scenes are committed first.
     """
-    from nuparquet.dataset import as_dataset, select_scenes
-
     selection, options, engine = resolve_all(fields, (SceneSelection, selection), (McapOptions, options),
                                              (EngineOptions, engine))
     check_engine(engine)  # Ray installed: say so before anything is read
-    out_dir = check_out_dir(out)
-    dataset = as_dataset(dataset)
-    selection.check()
-    scenes = select_scenes(dataset, selection.scenes, selection.where)
+    dataset, scenes, out_dir = scene_job(dataset, selection, out)
     return write_scene_files(dataset, scenes, out_dir, EXPORT, options, engine, summary_name=SUMMARY_NAME,
                              file_key="file", label=f"export-mcap {len(scenes)} scene(s)", on_progress=on_progress)

@@ -17,7 +17,7 @@ of the options for `--resume`) and the failure rules are the engine's many-scene
 
 from __future__ import annotations
 
-from nuparquet.dataset.selection import SceneSelection, check_out_dir
+from nuparquet.dataset.selection import SceneSelection, scene_job
 from nuparquet.engine.options import EngineOptions
 from nuparquet.engine.run import check_engine
 from nuparquet.engine.scene_files import SceneFiles, SceneVerb, write_scene_files
@@ -42,18 +42,13 @@ def render_scenes(dataset, selection: SceneSelection | None, out, options: Rende
         UnitsFailed: scenes failed (each named with its error). Without `engine.keep_going` the first failure
             stops the job and nothing is committed; with it the other scenes are committed first.
     """
-    from nuparquet.dataset import as_dataset, select_scenes
-
     selection, options, engine = resolve_all(fields, (SceneSelection, selection), (RenderOptions, options),
                                              (EngineOptions, engine))
     check_engine(engine)  # Ray installed: say so before anything is read
-    out_dir = check_out_dir(out)
-    dataset = as_dataset(dataset)
-    selection.check()
+    dataset, scenes, out_dir = scene_job(dataset, selection, out)
     if options.channel not in (None, ALL_CHANNELS) and options.channel not in dataset.channels.get("cameras", []):
         cameras = ", ".join([*dataset.channels.get("cameras", []), ALL_CHANNELS])
         raise UsageError(f"unknown channel {options.channel!r}; valid channels: {cameras}")
-    scenes = select_scenes(dataset, selection.scenes, selection.where)
     return write_scene_files(dataset, scenes, out_dir, RENDER, options, engine, summary_name=SUMMARY_NAME,
                              file_key="video", label=f"render {len(scenes)} scene(s)",
                              summary_fields={"channel": options.channel}, on_progress=on_progress)
