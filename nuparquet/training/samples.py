@@ -129,6 +129,21 @@ class Samples:
             self._ds = self._reference.open()
         return self._ds
 
+    # -- shards and the stream ----------------------------------------------------------------------------------
+
+    def shard(self, rank: int, world_size: int) -> Samples:
+        """The samples of rank `rank` of `world_size`: whole scenes, every scene on exactly one rank, balanced by
+        sample count (`shards.scene_parts`); empty when there are more ranks than scenes."""
+        from nuparquet.training.shards import shard
+
+        return shard(self, rank, world_size)
+
+    def stream(self, *, seed: int = 0, shuffle: bool = True, sequential: bool = False):
+        """These samples as a seeded, resumable iterable (`shards.SampleStream`)."""
+        from nuparquet.training.shards import SampleStream
+
+        return SampleStream(self, seed=seed, shuffle=shuffle, sequential=sequential)
+
     # -- the map-style dataset -------------------------------------------------------------------------------------
 
     def __len__(self) -> int:
