@@ -265,6 +265,10 @@ GROUPS: dict[str, Group] = {
         ("tests/evaluation/test_tracking_devkit.py", "tests/evaluation/test_tracking_matching.py",
          "tests/evaluation/test_tracking_submission.py"),
         keyword="not extract", cache_conversions=True),
+    "training": Group(  # samples for training: the index's arrays read as mmdetection3d's loading pipeline
+        ("nuparquet/training/*.py",),
+        ("tests/training/",),
+        keyword="not extract", cache_conversions=True),
     "synth": Group(  # the generator makes every fixture: its own mutants must make theirs
         ("nuparquet/synth/*.py",),
         ("tests/synth/", "tests/parity/test_synth_devkit.py"),

@@ -181,3 +181,16 @@ def test_a_split_the_version_lacks_is_refused(synth_out):
 
     with pytest.raises(UsageError, match="no test split"):
         Samples(synth_out, "test", version="v1.0-trainval")
+
+
+def test_close_points_leave_the_sweeps_and_the_pads_but_not_the_keyframe(synth_samples, monkeypatch):
+    """A point 0.3 m from the lidar added to every reading: LoadPointsFromMultiSweeps keeps the keyframe's (it
+    never filters the keyframe) and drops the sweeps' and the padding copies' (remove_close, radius 1 m)."""
+    read = Samples._read_lidar
+    close = np.array([[0.3, -0.2, 0.5, 7.0, 1.0]], dtype=np.float32)
+    monkeypatch.setattr(Samples, "_read_lidar", lambda self, token, filename: np.concatenate(
+        [read(self, token, filename), close]))
+    for i in (0, len(synth_samples) - 1):  # the first has no sweeps (padded), the last SWEEPS
+        points = synth_samples[i]["points"]
+        near = points[(np.abs(points[:, 0]) < 1.0) & (np.abs(points[:, 1]) < 1.0)]
+        np.testing.assert_array_equal(near, np.array([[0.3, -0.2, 0.5, 7.0, 0.0]], dtype=np.float32))

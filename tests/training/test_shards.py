@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from nuparquet.training.samples import Samples
-from nuparquet.training.shards import SampleStream, scene_parts, worker_init_fn
+from nuparquet.training.shards import scene_parts, worker_init_fn
 
 
 @pytest.fixture(scope="session")
