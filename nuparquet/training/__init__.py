@@ -13,12 +13,20 @@ seeded stream, worker split, resume state), `collate` (batches).
 
 from __future__ import annotations
 
-__all__ = ["Samples"]
+# numpy only, and imported here so that `nuparquet.training.collate` is the function (not its module)
+from nuparquet.training.collate import collate
+
+__all__ = ["SampleStream", "Samples", "collate", "worker_init_fn"]
 
 
 def __getattr__(name: str):
+    # Samples pulls in polars and the index: loaded on first use
     if name == "Samples":
         from nuparquet.training.samples import Samples
 
         return Samples
+    if name in ("SampleStream", "worker_init_fn"):
+        from nuparquet.training import shards
+
+        return getattr(shards, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -55,3 +55,12 @@ def test_a_batch_of_real_samples(synth_out):
     assert batch["points"].shape == (sum(len(i["points"]) for i in items), 5)
     assert batch["img"].shape[:2] == (2, len(samples.cameras))
     assert batch["lidar2img"].shape == (2, len(samples.cameras), 4, 4)
+
+
+def test_the_package_names_the_verbs():
+    import nuparquet.training as training
+    from nuparquet.training import shards
+
+    assert training.collate is collate and callable(training.collate)
+    assert training.SampleStream is shards.SampleStream and training.worker_init_fn is shards.worker_init_fn
+    assert training.Samples.__name__ == "Samples"
