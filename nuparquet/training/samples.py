@@ -51,17 +51,20 @@ class Samples:
       for other classes; `num_lidar_pts` (N,) int64; boxes kept by `box_filter`: "valid_flag" (the infos'
       `bbox_3d_isvalid`: lidar + radar points > 0, mmdetection3d's `use_valid_flag=True`), "num_lidar_pts"
       (> 0, its default) or None (all)
-    - `img` (C, H, W, 3) uint8, BGR like mmcv's `imfrombytes` (a list when the sizes differ), `cam2img` (C, 4, 4)
-      float64 (the infos' 3x3 intrinsic padded), `lidar2cam` (C, 4, 4) float64 (the infos' `lidar2cam`),
-      `lidar2img` (C, 4, 4) float64 = cam2img @ lidar2cam (as mmdetection3d's `LoadMultiViewImageFromFiles`
-      composes them), in `cameras` order (the infos' order)
+    - `img` (C, H, W, 3) uint8 decoded by cv2: BGR, as mmdetection3d's `LoadMultiViewImageFromFiles` (mmcv's
+      `imfrombytes`, cv2 backend) gives them; `rgb=True`: RGB (the channel order of BEVFusion's loader, which
+      decodes with pillow); a list when the sizes differ. Camera matrices as mmdetection3d's BEVFusion project
+      (`BEVLoadMultiViewImageFromFiles`) builds them from the infos, operation for operation: `cam2img` (C, 4, 4)
+      float32 (the 3x3 intrinsic padded), `lidar2cam` (C, 4, 4) float64 (the infos'), `cam2lidar` (C, 4, 4)
+      float64 (its inverse from the float32 rotation and translation), `lidar2img` (C, 4, 4) float32 = cam2img @
+      lidar2cam in float32; cameras in `cameras` order (the infos' order)
     """
 
     def __init__(self, dataset: str | Dataset, split: str = "train", *, lidar: bool = True, sweeps: int = 10,
                  cameras: tuple[str, ...] | None = DEFAULT_CAMERAS, boxes: bool = True,
                  classes: tuple[str, ...] = CLASSES, velocity: bool = True, box_filter: str | None = "valid_flag",
                  close_radius_m: float = 1.0, pad_empty_sweeps: bool = True, version: str | None = None,
-                 lidar_channel: str = DEFAULT_LIDAR) -> None:
+                 lidar_channel: str = DEFAULT_LIDAR, rgb: bool = False) -> None:
         if box_filter not in BOX_FILTERS:
             raise UsageError(f"box_filter must be one of {BOX_FILTERS}, not {box_filter!r}")
         ds = as_dataset(dataset)
@@ -71,7 +74,7 @@ class Samples:
         self.split, self.lidar, self.sweeps, self.boxes = split, lidar, sweeps, boxes
         self.cameras = tuple(cameras or ())
         self.classes, self.velocity, self.box_filter = tuple(classes), velocity, box_filter
-        self.close_radius_m, self.pad_empty_sweeps = close_radius_m, pad_empty_sweeps
+        self.close_radius_m, self.pad_empty_sweeps, self.rgb = close_radius_m, pad_empty_sweeps, rgb
         self._reference = ds.reference
         self._ds: Dataset | None = ds
 
@@ -102,10 +105,8 @@ class Samples:
         n_cam = len(self.cameras)
         self._cam_token = arrays.cam_token[:, :n_cam]
         self._cam_file = d.filename[computed.cam_row[picked][:, :n_cam]]
-        cam2img = np.tile(np.eye(4), (len(picked), n_cam, 1, 1))
-        cam2img[:, :, :3, :3] = arrays.cam2img[:, :n_cam]
-        self._cam2img = cam2img
-        self._lidar2cam = arrays.lidar2cam[:, :n_cam].astype(np.float64)
+        self._cam2img = arrays.cam2img[:, :n_cam]  # (S, C, 3, 3) as the infos hold them
+        self._lidar2cam = arrays.lidar2cam[:, :n_cam]  # (S, C, 4, 4)
         self._ann_offsets = arrays.ann_offsets
         class_index = {name: i for i, name in enumerate(self.classes)}
         self._ann_label = np.array([class_index.get(n, -1) for n in arrays.ann_name.tolist()], dtype=np.int64)
@@ -219,10 +220,30 @@ class Samples:
             if not path.is_file():
                 raise MissingSensorData(str(path), f"missing image file: {path} (camera sample_data {token}; "
                                                    "or --dataroot PATH where the files are)")
-            images.append(cv2.imread(str(path), cv2.IMREAD_COLOR))
+            image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            images.append(cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if self.rgb else image)
         same = len({im.shape for im in images}) == 1
-        return {"img": np.stack(images) if same else images, "cam2img": self._cam2img[s].copy(),
-                "lidar2cam": self._lidar2cam[s].copy(), "lidar2img": self._cam2img[s] @ self._lidar2cam[s]}
+        return {"img": np.stack(images) if same else images, **camera_matrices(self._cam2img[s], self._lidar2cam[s])}
+
+
+def camera_matrices(cam2img: np.ndarray, lidar2cam: np.ndarray) -> dict:
+    """cam2img, lidar2cam, cam2lidar, lidar2img (each (C, 4, 4)) from the infos' `cam2img` (C, 3, 3) and
+    `lidar2cam` (C, 4, 4), one camera at a time as BEVFusion's `BEVLoadMultiViewImageFromFiles` computes them (its
+    2-D float32 products, so the BLAS path is the same)."""
+    out: dict = {"cam2img": [], "lidar2cam": [], "cam2lidar": [], "lidar2img": []}
+    for intrinsic, from_lidar in zip(cam2img.tolist(), lidar2cam.tolist()):  # the infos' lists
+        lidar2cam_array = np.array(from_lidar).astype(np.float32)
+        rot, trans = lidar2cam_array[:3, :3], lidar2cam_array[:3, 3:4]
+        cam2lidar = np.eye(4)
+        cam2lidar[:3, :3] = rot.T
+        cam2lidar[:3, 3:4] = -1 * np.matmul(rot.T, trans.reshape(3, 1))
+        cam2img_array = np.eye(4).astype(np.float32)
+        cam2img_array[:3, :3] = np.array(intrinsic).astype(np.float32)
+        out["cam2img"].append(cam2img_array)
+        out["lidar2cam"].append(from_lidar)
+        out["cam2lidar"].append(cam2lidar)
+        out["lidar2img"].append(cam2img_array @ lidar2cam_array)
+    return {key: np.stack(values) if values else np.zeros((0, 4, 4)) for key, values in out.items()}
 
 
 def _sweep_items(computed, picked: np.ndarray) -> np.ndarray:

@@ -159,12 +159,26 @@ def test_images_and_camera_matrices_equal_imread_and_the_infos(synth_out, synth_
         for k, (channel, cam) in enumerate(images.items()):
             expected = cv2.imread(str(synth_root / "samples" / channel / cam["img_path"]))  # BGR, as mmcv
             np.testing.assert_array_equal(item["img"][k], expected)
-            cam2img = np.eye(4)
-            cam2img[:3, :3] = np.array(cam["cam2img"])
-            np.testing.assert_array_equal(item["cam2img"][k], cam2img)
-            np.testing.assert_array_equal(item["lidar2cam"][k], np.array(cam["lidar2cam"]))
-            np.testing.assert_array_equal(item["lidar2img"][k], cam2img @ np.array(cam["lidar2cam"]))
+            # mmdetection3d's projects/BEVFusion/bevfusion/loading.py, BEVLoadMultiViewImageFromFiles.transform
+            lidar2cam_array = np.array(cam["lidar2cam"]).astype(np.float32)
+            lidar2cam_rot = lidar2cam_array[:3, :3]
+            lidar2cam_trans = lidar2cam_array[:3, 3:4]
+            camera2lidar = np.eye(4)
+            camera2lidar[:3, :3] = lidar2cam_rot.T
+            camera2lidar[:3, 3:4] = -1 * np.matmul(lidar2cam_rot.T, lidar2cam_trans.reshape(3, 1))
+            cam2img_array = np.eye(4).astype(np.float32)
+            cam2img_array[:3, :3] = np.array(cam["cam2img"]).astype(np.float32)
+            for key, expected_matrix in (("cam2img", cam2img_array), ("lidar2cam", np.array(cam["lidar2cam"])),
+                                         ("cam2lidar", camera2lidar), ("lidar2img", cam2img_array @ lidar2cam_array)):
+                assert item[key].dtype == expected_matrix.dtype, key
+                np.testing.assert_array_equal(item[key][k], expected_matrix)
+            # and the lidar frame maps through lidar2img to the pixels cam2img gives the camera frame
+            point = np.array([3.0, 1.0, 0.5, 1.0])
+            np.testing.assert_allclose(item["lidar2img"][k] @ point, cam2img_array @ (np.array(cam["lidar2cam"]) @ point),
+                                       rtol=1e-5)
         assert item["img"].dtype == np.uint8 and item["img"].shape[-1] == 3
+    rgb = Samples(synth_out, "train", sweeps=0, lidar=False, boxes=False, version="v1.0-trainval", rgb=True)[0]
+    np.testing.assert_array_equal(rgb["img"], samples[0]["img"][..., ::-1])
 
 
 def test_the_object_pickles_small_and_reopens_lazily(synth_samples):
