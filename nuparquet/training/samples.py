@@ -91,29 +91,30 @@ class Samples:
         arrays = v2_arrays(computed, picked, index_cameras, "")
         d = inputs.data
 
-        self.sample_token = arrays.token
-        self.timestamp_us = inputs.sample_timestamp_us[picked]
-        self.scene_token = inputs.sample_scene[picked]
+        # Only fixed-width numpy arrays (no Python objects): a forked worker touches no reference counts, so the
+        # pages stay shared, and the pickle is the arrays' bytes.
+        self.sample_token = _text(arrays.token)  # (S,) str
+        self.timestamp_us = inputs.sample_timestamp_us[picked]  # (S,) int64
+        self.scene_token = _text(inputs.sample_scene[picked])  # (S,) str
         self.scene = scene_of[picked]  # (S,) scene-table row of each sample, non-decreasing
-        self._lidar_token = d.token[computed.lidar_row[picked]]
-        self._lidar_file = d.filename[computed.lidar_row[picked]]
-        self._sweep_offsets = arrays.sweep_offsets
-        self._sweep_token = arrays.sweep_token
-        self._sweep_file = d.filename[computed.sweep_row[_sweep_items(computed, picked)]]
-        self._sweep_timestamp_s = arrays.sweep_timestamp_s
-        self._sweep_lidar2sensor = arrays.sweep_lidar2sensor
+        self._lidar_token = _bytes(d.token[computed.lidar_row[picked]])  # (S,)
+        self._lidar_file = _bytes(d.filename[computed.lidar_row[picked]])  # (S,)
+        self._sweep_offsets = arrays.sweep_offsets  # (S + 1,)
+        self._sweep_token = _bytes(arrays.sweep_token)  # (W,)
+        self._sweep_file = _bytes(d.filename[computed.sweep_row[_sweep_items(computed, picked)]])  # (W,)
+        self._sweep_timestamp_s = arrays.sweep_timestamp_s  # (W,) float64, the infos' `timestamp`
+        self._sweep_lidar2sensor = arrays.sweep_lidar2sensor  # (W, 4, 4) float32, the infos' `lidar2sensor`
         n_cam = len(self.cameras)
-        self._cam_token = arrays.cam_token[:, :n_cam]
-        self._cam_file = d.filename[computed.cam_row[picked][:, :n_cam]]
-        self._cam2img = arrays.cam2img[:, :n_cam]  # (S, C, 3, 3) as the infos hold them
-        self._lidar2cam = arrays.lidar2cam[:, :n_cam]  # (S, C, 4, 4)
-        self._ann_offsets = arrays.ann_offsets
+        self._cam_token = _bytes(arrays.cam_token[:, :n_cam])  # (S, C)
+        self._cam_file = _bytes(d.filename[computed.cam_row[picked][:, :n_cam]])  # (S, C)
+        self._cam2img = arrays.cam2img[:, :n_cam].astype(np.float32)  # (S, C, 3, 3): read as float32 only
+        self._lidar2cam = arrays.lidar2cam[:, :n_cam]  # (S, C, 4, 4) float32, the infos' `lidar2cam`
+        self._ann_offsets = arrays.ann_offsets  # (S + 1,)
         class_index = {name: i for i, name in enumerate(self.classes)}
-        self._ann_label = np.array([class_index.get(n, -1) for n in arrays.ann_name.tolist()], dtype=np.int64)
-        self._ann_box = arrays.ann_box
-        self._ann_velocity = arrays.ann_velocity
-        self._ann_valid = arrays.ann_valid
-        self._ann_num_lidar_pts = arrays.ann_num_lidar_pts
+        self._ann_label = np.array([class_index.get(n, -1) for n in arrays.ann_name.tolist()], dtype=np.int32)
+        self._ann_box = gt_bboxes_3d(arrays.ann_box, arrays.ann_velocity)  # (A, 9) float32
+        self._ann_valid = arrays.ann_valid  # (A,) bool
+        self._ann_num_lidar_pts = arrays.ann_num_lidar_pts.astype(np.int32)  # (A,)
         self.indices = np.arange(len(picked))  # the rows this object serves (a shard serves fewer)
 
     # -- pickling: small, and the dataset reopened where it is used ----------------------------------------------
@@ -175,7 +176,7 @@ class Samples:
 
     def _points(self, s: int) -> tuple[np.ndarray, int]:
         """mmdetection3d's LoadPointsFromFile + LoadPointsFromMultiSweeps over the infos' values of sample row s."""
-        points = self._read_lidar(str(self._lidar_token[s]), str(self._lidar_file[s]))
+        points = self._read_lidar(self._lidar_token[s].decode(), self._lidar_file[s].decode())
         points[:, 4] = 0
         parts = [points]
         ts = self.timestamp_us[s] / 1e6  # the infos' `timestamp` (seconds)
@@ -184,7 +185,7 @@ class Samples:
             if self.pad_empty_sweeps:
                 parts += [remove_close(points, self.close_radius_m)] * self.sweeps
         for w in range(lo, hi):
-            sweep = self._read_lidar(str(self._sweep_token[w]), str(self._sweep_file[w]))
+            sweep = self._read_lidar(self._sweep_token[w].decode(), self._sweep_file[w].decode())
             sweep = remove_close(sweep, self.close_radius_m)
             lidar2sensor = self._sweep_lidar2sensor[w].astype(np.float64)  # np.array of the infos' lists
             sweep[:, :3] = sweep[:, :3] @ lidar2sensor[:3, :3]
@@ -200,14 +201,8 @@ class Samples:
             keep = keep[self._ann_valid[keep]]
         elif self.box_filter == "num_lidar_pts":
             keep = keep[self._ann_num_lidar_pts[keep] > 0]
-        boxes = self._ann_box[keep]
-        if self.velocity:
-            velocity = self._ann_velocity[keep].copy()
-            velocity[np.isnan(velocity[:, 0])] = 0.0
-            boxes = np.concatenate([boxes, velocity], axis=-1)
-        boxes = boxes.astype(np.float32).reshape(-1, 9 if self.velocity else 7)
-        boxes[:, 2] += boxes[:, 5] * np.float32(-0.5)  # gravity centre -> bottom centre (origin (0.5, 0.5, 0))
-        return {"gt_bboxes_3d": boxes, "gt_labels_3d": self._ann_label[keep],
+        boxes = self._ann_box[keep] if self.velocity else self._ann_box[keep, :7]
+        return {"gt_bboxes_3d": boxes, "gt_labels_3d": self._ann_label[keep].astype(np.int64),
                 "num_lidar_pts": self._ann_num_lidar_pts[keep].astype(np.int64)}
 
     def _images(self, s: int) -> dict:
@@ -216,6 +211,7 @@ class Samples:
         sensors = self.dataset.sensors
         images = []
         for token, filename in zip(self._cam_token[s].tolist(), self._cam_file[s].tolist()):
+            token, filename = token.decode(), filename.decode()
             path = sensors.path(filename)
             if not path.is_file():
                 raise MissingSensorData(str(path), f"missing image file: {path} (camera sample_data {token}; "
@@ -244,6 +240,26 @@ def camera_matrices(cam2img: np.ndarray, lidar2cam: np.ndarray) -> dict:
         out["cam2lidar"].append(cam2lidar)
         out["lidar2img"].append(cam2img_array @ lidar2cam_array)
     return {key: np.stack(values) if values else np.zeros((0, 4, 4)) for key, values in out.items()}
+
+
+def gt_bboxes_3d(box: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """(A, 9) float32 from the infos' `bbox_3d` (A, 7) (gravity centre) and `velocity` (A, 2), as mmdetection3d's
+    `NuScenesDataset.parse_ann_info` makes them: NaN velocity set to 0, concatenated, then
+    `LiDARInstance3DBoxes(origin=(0.5, 0.5, 0.5))` in float32 moves the centre to the bottom."""
+    velocity = velocity.copy()
+    velocity[np.isnan(velocity[:, 0])] = 0.0
+    boxes = np.concatenate([box, velocity], axis=-1).astype(np.float32).reshape(-1, 9)
+    boxes[:, 2] += boxes[:, 5] * np.float32(-0.5)
+    return boxes
+
+
+def _text(values: np.ndarray) -> np.ndarray:
+    return np.asarray(values.tolist(), dtype=str)
+
+
+def _bytes(values: np.ndarray) -> np.ndarray:
+    """`values` (str) as a fixed-width UTF-8 bytes array of the same shape (decode per item)."""
+    return np.char.encode(np.asarray(values.tolist(), dtype=str), "utf-8")
 
 
 def _sweep_items(computed, picked: np.ndarray) -> np.ndarray:

@@ -183,7 +183,12 @@ def test_images_and_camera_matrices_equal_imread_and_the_infos(synth_out, synth_
 
 def test_the_object_pickles_small_and_reopens_lazily(synth_samples):
     data = pickle.dumps(synth_samples)
-    assert len(data) < 100_000
+    # per sample: its tokens, file names, matrices and ~36 boxes (SWEEPS sweeps, 6 cameras), nothing of the tables
+    # (measured 4.0 kB a sample here; ~4.8 kB with 10 sweeps)
+    assert len(data) < 4_500 * len(synth_samples)
+    # fixed-width arrays only: a forked worker's reads touch no Python object (no copy-on-write growth)
+    arrays = [v for v in vars(synth_samples).values() if isinstance(v, np.ndarray)]
+    assert len(arrays) > 15 and all(a.dtype != object for a in arrays)
     again = pickle.loads(data)
     assert again._ds is None
     np.testing.assert_array_equal(again[3]["points"], synth_samples[3]["points"])
