@@ -5,7 +5,8 @@ Order: the split's samples in scene-table order, then by timestamp within a scen
 
 At construction the index's `compute` and `v2_arrays` run once for the split and only small per-sample arrays are
 kept (tokens, file names, 4x4 matrices, boxes); tables are not held, and the dataset is reopened lazily (after a
-fork or in a spawned worker) from its picklable reference. Sensor data is read through the one sensor reader,
+fork or in a spawned worker) from its picklable reference. Use spawned workers: polars is not fork-safe, and a
+forked child reading through it after the parent used it can hang. Sensor data is read through the one sensor reader,
 `ds.sensors`, per item.
 """
 

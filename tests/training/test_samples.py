@@ -213,3 +213,17 @@ def test_close_points_leave_the_sweeps_and_the_pads_but_not_the_keyframe(synth_s
         points = synth_samples[i]["points"]
         near = points[(np.abs(points[:, 0]) < 1.0) & (np.abs(points[:, 1]) < 1.0)]
         np.testing.assert_array_equal(near, np.array([[0.3, -0.2, 0.5, 7.0, 0.0]], dtype=np.float32))
+
+
+@pytest.mark.parametrize("method", ["spawn"])  # fork after polars has run hangs in polars' thread pool: README
+def test_a_worker_process_reads_the_same_sample(synth_samples, method):
+    """A DataLoader worker's view: the object sent to a spawned process opens the dataset there."""
+    import multiprocessing
+    import operator
+
+    with multiprocessing.get_context(method).Pool(1) as pool:
+        item = pool.apply(operator.getitem, (synth_samples, 5))
+    expected = synth_samples[5]
+    assert item["sample_token"] == expected["sample_token"]
+    np.testing.assert_array_equal(item["points"], expected["points"])
+    np.testing.assert_array_equal(item["gt_bboxes_3d"], expected["gt_bboxes_3d"])
