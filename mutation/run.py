@@ -264,6 +264,10 @@ GROUPS: dict[str, Group] = {
         ("nuparquet/evaluation/segmentation/*.py",),
         ("tests/evaluation/test_lidarseg_devkit.py",),
         keyword="not extract", cache_conversions=True),
+    "training": Group(  # samples for training: the index's arrays read as mmdetection3d's loading pipeline
+        ("nuparquet/training/*.py",),
+        ("tests/training/",),
+        keyword="not extract", cache_conversions=True),
     "synth": Group(  # the generator makes every fixture: its own mutants must make theirs
         ("nuparquet/synth/*.py",),
         ("tests/synth/", "tests/parity/test_synth_devkit.py"),

@@ -1,0 +1,269 @@
+"""`Samples`: one split of a converted dataset as a map-style training dataset with mmdetection3d v1.4.0's
+semantics, built from the same arrays as the v2 infos (`nuparquet.index`), so every matrix and box is the infos'.
+
+Order: the split's samples in scene-table order, then by timestamp within a scene (stable across runs).
+
+At construction the index's `compute` and `v2_arrays` run once for the split and only small per-sample arrays are
+kept (tokens, file names, 4x4 matrices, boxes); tables are not held, and the dataset is reopened lazily (after a
+fork or in a spawned worker) from its picklable reference. Use spawned workers: polars is not fork-safe, and a
+forked child reading through it after the parent used it can hang. Sensor data is read through the one sensor reader,
+`ds.sensors`, per item.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from nuparquet.dataset import Dataset, as_dataset
+from nuparquet.errors import UsageError
+from nuparquet.index.compute import compute, offsets
+from nuparquet.index.inputs import read_inputs
+from nuparquet.index.labels import CLASSES
+from nuparquet.index.options import DEFAULT_CAMERAS, DEFAULT_LIDAR
+from nuparquet.index.splits import assign_splits, converter_version, split_names
+from nuparquet.index.v2_arrays import gather_segments, v2_arrays
+from nuparquet.sensors.reader import XYZI, MissingSensorData
+
+BOX_FILTERS = ("valid_flag", "num_lidar_pts", None)
+
+
+def remove_close(points: np.ndarray, radius: float = 1.0) -> np.ndarray:
+    """(P', D) the points of `points` (P, D) outside the square |x| < radius and |y| < radius (mmdetection3d's
+    `LoadPointsFromMultiSweeps._remove_close`)."""
+    close = (np.abs(points[:, 0]) < radius) & (np.abs(points[:, 1]) < radius)
+    return points[~close]
+
+
+class Samples:
+    """The samples of `split` ("train", "val", "test") of `dataset` (a `Dataset` or an output path).
+
+    `samples[i]` is a dict (only the parts asked for):
+
+    - `sample_token` (str), `timestamp_us` (int), `scene_token` (str)
+    - `points` (P, 5) float32 x, y, z [m] in the keyframe LIDAR_TOP frame, intensity (as in the file), time lag
+      [s] (`sample ts - sweep ts`, 0 for the keyframe): the keyframe and up to `sweeps` previous lidar sweeps
+      aggregated as mmdetection3d v1.4.0's `LoadPointsFromFile(load_dim=5)` + `LoadPointsFromMultiSweeps(
+      sweeps_num=sweeps, remove_close=True, pad_empty_sweeps=True, test_mode=True)` do from the v2 infos (each
+      sweep's `lidar2sensor` applied as that class applies it; the infos hold at most `sweeps` sweeps, so every
+      one is used); `lidar_sweeps` (int): how many sweeps were found
+    - `gt_bboxes_3d` (N, 7) float32 bottom centre x, y, z [m], l, w, h [m], yaw [rad] in the lidar frame
+      (mmdetection3d's `LiDARInstance3DBoxes` of the infos' `instances[].bbox_3d`), (N, 9) with `velocity`:
+      vx, vy [m/s] in the lidar frame appended, NaN set to 0; `gt_labels_3d` (N,) int64 index into `classes`, -1
+      for other classes; `num_lidar_pts` (N,) int64; boxes kept by `box_filter`: "valid_flag" (the infos'
+      `bbox_3d_isvalid`: lidar + radar points > 0, mmdetection3d's `use_valid_flag=True`), "num_lidar_pts"
+      (> 0, its default) or None (all)
+    - `img` (C, H, W, 3) uint8 decoded by cv2: BGR, as mmdetection3d's `LoadMultiViewImageFromFiles` (mmcv's
+      `imfrombytes`, cv2 backend) gives them; `rgb=True`: RGB (the channel order of BEVFusion's loader, which
+      decodes with pillow); a list when the sizes differ. Camera matrices as mmdetection3d's BEVFusion project
+      (`BEVLoadMultiViewImageFromFiles`) builds them from the infos, operation for operation: `cam2img` (C, 4, 4)
+      float32 (the 3x3 intrinsic padded), `lidar2cam` (C, 4, 4) float64 (the infos'), `cam2lidar` (C, 4, 4)
+      float64 (its inverse from the float32 rotation and translation), `lidar2img` (C, 4, 4) float32 = cam2img @
+      lidar2cam in float32; cameras in `cameras` order (the infos' order)
+    """
+
+    def __init__(self, dataset: str | Dataset, split: str = "train", *, lidar: bool = True, sweeps: int = 10,
+                 cameras: tuple[str, ...] | None = DEFAULT_CAMERAS, boxes: bool = True,
+                 classes: tuple[str, ...] = CLASSES, velocity: bool = True, box_filter: str | None = "valid_flag",
+                 close_radius_m: float = 1.0, pad_empty_sweeps: bool = True, version: str | None = None,
+                 lidar_channel: str = DEFAULT_LIDAR, rgb: bool = False) -> None:
+        if box_filter not in BOX_FILTERS:
+            raise UsageError(f"box_filter must be one of {BOX_FILTERS}, not {box_filter!r}")
+        ds = as_dataset(dataset)
+        version = converter_version(ds.version, version)
+        if split not in split_names(version):
+            raise UsageError(f"{version} has no {split} split (it has {', '.join(split_names(version))})")
+        self.split, self.lidar, self.sweeps, self.boxes = split, lidar, sweeps, boxes
+        self.cameras = tuple(cameras or ())
+        self.classes, self.velocity, self.box_filter = tuple(classes), velocity, box_filter
+        self.close_radius_m, self.pad_empty_sweeps, self.rgb = close_radius_m, pad_empty_sweeps, rgb
+        self._reference = ds.reference
+        self._ds: Dataset | None = ds
+
+        # the index needs at least one camera; without images its first one is computed and dropped
+        index_cameras = self.cameras or tuple(ds.channels["cameras"][:1])
+        inputs = read_inputs(ds, index_cameras, lidar_channel)
+        computed = compute(inputs, index_cameras, lidar_channel, sweeps, with_annotations=version != "v1.0-test",
+                           with_cam_instances=False)
+        assigned = assign_splits(version, inputs.scene_token, inputs.scene_name, inputs.sample_scene)
+        scene_index = {token: i for i, token in enumerate(inputs.scene_token.tolist())}
+        scene_of = np.array([scene_index[t] for t in inputs.sample_scene.tolist()], dtype=np.int64)
+        picked = np.flatnonzero(assigned == split)
+        picked = picked[np.lexsort((inputs.sample_timestamp_us[picked], scene_of[picked]))]
+        arrays = v2_arrays(computed, picked, index_cameras, "")
+        d = inputs.data
+
+        # Only fixed-width numpy arrays (no Python objects): a forked worker touches no reference counts, so the
+        # pages stay shared, and the pickle is the arrays' bytes.
+        self.sample_token = _text(arrays.token)  # (S,) str
+        self.timestamp_us = inputs.sample_timestamp_us[picked]  # (S,) int64
+        self.scene_token = _text(inputs.sample_scene[picked])  # (S,) str
+        self.scene = scene_of[picked]  # (S,) scene-table row of each sample, non-decreasing
+        self._lidar_token = _bytes(d.token[computed.lidar_row[picked]])  # (S,)
+        self._lidar_file = _bytes(d.filename[computed.lidar_row[picked]])  # (S,)
+        self._sweep_offsets = arrays.sweep_offsets  # (S + 1,)
+        self._sweep_token = _bytes(arrays.sweep_token)  # (W,)
+        self._sweep_file = _bytes(d.filename[computed.sweep_row[_sweep_items(computed, picked)]])  # (W,)
+        self._sweep_timestamp_s = arrays.sweep_timestamp_s  # (W,) float64, the infos' `timestamp`
+        self._sweep_lidar2sensor = arrays.sweep_lidar2sensor  # (W, 4, 4) float32, the infos' `lidar2sensor`
+        n_cam = len(self.cameras)
+        self._cam_token = _bytes(arrays.cam_token[:, :n_cam])  # (S, C)
+        self._cam_file = _bytes(d.filename[computed.cam_row[picked][:, :n_cam]])  # (S, C)
+        self._cam2img = arrays.cam2img[:, :n_cam].astype(np.float32)  # (S, C, 3, 3): read as float32 only
+        self._lidar2cam = arrays.lidar2cam[:, :n_cam]  # (S, C, 4, 4) float32, the infos' `lidar2cam`
+        self._ann_offsets = arrays.ann_offsets  # (S + 1,)
+        class_index = {name: i for i, name in enumerate(self.classes)}
+        self._ann_label = np.array([class_index.get(n, -1) for n in arrays.ann_name.tolist()], dtype=np.int32)
+        self._ann_box = gt_bboxes_3d(arrays.ann_box, arrays.ann_velocity)  # (A, 9) float32
+        self._ann_valid = arrays.ann_valid  # (A,) bool
+        self._ann_num_lidar_pts = arrays.ann_num_lidar_pts.astype(np.int32)  # (A,)
+        self.indices = np.arange(len(picked))  # the rows this object serves (a shard serves fewer)
+
+    # -- pickling: small, and the dataset reopened where it is used ----------------------------------------------
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        state["_ds"] = None
+        return state
+
+    @property
+    def dataset(self) -> Dataset:
+        """The opened dataset (opened again from its reference after unpickling)."""
+        if self._ds is None:
+            self._ds = self._reference.open()
+        return self._ds
+
+    # -- shards and the stream ----------------------------------------------------------------------------------
+
+    def shard(self, rank: int, world_size: int) -> Samples:
+        """The samples of rank `rank` of `world_size`: whole scenes, every scene on exactly one rank, balanced by
+        sample count (`shards.scene_parts`); empty when there are more ranks than scenes."""
+        from nuparquet.training.shards import shard
+
+        return shard(self, rank, world_size)
+
+    def stream(self, *, seed: int = 0, shuffle: bool = True, sequential: bool = False):
+        """These samples as a seeded, resumable iterable (`shards.SampleStream`)."""
+        from nuparquet.training.shards import SampleStream
+
+        return SampleStream(self, seed=seed, shuffle=shuffle, sequential=sequential)
+
+    # -- the map-style dataset -------------------------------------------------------------------------------------
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def __getitem__(self, i: int) -> dict:
+        if not -len(self.indices) <= i < len(self.indices):
+            raise IndexError(f"sample {i} of {len(self.indices)}")
+        s = int(self.indices[i])
+        out = {"sample_token": str(self.sample_token[s]), "timestamp_us": int(self.timestamp_us[s]),
+               "scene_token": str(self.scene_token[s])}
+        if self.lidar:
+            out["points"], out["lidar_sweeps"] = self._points(s)
+        if self.boxes:
+            out.update(self._boxes(s))
+        if self.cameras:
+            out.update(self._images(s))
+        return out
+
+    def _read_lidar(self, token: str, filename: str) -> np.ndarray:
+        """(P, 5) float32 x, y, z, intensity, ring of one lidar reading, through the sensor reader."""
+        frame = self.dataset.sensors.points(token, filename, "lidar", columns=[*XYZI, "ring"])
+        values = np.zeros((frame.height, 5), dtype=np.float32)
+        values[:, :4] = frame.select(XYZI).to_numpy()
+        if "ring" in frame.columns:
+            values[:, 4] = frame["ring"].to_numpy()
+        return values
+
+    def _points(self, s: int) -> tuple[np.ndarray, int]:
+        """mmdetection3d's LoadPointsFromFile + LoadPointsFromMultiSweeps over the infos' values of sample row s."""
+        points = self._read_lidar(self._lidar_token[s].decode(), self._lidar_file[s].decode())
+        points[:, 4] = 0
+        parts = [points]
+        ts = self.timestamp_us[s] / 1e6  # the infos' `timestamp` (seconds)
+        lo, hi = self._sweep_offsets[s], self._sweep_offsets[s + 1]
+        if hi == lo:  # the converter drops an empty `lidar_sweeps`: then the keyframe pads
+            if self.pad_empty_sweeps:
+                parts += [remove_close(points, self.close_radius_m)] * self.sweeps
+        for w in range(lo, hi):
+            sweep = self._read_lidar(self._sweep_token[w].decode(), self._sweep_file[w].decode())
+            sweep = remove_close(sweep, self.close_radius_m)
+            lidar2sensor = self._sweep_lidar2sensor[w].astype(np.float64)  # np.array of the infos' lists
+            sweep[:, :3] = sweep[:, :3] @ lidar2sensor[:3, :3]
+            sweep[:, :3] -= lidar2sensor[:3, 3]
+            sweep[:, 4] = ts - self._sweep_timestamp_s[w]
+            parts.append(sweep)
+        return np.concatenate(parts).astype(np.float32, copy=False), int(hi - lo)
+
+    def _boxes(self, s: int) -> dict:
+        lo, hi = self._ann_offsets[s], self._ann_offsets[s + 1]
+        keep = np.arange(lo, hi)
+        if self.box_filter == "valid_flag":
+            keep = keep[self._ann_valid[keep]]
+        elif self.box_filter == "num_lidar_pts":
+            keep = keep[self._ann_num_lidar_pts[keep] > 0]
+        boxes = self._ann_box[keep] if self.velocity else self._ann_box[keep, :7]
+        return {"gt_bboxes_3d": boxes, "gt_labels_3d": self._ann_label[keep].astype(np.int64),
+                "num_lidar_pts": self._ann_num_lidar_pts[keep].astype(np.int64)}
+
+    def _images(self, s: int) -> dict:
+        import cv2
+
+        sensors = self.dataset.sensors
+        images = []
+        for token, filename in zip(self._cam_token[s].tolist(), self._cam_file[s].tolist()):
+            token, filename = token.decode(), filename.decode()
+            path = sensors.path(filename)
+            if not path.is_file():
+                raise MissingSensorData(str(path), f"missing image file: {path} (camera sample_data {token}; "
+                                                   "or --dataroot PATH where the files are)")
+            image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            images.append(cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if self.rgb else image)
+        same = len({im.shape for im in images}) == 1
+        return {"img": np.stack(images) if same else images, **camera_matrices(self._cam2img[s], self._lidar2cam[s])}
+
+
+def camera_matrices(cam2img: np.ndarray, lidar2cam: np.ndarray) -> dict:
+    """cam2img, lidar2cam, cam2lidar, lidar2img (each (C, 4, 4)) from the infos' `cam2img` (C, 3, 3) and
+    `lidar2cam` (C, 4, 4), one camera at a time as BEVFusion's `BEVLoadMultiViewImageFromFiles` computes them (its
+    2-D float32 products, so the BLAS path is the same)."""
+    out: dict = {"cam2img": [], "lidar2cam": [], "cam2lidar": [], "lidar2img": []}
+    for intrinsic, from_lidar in zip(cam2img.tolist(), lidar2cam.tolist()):  # the infos' lists
+        lidar2cam_array = np.array(from_lidar).astype(np.float32)
+        rot, trans = lidar2cam_array[:3, :3], lidar2cam_array[:3, 3:4]
+        cam2lidar = np.eye(4)
+        cam2lidar[:3, :3] = rot.T
+        cam2lidar[:3, 3:4] = -1 * np.matmul(rot.T, trans.reshape(3, 1))
+        cam2img_array = np.eye(4).astype(np.float32)
+        cam2img_array[:3, :3] = np.array(intrinsic).astype(np.float32)
+        out["cam2img"].append(cam2img_array)
+        out["lidar2cam"].append(from_lidar)
+        out["cam2lidar"].append(cam2lidar)
+        out["lidar2img"].append(cam2img_array @ lidar2cam_array)
+    return {key: np.stack(values) if values else np.zeros((0, 4, 4)) for key, values in out.items()}
+
+
+def gt_bboxes_3d(box: np.ndarray, velocity: np.ndarray) -> np.ndarray:
+    """(A, 9) float32 from the infos' `bbox_3d` (A, 7) (gravity centre) and `velocity` (A, 2), as mmdetection3d's
+    `NuScenesDataset.parse_ann_info` makes them: NaN velocity set to 0, concatenated, then
+    `LiDARInstance3DBoxes(origin=(0.5, 0.5, 0.5))` in float32 moves the centre to the bottom."""
+    velocity = velocity.copy()
+    velocity[np.isnan(velocity[:, 0])] = 0.0
+    boxes = np.concatenate([box, velocity], axis=-1).astype(np.float32).reshape(-1, 9)
+    boxes[:, 2] += boxes[:, 5] * np.float32(-0.5)
+    return boxes
+
+
+def _text(values: np.ndarray) -> np.ndarray:
+    return np.asarray(values.tolist(), dtype=str)
+
+
+def _bytes(values: np.ndarray) -> np.ndarray:
+    """`values` (str) as a fixed-width UTF-8 bytes array of the same shape (decode per item)."""
+    return np.char.encode(np.asarray(values.tolist(), dtype=str), "utf-8")
+
+
+def _sweep_items(computed, picked: np.ndarray) -> np.ndarray:
+    """The sweeps (rows of computed.sweep_row) of samples `picked`, in v2_arrays' order."""
+    items, _ = gather_segments(offsets(computed.sweep_owner, len(computed.lidar_row)), picked)
+    return items
