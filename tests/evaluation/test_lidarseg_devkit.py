@@ -11,8 +11,10 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import polars as pl
 import pytest
 
+from nuparquet.evaluation.segmentation.run import confusion_table
 from tests.conftest import SYNTH_VERSION
 
 pytestmark = pytest.mark.devkit
@@ -84,6 +86,13 @@ def test_perturbed_predictions_equal_the_devkit(labelled_out, devkit_nusc, seed,
     # the flips predict classes the ground truth does not hold: IoU 0 there, counted into the mean as the devkit does
     assert any(value == 0.0 for value in ours.metrics["iou_per_class"].values())
     assert ours.confusion[0].sum() == 0 and ours.confusion[:, 0].sum() == 0
+    # counts of points, as the devkit's ConfusionMatrix holds them (integers, so confusion.parquet's are too)
+    from nuscenes.eval.lidarseg.utils import ConfusionMatrix
+
+    devkit_matrix = ConfusionMatrix(17, 0)
+    devkit_matrix.update(np.array([1, 2]), np.array([1, 3]))
+    assert ours.confusion.dtype == devkit_matrix.global_cm.dtype == np.int64
+    assert confusion_table(ours.confusion).schema["points"] == pl.Int64
 
 
 def test_perfect_predictions_score_one(labelled_out, devkit_nusc, tmp_path, monkeypatch):
