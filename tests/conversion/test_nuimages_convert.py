@@ -172,3 +172,19 @@ def test_the_cli_converts_renders_and_exports_coco(root, tmp_path, capsys):
     convert(nuscenes, "v1.0-synth", tmp_path / "n")
     assert main(["export-coco", str(tmp_path / "n"), "--out", str(tmp_path / "x.json")]) == 2
     assert "not a nuImages conversion" in capsys.readouterr().err
+
+
+def test_every_refusal_names_its_record_by_index_and_token(root, tmp_path):
+    """Each problem of the refused tables says which record (0-based index and token), not only the file: a bad
+    camera_intrinsic and a bbox of 3 numbers each name theirs."""
+    import json
+
+    edits = {"calibrated_sensor": lambda rs: rs[0].__setitem__("camera_intrinsic", [[1, 0], [0, 1]]),
+             "object_ann": lambda rs: rs[1].__setitem__("bbox", [1, 2, 3])}
+    edited = root
+    for table, edit in edits.items():
+        edited = _edited(edited, tmp_path / table, table, edit)
+    records = {t: json.loads((edited / VERSION / f"{t}.json").read_text()) for t in edits}
+    found = {(p.file, p.index, p.token) for p in validate(edited, VERSION).problems}
+    assert ("calibrated_sensor.json", 0, records["calibrated_sensor"][0]["token"]) in found
+    assert ("object_ann.json", 1, records["object_ann"][1]["token"]) in found
