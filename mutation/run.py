@@ -224,7 +224,7 @@ GROUPS: dict[str, Group] = {
     "devkit_map": Group(  # the devkit's map expansion face, and the map files' records it and export-json rebuild
         ("nuparquet/devkit/map_expansion/*.py", "nuparquet/sources/map_records.py"),
         ("tests/parity/test_devkit_map_api.py", "tests/parity/test_devkit_map_renders.py",
-         "tests/parity/test_devkit_arcline_path_utils.py",
+         "tests/parity/test_devkit_arcline_path_utils.py", "tests/parity/test_devkit_map_edges.py",
          "tests/map/test_map_datasets.py::test_export_json_writes_every_map_file_back_exactly"),
         keyword="not extract", cache_conversions=True),
     "evaluation": Group(
