@@ -122,3 +122,45 @@ def test_masks_and_geometry_over_the_edits(edited, angle):
     for (name, geoms), (_, theirs_geoms) in zip(ours.get_map_geom(patch_box, angle, layers),
                                                 theirs.get_map_geom(patch_box, angle, layers)):
         assert len(geoms) == len(theirs_geoms) and all(a.equals_exact(b, 0.0) for a, b in zip(geoms, theirs_geoms))
+
+
+def test_the_devkits_map_utils_on_ours(pairs_for_utils):
+    """`map_expansion.utils` on our map gives the devkit's: the ego poses' drivable ratio, its assertion on a map of
+    several separate road graphs (the generator's), and the index rebuilt after records are dropped."""
+    from nuscenes.map_expansion import utils as devkit_utils
+
+    from nuparquet.devkit.map_expansion import utils
+
+    theirs, ours, nusc, devkit_nusc = pairs_for_utils
+    ratios = []
+    for scene in devkit_nusc.scene:
+        if devkit_nusc.get("log", scene["log_token"])["location"] == ours.map_name:
+            ratios.append(utils.get_egoposes_on_drivable_ratio(nusc, ours, scene["token"]))
+            assert ratios[-1] == devkit_utils.get_egoposes_on_drivable_ratio(devkit_nusc, theirs, scene["token"])
+    assert ratios and max(ratios) > 0
+    for module, nusc_map in ((utils, ours), (devkit_utils, theirs)):
+        with pytest.raises(AssertionError, match="Bad initialization"):
+            module.get_disconnected_lanes(nusc_map)
+        with pytest.raises(AssertionError, match="Bad initialization"):
+            module.get_disconnected_subtrees(nusc_map.connectivity)
+    index = ours._token2ind
+    for nusc_map in (ours, theirs):  # what drop_disconnected_lanes does to the records, then its index call
+        nusc_map.lane = nusc_map.lane[2:]
+        del nusc_map.connectivity[next(iter(nusc_map.connectivity))]
+        nusc_map._make_token2ind()
+    assert ours._token2ind is not index and ours._token2ind == theirs._token2ind
+    assert ours.get("lane", theirs.lane[0]["token"]) is ours.lane[0]
+
+
+@pytest.fixture
+def pairs_for_utils(map_root, map_out, devkit):
+    """Fresh maps (the drop changes them) of a location with two roads, and both NuScenes."""
+    from nuscenes.map_expansion.map_api import NuScenesMap as DevkitMap
+
+    from conftest import SYNTH_VERSION
+    from nuparquet.devkit import NuScenes
+
+    devkit_nusc = devkit.NuScenes(SYNTH_VERSION, str(map_root), verbose=False)
+    location = "boston-seaport"
+    return (DevkitMap(str(map_root), location), NuScenesMap(str(map_out), location),
+            NuScenes(SYNTH_VERSION, str(map_out), verbose=False), devkit_nusc)

@@ -187,6 +187,11 @@ class NuScenesMap:
             return self.__dict__[name]
         raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
+    def _make_token2ind(self) -> None:
+        """A fresh `_token2ind`, built again on first use from the layers as they are now (the devkit's
+        `map_expansion.utils.drop_disconnected_lanes` calls it after removing records)."""
+        self.__dict__['_token2ind'] = _TokenIndex(self)
+
     def _make_shortcuts(self, layer_name: str, records) -> None:
         """The devkit's `_make_shortcuts` for one layer (the records it links to are built first, so the shortcuts
         share their objects, as the devkit's do)."""
