@@ -27,6 +27,9 @@ from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
+# the output's reader loads with the module, as the devkit's map_api loads its libraries on import: construction
+# itself reads the manifest only
+import nuparquet.dataset.core  # noqa: F401
 from nuparquet.devkit.map_expansion.map_explorer import Geometry, NuScenesMapExplorer
 from nuparquet.devkit.output import open_output
 from nuparquet.errors import UsageError
@@ -206,11 +209,12 @@ class NuScenesMap:
         if layer_name == 'stop_line':
             for record in records:
                 record['cue'] = self._get_stop_line_cue(record)
-        if layer_name == 'lane':
+        if layer_name == 'lane':  # self.get('node', ...) for each segment, its lookups hoisted (thousands of lanes)
+            nodes, node_index = self.node, self._token2ind['node']
             for record in records:
-                record['left_lane_divider_segment_nodes'] = [self.get('node', segment['node_token']) for segment in
+                record['left_lane_divider_segment_nodes'] = [nodes[node_index[segment['node_token']]] for segment in
                                                              record['left_lane_divider_segments']]
-                record['right_lane_divider_segment_nodes'] = [self.get('node', segment['node_token']) for segment in
+                record['right_lane_divider_segment_nodes'] = [nodes[node_index[segment['node_token']]] for segment in
                                                               record['right_lane_divider_segments']]
 
     def _get_stop_line_cue(self, stop_line_record: dict) -> List[dict]:
