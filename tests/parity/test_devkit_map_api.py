@@ -374,3 +374,13 @@ def test_next_roads_from_lanes_blocks_and_segments(pairs):
             with pytest.raises(AssertionError, match="No suitable layer"):
                 call(-1e6, -1e6)
     assert kinds >= {"lane"}
+
+
+def test_a_pickled_map_reopens_the_same_output(pairs):
+    import pickle
+
+    theirs, ours = pairs["boston-seaport"]
+    copy = pickle.loads(pickle.dumps(ours))
+    assert copy is not ours and copy.dataroot == ours.dataroot and copy.parquet == ours.parquet
+    x, y = theirs.node[0]["x"], theirs.node[0]["y"]
+    assert copy.lane == theirs.lane and copy.get_closest_lane(x, y) == theirs.get_closest_lane(x, y)

@@ -141,6 +141,7 @@ class NuScenesMap:
         if map_name not in entries:
             raise UsageError(f"{dataset.root} holds no map of {map_name!r} (maps: {', '.join(entries) or 'none'}): "
                              "convert a dataroot whose maps/expansion/ holds it")
+        self._arguments = (dataroot, map_name, parquet, storage_options)
         self._dataset = dataset
         self._entry = entries[map_name]
         self.parquet = dataset.root
@@ -165,6 +166,11 @@ class NuScenesMap:
 
     def __repr__(self) -> str:
         return f"<nuparquet.devkit NuScenesMap {self.map_name} parquet={str(self.parquet)!r}>"
+
+    def __reduce__(self):
+        """Pickled as its arguments (e.g. for a data loader's worker processes): the copy opens the same output and
+        rebuilds its records on demand. Changes made to records are not carried over."""
+        return _reopen, self._arguments
 
     # --- the layers, rebuilt on first access -------------------------------------------------------------------
 
@@ -378,3 +384,8 @@ class NuScenesMap:
         assert any(tokens[0] != '' for tokens in on_point.values()), \
             'Error: No suitable layer in the specified point location!'
         return layers.next_roads(x, y)
+
+
+def _reopen(dataroot, map_name, parquet, storage_options) -> NuScenesMap:
+    return NuScenesMap(dataroot, map_name, parquet=parquet, storage_options=storage_options)
+
