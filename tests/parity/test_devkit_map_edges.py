@@ -164,3 +164,32 @@ def pairs_for_utils(map_root, map_out, devkit):
     location = "boston-seaport"
     return (DevkitMap(str(map_root), location), NuScenesMap(str(map_out), location),
             NuScenes(SYNTH_VERSION, str(map_out), verbose=False), devkit_nusc)
+
+
+def test_drop_disconnected_lanes(edited):
+    """`drop_disconnected_lanes` on a graph made one piece (the generator's roads are separate graphs, which the
+    devkit's helper refuses) but for an isolated lane and a link to a lane that is no record: the devkit's on a copy
+    of its map and ours on a fresh one drop the same, leaving the same records and index."""
+    import copy
+
+    from nuscenes.map_expansion import utils as devkit_utils
+
+    from nuparquet.devkit.map_expansion import utils
+
+    theirs = copy.deepcopy(edited[0])
+    ours = NuScenesMap(edited[1].dataroot, edited[1].map_name, parquet=edited[1].parquet)
+    for nusc_map in (theirs, ours):  # the same edits in memory on both
+        lanes = list(nusc_map.connectivity)
+        for a, b in zip(lanes, lanes[1:]):
+            nusc_map.connectivity[a]["outgoing"] = nusc_map.connectivity[a]["outgoing"] + [b]
+        nusc_map.connectivity[lanes[0]]["incoming"] = nusc_map.connectivity[lanes[0]]["incoming"] + ["ghost"]
+        nusc_map.lane.append(dict(nusc_map.lane[0], token="isolated"))
+        nusc_map.connectivity["isolated"] = {"incoming": [], "outgoing": []}
+        nusc_map._make_token2ind()
+    expected = devkit_utils.get_disconnected_lanes(theirs)
+    assert utils.get_disconnected_lanes(ours) == expected == ["ghost", "isolated"]
+    devkit_utils.drop_disconnected_lanes(theirs)
+    assert utils.drop_disconnected_lanes(ours) is ours
+    for layer in ("lane", "lane_connector", "connectivity", "arcline_path_3"):
+        assert json.dumps(getattr(ours, layer)) == json.dumps(getattr(theirs, layer)), layer
+    assert "isolated" not in ours._token2ind["lane"] and ours._token2ind == theirs._token2ind

@@ -221,3 +221,29 @@ def test_a_subclass_in_maptrs_pattern_gives_the_devkits_answers(pair):
         assert np.array_equal(mask, ours.get_map_mask(patch_box, angle, layers, (60, 30)))
         drawn += int(mask.sum() > 0)
     assert drawn >= 3
+
+
+def test_map_in_image_from_our_nuscenes_equals_the_devkits_code(synth_root, synth_out, devkit, monkeypatch, tmp_path):
+    """`render_map_in_image` on a camera image (the synthetic set with images): the devkit's raises in descartes;
+    ours, fed our NuScenes, draws the devkit's figure pixel for pixel (the devkit's code with the shapely 2 patch)."""
+    from conftest import SYNTH_VERSION
+
+    from nuparquet.devkit import NuScenes
+
+    nusc = devkit.NuScenes(SYNTH_VERSION, str(synth_root), verbose=False)
+    sample = nusc.sample[len(nusc.sample) // 2]
+    location = nusc.get("log", nusc.get("scene", sample["scene_token"])["log_token"])["location"]
+    theirs = devkit_map_api.NuScenesMap(str(synth_root), location)
+    ours = NuScenesMap(str(synth_out), location)
+    with pytest.raises(IndexError):
+        theirs.render_map_in_image(nusc, sample["token"], verbose=False)
+    plt.close("all")
+    out = tmp_path / "in-image.png"
+    fig, ax = ours.render_map_in_image(NuScenes(SYNTH_VERSION, str(synth_out), verbose=False), sample["token"],
+                                       verbose=False, out_path=str(out))
+    assert out.stat().st_size > 0 and len(ax.patches) > 0  # map polygons drawn over the image
+    mine = _pixels(fig)
+    _descartes_for_shapely_2(monkeypatch)
+    assert np.array_equal(mine, _pixels(theirs.render_map_in_image(nusc, sample["token"], verbose=False)[0]))
+    with pytest.raises(AssertionError, match="Can only render non-geometry polygons"):
+        ours.render_map_in_image(nusc, sample["token"], layer_names=["lane_divider"], verbose=False)
