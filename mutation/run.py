@@ -219,7 +219,7 @@ GROUPS: dict[str, Group] = {
         ("tests/devkit/", "tests/parity/test_devkit_tables.py", "tests/parity/test_devkit_boxes.py",
          "tests/parity/test_devkit_utils.py", "tests/parity/test_devkit_printers.py",
          "tests/parity/test_devkit_clients.py", "tests/rendering/test_colorings.py",
-         "tests/parity/test_predict_helper_devkit.py"),
+         "tests/parity/test_predict_helper_devkit.py", "tests/parity/test_devkit_can_bus.py"),
         keyword="not extract", cache_conversions=True),
     "evaluation": Group(
         ("nuparquet/evaluation/*.py",),
