@@ -262,7 +262,7 @@ GROUPS: dict[str, Group] = {
         keyword="not extract", cache_conversions=True),
     "segmentation": Group(  # the lidarseg benchmark: the devkit's class mapper and confusion-matrix arithmetic
         ("nuparquet/evaluation/segmentation/*.py",),
-        ("tests/evaluation/test_lidarseg_devkit.py",),
+        ("tests/evaluation/test_lidarseg_devkit.py", "tests/evaluation/test_lidarseg_slices.py"),
         keyword="not extract", cache_conversions=True),
     "training": Group(  # samples for training: the index's arrays read as mmdetection3d's loading pipeline
         ("nuparquet/training/*.py",),
