@@ -93,6 +93,11 @@ class Schema:
         """This schema as `convert --allow-dangling` writes it: the `null_if_dangling` columns nullable."""
         return replace(self, fields=tuple(replace(f, nullable=True) if f.null_if_dangling else f for f in self.fields))
 
+    def allowing_null(self, names) -> "Schema":
+        """This schema with the fields `names` (those it has) nullable: the columns a source format cannot fill."""
+        names = set(names)
+        return replace(self, fields=tuple(replace(f, nullable=True) if f.name in names else f for f in self.fields))
+
     def arrow_schema(self) -> pa.Schema:
         metadata = {k: v if isinstance(v, str) else json.dumps(v, sort_keys=True) for k, v in self.metadata.items()}
         return pa.schema([pa.field(f.name, f.arrow_type, nullable=f.nullable) for f in self.fields],
@@ -208,8 +213,9 @@ def table_schemas() -> dict[str, Schema]:
 
 
 # Source tables of other dataset families, by family: `schemas/<family>/tables/*.json` (the formats of
-# `nuparquet.conversion.formats` that are not nuScenes-shaped: nuImages).
-FAMILIES = ("nuimages",)
+# `nuparquet.conversion.formats` that are not nuScenes-shaped: nuImages; TruckScenes' tables of its own, beside
+# the nuScenes ones it shares: `nuparquet.sources.truckscenes.schemas`).
+FAMILIES = ("nuimages", "truckscenes")
 
 
 @functools.cache
