@@ -91,11 +91,10 @@ class Schema:
 
     def allowing_dangling(self) -> "Schema":
         """This schema as `convert --allow-dangling` writes it: the `null_if_dangling` columns nullable."""
-        return replace(self, fields=tuple(replace(f, nullable=True) if f.null_if_dangling else f for f in self.fields))
+        return self.allowing_null([f.name for f in self.fields if f.null_if_dangling])
 
     def allowing_null(self, names) -> "Schema":
-        """This schema with the fields `names` (those it has) nullable: the columns a source format cannot fill."""
-        names = set(names)
+        """This schema with the fields `names` nullable (the columns a source format cannot fill: TruckScenes' log)."""
         return replace(self, fields=tuple(replace(f, nullable=True) if f.name in names else f for f in self.fields))
 
     def arrow_schema(self) -> pa.Schema:
@@ -212,9 +211,7 @@ def table_schemas() -> dict[str, Schema]:
     return {s.name: s for s in sorted(schemas, key=lambda s: (s.optional, s.name))}
 
 
-# Source tables of other dataset families, by family: `schemas/<family>/tables/*.json` (the formats of
-# `nuparquet.conversion.formats` that are not nuScenes-shaped: nuImages; TruckScenes' tables of its own, beside
-# the nuScenes ones it shares: `nuparquet.sources.truckscenes.schemas`).
+# Other families' source tables, `schemas/<family>/tables/*.json` (TruckScenes': `sources.truckscenes.schemas`).
 FAMILIES = ("nuimages", "truckscenes")
 
 
