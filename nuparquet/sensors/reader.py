@@ -107,8 +107,9 @@ class SensorReader:
 
     def points(self, token: str, filename: str, modality: str, columns=None) -> pl.DataFrame:
         """One frame's points as a polars DataFrame: from the converted dataset when the frame is there (`columns`,
-        default every sensor field the dataset has), else from its file (lidar: x, y, z, intensity, ring; radar:
-        the PCD fields; `columns` that a file does not hold, such as labels, left out).
+        default every sensor field the dataset has), else from its file (lidar: x, y, z, intensity, ring, or a
+        lidar `.pcd`'s fields (TruckScenes: x, y, z, intensity, timestamp); radar: the PCD fields; `columns` that a
+        file does not hold, such as labels, left out).
 
         Raises:
             MissingSensorData: neither converted nor a file under the dataroot.
@@ -122,7 +123,7 @@ class SensorReader:
         from nuparquet.sources.points import read_lidar_bin, read_radar_pcd
 
         path = self.file(token, filename, modality)
-        if modality == "lidar":
+        if modality == "lidar" and not str(filename).endswith(".pcd"):  # a .pcd.bin; a .pcd (TruckScenes) is a PCD
             values = read_lidar_bin(path, len(LIDAR_FIELDS))
             frame = pl.DataFrame({name: values[:, j] for j, name in enumerate(LIDAR_FIELDS)})
         else:

@@ -274,3 +274,17 @@ def test_the_generator_is_deterministic(root, tmp_path):
                        version=VERSION)
     for path in sorted((root / VERSION).iterdir()):
         assert filecmp.cmp(path, again / VERSION / path.name, shallow=False), path.name
+
+
+def test_a_lidar_pcd_read_through_the_dataset_is_the_devkits_cloud(root, out, ts):
+    import nuparquet
+
+    ds = nuparquet.open(out, dataroot=root)
+    frames = [r for r in ts.sample_data if r["sensor_modality"] == "lidar"]
+    for record in frames[::7]:
+        points, _ = ds.sensors.lidar(record["token"], record["filename"])
+        cloud = LidarPointCloud.from_file(str(root / record["filename"]))
+        np.testing.assert_array_equal(points.astype(np.float64).T, cloud.points)
+        every = ds.sensors.points(record["token"], record["filename"], "lidar", columns=["x", "timestamp"])
+        assert every.columns == ["x", "timestamp"]
+        np.testing.assert_array_equal(every["timestamp"].to_numpy(), cloud.timestamps[0])
