@@ -256,7 +256,7 @@ GROUPS: dict[str, Group] = {
         ("tests/parity/test_nuimages_devkit.py", "tests/conversion/test_nuimages_convert.py", "tests/test_rle.py"),
         keyword="not extract"),
     "truckscenes": Group(  # MAN TruckScenes: its reader and checks, and its generator (issue 40)
-        ("nuparquet/sources/truckscenes.py", "nuparquet/synth/truckscenes.py"),
+        ("nuparquet/sources/truckscenes.py", "nuparquet/synth/truckscenes.py", "nuparquet/conversion/builders/ego_motion.py"),
         ("tests/conversion/test_truckscenes.py",),
         keyword="not extract"),
     "tracking": Group(  # the tracking benchmark: motmetrics' accumulator replayed, the devkit's metrics

@@ -19,6 +19,7 @@ import polars as pl
 
 from nuparquet.channels import channel_facts
 from nuparquet.conversion.builder import Builder
+from nuparquet.conversion.builders import ego_motion
 from nuparquet.conversion.builders import nuimages as nuimages_builders
 from nuparquet.conversion.registry import BUILDERS
 from nuparquet.errors import UsageError
@@ -74,7 +75,7 @@ NUIMAGES = SourceFormat(
 TRUCKSCENES = SourceFormat(
     "truckscenes", "MAN TruckScenes: nuScenes' layout without log and map, with ego motion of cabin and chassis, "
     "weather, 4 cameras, 6 lidars and 6 radars as .pcd (truckscenes-devkit)", truckscenes.looks_like,
-    truckscenes.read_truckscenes_tables, truckscenes.check_truckscenes, BUILDERS, nuscenes_channels,
+    truckscenes.read_truckscenes_tables, truckscenes.check_truckscenes, (*BUILDERS, ego_motion.BUILDER), nuscenes_channels,
     len(truckscenes.schemas()) + 1, nullable_fields=truckscenes.LOG_COLUMNS, point_sensors=("radar",))
 
 FORMATS: tuple[SourceFormat, ...] = (NUIMAGES, TRUCKSCENES, NUSCENES)  # detection order: nuScenes, which takes anything, last

@@ -153,7 +153,7 @@ def _scene(rng, tables, files, calibrations, scene_index, start_us, samples_per_
                             "first_sample_token": sample_tokens[0], "last_sample_token": sample_tokens[-1],
                             "weather_annotation_token": weather_token})
     for motion in ("ego_motion_cabin", "ego_motion_chassis"):
-        for t in range(times[0] - 100_000, times[-1] + 100_001, MOTION_INTERVAL_US):
+        for t in range(times[0] - 93_000, times[-1] + 100_001, MOTION_INTERVAL_US):  # off the samples' clock
             tables[motion].append(_motion(rng, t, start_us, cabin=motion == "ego_motion_cabin"))
     boxes = _annotations(rng, tables, sample_tokens, times, start_us)
     for sensor, calibration in zip(SENSORS, calibrations):

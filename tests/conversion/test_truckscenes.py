@@ -288,3 +288,25 @@ def test_a_lidar_pcd_read_through_the_dataset_is_the_devkits_cloud(root, out, ts
         every = ds.sensors.points(record["token"], record["filename"], "lidar", columns=["x", "timestamp"])
         assert every.columns == ["x", "timestamp"]
         np.testing.assert_array_equal(every["timestamp"].to_numpy(), cloud.timestamps[0])
+
+
+def test_ego_motion_is_aligned_to_every_sample(out, ts):
+    rows = _read(out, "sample_ego_motion")
+    assert rows.height == len(ts.sample)
+    for table in ("ego_motion_cabin", "ego_motion_chassis"):
+        records = sorted(getattr(ts, table), key=lambda r: r["timestamp"])
+        stamps = np.array([r["timestamp"] for r in records])
+        floats = [k for k, v in records[0].items() if isinstance(v, float)]
+        interpolated = 0
+        for row in rows.iter_rows(named=True):
+            t = row["timestamp"]
+            assert row[f"{table}_closest_token"] == ts.getclosest(table, t)["token"]
+            before = int(np.searchsorted(stamps, t, side="right")) - 1
+            assert row[table] == records[before] and row[f"{table}_age_us"] == t - stamps[before]
+            if stamps[before] < t < stamps[-1]:
+                a, b = records[before], records[before + 1]
+                for name in floats:
+                    expected = np.interp(t, [a["timestamp"], b["timestamp"]], [a[name], b[name]])
+                    assert row[f"{table}_interp"][name] == pytest.approx(expected, rel=1e-12, abs=1e-15), name
+                interpolated += 1
+        assert interpolated == len(ts.sample)
