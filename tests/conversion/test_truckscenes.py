@@ -310,3 +310,17 @@ def test_ego_motion_is_aligned_to_every_sample(out, ts):
                     assert row[f"{table}_interp"][name] == pytest.approx(expected, rel=1e-12, abs=1e-15), name
                 interpolated += 1
         assert interpolated == len(ts.sample)
+
+
+@pytest.mark.parametrize("channel, kind", [("LIDAR_TOP_LEFT", LidarPointCloud), ("RADAR_RIGHT_SIDE", RadarPointCloud)])
+def test_multisweep_is_the_devkits_from_file_multisweep(root, out, ts, channel, kind):
+    import nuparquet
+    from nuparquet.frames.sweeps import multisweep
+
+    ds = nuparquet.open(out, dataroot=root)
+    for sample in ts.sample[4:7]:  # the last sample of a scene, and the first (no sweep before it) of the next
+        cloud, times = kind.from_file_multisweep(ts, sample, channel, "LIDAR_LEFT", nsweeps=3)
+        sweeps = multisweep(ds, sample["token"], channel, "LIDAR_LEFT", nsweeps=3)
+        assert sweeps.points.dtype == np.float64 and sweeps.points.shape == cloud.points.T.shape
+        np.testing.assert_allclose(sweeps.points, cloud.points.T, rtol=0, atol=1e-9)
+        np.testing.assert_array_equal(sweeps.times_s, times[0])
