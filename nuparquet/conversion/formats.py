@@ -44,8 +44,6 @@ class SourceFormat:
     steps: int  # progress units of reading (one per table it knows)
     # Columns of the derived datasets this format cannot fill (TruckScenes has no log): written as nullable.
     nullable_fields: tuple[str, ...] = ()
-    # The modalities whose point files `--sensors` converts (TruckScenes' lidar .pcd files are not: refused).
-    point_sensors: tuple[str, ...] = ("lidar", "radar")
 
 
 def nuscenes_channels(tables: dict[str, pl.DataFrame]) -> dict:
@@ -76,7 +74,7 @@ TRUCKSCENES = SourceFormat(
     "truckscenes", "MAN TruckScenes: nuScenes' layout without log and map, with ego motion of cabin and chassis, "
     "weather, 4 cameras, 6 lidars and 6 radars as .pcd (truckscenes-devkit)", truckscenes.looks_like,
     truckscenes.read_truckscenes_tables, truckscenes.check_truckscenes, (*BUILDERS, ego_motion.BUILDER), nuscenes_channels,
-    len(truckscenes.schemas()) + 1, nullable_fields=truckscenes.LOG_COLUMNS, point_sensors=("radar",))
+    len(truckscenes.schemas()) + 1, nullable_fields=truckscenes.LOG_COLUMNS)
 
 FORMATS: tuple[SourceFormat, ...] = (NUIMAGES, TRUCKSCENES, NUSCENES)  # detection order: nuScenes, which takes anything, last
 FORMAT_NAMES = (AUTO, *(f.name for f in FORMATS))

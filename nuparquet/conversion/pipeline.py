@@ -89,10 +89,6 @@ def convert(dataroot: Path | str, version: str, out: Path | str, options: Conver
         check_engine(engine)  # Ray installed: say so before the tables are converted, not after
     try:
         fmt = detect_format(dataroot, version, opts.source_format)
-        refused = [s for s in opts.sensors if s not in fmt.point_sensors]
-        if refused:
-            raise UsageError(f"--sensors {','.join(refused)}: the point files of a {fmt.name} dataset are not "
-                             f"converted (--sensors takes {', '.join(fmt.point_sensors) or 'nothing'} for it)")
         return _convert(dataroot, version, out, opts, engine, on_progress, fmt)
     except OSError as exc:  # the machine refused (read-only folder, full disk): the partial output is already gone
         where = str(exc.filename or out)

@@ -93,9 +93,9 @@ def multisweep(dataset, sample_token: str, channel: str, ref_channel: str | None
     for k, row in enumerate(chain.iter_rows(named=True)):
         point_times = None
         if truck and modality == "lidar":  # truckscenes-devkit: float64 points, each with its own timestamp
-            frame = dataset.sensors.points(row["token"], row["filename"], "lidar", [*LIDAR_COLUMNS, "timestamp"])
+            frame = dataset.sensors.points(row["token"], row["filename"], "lidar", [*LIDAR_COLUMNS, "point_timestamp"])
             cloud, fields = frame.select(LIDAR_COLUMNS).to_numpy().astype(np.float64), LIDAR_COLUMNS
-            point_times = frame["timestamp"].to_numpy()
+            point_times = frame["point_timestamp"].to_numpy()
         else:
             cloud, fields = frame_cloud(dataset, row, modality, radar_filters)
         close = (np.abs(cloud[:, 0]) < min_distance_m) & (np.abs(cloud[:, 1]) < min_distance_m)

@@ -15,7 +15,6 @@ import polars as pl
 import pytest
 
 from nuparquet.conversion import convert
-from nuparquet.errors import UsageError
 from nuparquet.export.json_files import export_json
 from nuparquet.frames.poses import closest_pose_rows, with_sample_poses
 from nuparquet.frames.sensor_boxes import boxes_at
@@ -44,7 +43,15 @@ def root(tmp_path_factory):
 @pytest.fixture(scope="module")
 def out(root, tmp_path_factory):
     target = tmp_path_factory.mktemp("ts-out") / "out"
-    convert(root, VERSION, target, sensors=("radar",), sweeps=True)
+    convert(root, VERSION, target, sensors=("lidar", "radar"), sweeps=True)
+    return target
+
+
+@pytest.fixture(scope="module")
+def bare(root, tmp_path_factory):
+    """A conversion without the points: frames read from their files."""
+    target = tmp_path_factory.mktemp("ts-bare") / "out"
+    convert(root, VERSION, target)
     return target
 
 
@@ -62,7 +69,8 @@ def _read(out, name) -> pl.DataFrame:
 def test_a_truckscenes_dataroot_is_detected_and_every_file_comes_back_byte_for_byte(root, out, tmp_path):
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["source"]["format"] == "truckscenes"
-    assert {"frames", "annotations", "scenes", "instances", "radar_points"} <= set(manifest["datasets"])
+    assert {"frames", "annotations", "scenes", "instances", "sample_ego_motion", "lidar_points",
+            "radar_points"} <= set(manifest["datasets"])
     assert manifest["channels"]["camera_layout"] == [["CAMERA_LEFT_FRONT", "CAMERA_RIGHT_FRONT"],
                                                      ["CAMERA_LEFT_BACK", "CAMERA_RIGHT_BACK"]]
     assert len(manifest["channels"]["lidars"]) == 6 and len(manifest["channels"]["radars"]) == 6
@@ -192,6 +200,15 @@ def test_pcd_files_read_as_the_devkit_reads_them(root, out, ts):
         np.testing.assert_array_equal(np.array([points[n] for n in ("x", "y", "z", "intensity")], np.float64),
                                       cloud.points)
         np.testing.assert_array_equal(points["timestamp"], cloud.timestamps[0])
+    converted = _read(out, "lidar_points")
+    assert converted["ring"].null_count() == converted.height
+    for record in lidar:
+        mine = converted.filter(pl.col("sample_data_token") == record["token"]).sort("point_index")
+        cloud = LidarPointCloud.from_file(str(root / record["filename"]))
+        np.testing.assert_array_equal(mine.select("x", "y", "z", "intensity").to_numpy().astype(np.float64).T,
+                                      cloud.points)
+        assert mine["point_timestamp"].dtype == pl.UInt64
+        np.testing.assert_array_equal(mine["point_timestamp"].to_numpy(), cloud.timestamps[0])
     radar = _read(out, "radar_points")
     fields = ["x", "y", "z", "vrel_x", "vrel_y", "vrel_z", "rcs"]
     frames = [r for r in ts.sample_data if r["sensor_modality"] == "radar"]
@@ -263,10 +280,24 @@ def test_a_compressed_pcd_is_refused_naming_the_file(root, tmp_path):
         convert(copy, VERSION, tmp_path / "out", sensors=("radar",))
 
 
-def test_lidar_points_are_refused_before_any_work(root, tmp_path):
-    with pytest.raises(UsageError, match="--sensors lidar.*truckscenes"):
-        convert(root, VERSION, tmp_path / "out", sensors=("lidar", "radar"))
-    assert not (tmp_path / "out").exists()
+def test_a_lidar_pcd_without_intensity_or_of_another_type_is_refused_naming_the_file(root, tmp_path):
+    copy = _copy(root, tmp_path)
+    for folder in ("samples", "sweeps"):
+        shutil.copytree(root / folder, copy / folder)
+    records = json.loads((root / VERSION / "sample_data.json").read_text())
+    first, second = [r["filename"] for r in records if r["filename"].startswith("samples/LIDAR_REAR")][:2]
+    cloud = pypcd4.PointCloud.from_path(root / first)
+    data = cloud.pc_data
+    pypcd4.PointCloud.from_points([data["x"], data["y"], data["z"], data["timestamp"]],
+                                  ("x", "y", "z", "timestamp"), (np.float32,) * 3 + (np.uint64,)).save(copy / first)
+    pypcd4.PointCloud.from_points([data[n] for n in ("x", "y", "z", "intensity", "timestamp")],
+                                  ("x", "y", "z", "intensity", "timestamp"),
+                                  (np.float32,) * 3 + (np.float64, np.uint64)).save(copy / second)
+    with pytest.raises(ProblemsFound) as caught:
+        convert(copy, VERSION, tmp_path / "out", sensors=("lidar",))
+    text = str(caught.value)
+    assert f"{first}" in text and "no field 'intensity'" in text
+    assert f"{second}" in text and "'intensity' is float64" in text
 
 
 def test_the_generator_is_deterministic(root, tmp_path):
@@ -276,18 +307,19 @@ def test_the_generator_is_deterministic(root, tmp_path):
         assert filecmp.cmp(path, again / VERSION / path.name, shallow=False), path.name
 
 
-def test_a_lidar_pcd_read_through_the_dataset_is_the_devkits_cloud(root, out, ts):
+@pytest.mark.parametrize("points", ["converted", "files"])
+def test_a_lidar_pcd_read_through_the_dataset_is_the_devkits_cloud(root, out, bare, ts, points):
     import nuparquet
 
-    ds = nuparquet.open(out, dataroot=root)
+    ds = nuparquet.open(out if points == "converted" else bare, dataroot=root)
     frames = [r for r in ts.sample_data if r["sensor_modality"] == "lidar"]
     for record in frames[::7]:
         points, _ = ds.sensors.lidar(record["token"], record["filename"])
         cloud = LidarPointCloud.from_file(str(root / record["filename"]))
         np.testing.assert_array_equal(points.astype(np.float64).T, cloud.points)
-        every = ds.sensors.points(record["token"], record["filename"], "lidar", columns=["x", "timestamp"])
-        assert every.columns == ["x", "timestamp"]
-        np.testing.assert_array_equal(every["timestamp"].to_numpy(), cloud.timestamps[0])
+        every = ds.sensors.points(record["token"], record["filename"], "lidar", columns=["x", "point_timestamp"])
+        assert every.columns == ["x", "point_timestamp"]
+        np.testing.assert_array_equal(every["point_timestamp"].to_numpy(), cloud.timestamps[0])
 
 
 def test_ego_motion_is_aligned_to_every_sample(out, ts):
@@ -312,12 +344,13 @@ def test_ego_motion_is_aligned_to_every_sample(out, ts):
         assert interpolated == len(ts.sample)
 
 
+@pytest.mark.parametrize("points", ["converted", "files"])
 @pytest.mark.parametrize("channel, kind", [("LIDAR_TOP_LEFT", LidarPointCloud), ("RADAR_RIGHT_SIDE", RadarPointCloud)])
-def test_multisweep_is_the_devkits_from_file_multisweep(root, out, ts, channel, kind):
+def test_multisweep_is_the_devkits_from_file_multisweep(root, out, bare, ts, channel, kind, points):
     import nuparquet
     from nuparquet.frames.sweeps import multisweep
 
-    ds = nuparquet.open(out, dataroot=root)
+    ds = nuparquet.open(out if points == "converted" else bare, dataroot=root)
     for sample in ts.sample[4:7]:  # the last sample of a scene, and the first (no sweep before it) of the next
         cloud, times = kind.from_file_multisweep(ts, sample, channel, "LIDAR_LEFT", nsweeps=3)
         sweeps = multisweep(ds, sample["token"], channel, "LIDAR_LEFT", nsweeps=3)
