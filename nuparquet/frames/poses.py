@@ -13,6 +13,7 @@ import polars as pl
 
 from nuparquet import columns, geometry
 from nuparquet.geometry import Cameras
+from nuparquet.geometry.interpolation import closest_rows
 
 MATRIX_COLUMNS = ("global_from_ego", "ego_from_sensor")
 POSE_COLUMNS = ("ego_translation", "ego_rotation", "sensor_translation", "sensor_rotation")
@@ -53,30 +54,13 @@ def cameras_from_frames(frames: pl.DataFrame) -> Cameras:
                               size_px.reshape(-1, 2))
 
 
-def closest_pose_rows(pose_timestamps_us: np.ndarray, query_timestamps_us: np.ndarray) -> np.ndarray:
-    """(Q,) the row of the ego pose nearest each query time, as TruckScenes' devkit `getclosest('ego_pose', t)`
-    picks it: a tie between an earlier and a later pose goes to the earlier; among poses sharing one timestamp,
-    the last in file order (the devkit keys a dict by timestamp, so the last one written wins).
-    `pose_timestamps_us`: (P,) the ego_pose table's timestamps in file order (P >= 1)."""
-    order = np.argsort(pose_timestamps_us, kind="stable")
-    times = pose_timestamps_us[order]
-    distinct, last = np.unique(times[::-1], return_index=True)  # each timestamp's last row in sorted order
-    last_row = order[len(times) - 1 - last]
-    pos = np.searchsorted(distinct, query_timestamps_us, side="left")  # bisect_left
-    before = np.clip(pos - 1, 0, len(distinct) - 1)
-    after = np.clip(pos, 0, len(distinct) - 1)
-    take_after = (pos == 0) | ((pos < len(distinct))
-                               & (distinct[after] - query_timestamps_us < query_timestamps_us - distinct[before]))
-    return last_row[np.where(take_after, after, before)]
-
-
 def with_sample_poses(frames: pl.DataFrame, ego_pose: pl.DataFrame, samples: pl.DataFrame) -> pl.DataFrame:
     """`frames` rows with `ego_translation` / `ego_rotation` replaced by the pose nearest each frame's *sample*
-    time (`closest_pose_rows`) and the stored matrices dropped: what TruckScenes' devkit `get_sample_data` moves
+    time (`geometry.interpolation.closest_rows`) and the stored matrices dropped: what TruckScenes' devkit `get_sample_data` moves
     the boxes of a frame with (nuScenes' uses the frame's own pose). `ego_pose`: the table (token, timestamp,
     translation, rotation) in file order; `samples`: token, timestamp."""
     sample_time = frames.select("sample_token").join(samples.select(pl.col("token").alias("sample_token"), "timestamp"),
                                                      on="sample_token", how="left", maintain_order="left")["timestamp"]
-    rows = closest_pose_rows(ego_pose["timestamp"].to_numpy(), sample_time.to_numpy())
+    rows = closest_rows(ego_pose["timestamp"].to_numpy(), sample_time.to_numpy())
     return frames.drop(*MATRIX_COLUMNS, strict=False).with_columns(
         ego_translation=ego_pose["translation"].gather(rows), ego_rotation=ego_pose["rotation"].gather(rows))

@@ -16,7 +16,8 @@ import pytest
 
 from nuparquet.conversion import convert
 from nuparquet.export.json_files import export_json
-from nuparquet.frames.poses import closest_pose_rows, with_sample_poses
+from nuparquet.frames.poses import with_sample_poses
+from nuparquet.geometry.interpolation import closest_rows
 from nuparquet.frames.sensor_boxes import boxes_at
 from nuparquet.problems import ProblemsFound
 from nuparquet.sources.points import PointFileError, read_radar_pcd
@@ -134,7 +135,7 @@ def test_closest_pose_is_the_devkits_getclosest_with_its_ties():
                                  get=lambda table, token: {"token": token})
     queries = np.array([0, 10, 14, 15, 16, 20, 25, 26, 45, 50, 99], dtype=np.int64)
     expected = [TruckScenes.getclosest(fake, "ego_pose", int(t))["token"] for t in queries]
-    assert [tokens[i] for i in closest_pose_rows(stamps, queries)] == expected
+    assert [tokens[i] for i in closest_rows(stamps, queries)] == expected
     assert expected[5] == "p3" and expected[3] == "p1"
 
 
@@ -357,3 +358,16 @@ def test_multisweep_is_the_devkits_from_file_multisweep(root, out, bare, ts, cha
         assert sweeps.points.dtype == np.float64 and sweeps.points.shape == cloud.points.T.shape
         np.testing.assert_allclose(sweeps.points, cloud.points.T, rtol=0, atol=1e-9)
         np.testing.assert_array_equal(sweeps.times_s, times[0])
+
+
+def test_its_schemas_are_nuscenes_less_log_and_map_plus_its_own_and_every_reference_names_one():
+    from nuparquet.sources.truckscenes import schemas
+
+    found = schemas()
+    assert set(found) == {"attribute", "calibrated_sensor", "category", "ego_motion_cabin", "ego_motion_chassis",
+                          "ego_pose", "instance", "sample", "sample_annotation", "sample_data", "scene", "sensor",
+                          "visibility"}
+    assert "log" not in {f.ref for f in found["scene"].fields}
+    for schema in found.values():
+        for field in schema.fields:
+            assert field.ref is None or field.ref in found, f"{schema.name}.{field.name}"

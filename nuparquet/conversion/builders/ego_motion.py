@@ -14,7 +14,7 @@ import polars as pl
 from nuparquet.can_bus.align import aligned
 from nuparquet.conversion.builder import BuildContext, Builder
 from nuparquet.conversion.builders.common import samples
-from nuparquet.frames.poses import closest_pose_rows
+from nuparquet.geometry.interpolation import closest_rows
 
 TABLES = ("ego_motion_cabin", "ego_motion_chassis")
 
@@ -29,7 +29,7 @@ def sample_ego_motion(rows: pl.DataFrame, table: str, records: pl.DataFrame) -> 
     stream = rows.select(pl.lit("").alias("scene_name"), "timestamp")
     out = aligned(stream, table, messages).with_columns(pl.col(table).struct.rename_fields(names))
     if records.height:
-        closest = records["token"].gather(closest_pose_rows(records["timestamp"].to_numpy(), rows["timestamp"].to_numpy()))
+        closest = records["token"].gather(closest_rows(records["timestamp"].to_numpy(), rows["timestamp"].to_numpy()))
     else:
         closest = pl.Series(values=[None] * rows.height, dtype=pl.String)
     return out.with_columns(closest.alias(f"{table}_closest_token"))
