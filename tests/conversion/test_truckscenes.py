@@ -79,6 +79,8 @@ def test_a_truckscenes_dataroot_is_detected_and_every_file_comes_back_byte_for_b
     export_json(out, tmp_path / "back")
     names = sorted(p.name for p in (root / VERSION).iterdir())
     assert len(names) == 14
+    assert manifest["source"]["files"] == {name: {"bytes": (root / VERSION / name).stat().st_size,
+                                                  "mtime": (root / VERSION / name).stat().st_mtime} for name in names}
     for name in names:
         assert filecmp.cmp(root / VERSION / name, tmp_path / "back" / VERSION / name, shallow=False), name
 
@@ -256,6 +258,24 @@ def test_a_weather_token_that_names_no_record_is_refused(root, tmp_path):
         convert(copy, VERSION, tmp_path / "out")
 
 
+def test_a_weather_record_without_a_string_token_is_refused(root, tmp_path):
+    copy = _copy(root, tmp_path)
+    _edit(copy, "weather_annotation", lambda records: [r.update(token=i) for i, r in enumerate(records)])
+    with pytest.raises(ProblemsFound, match=r"weather_annotation.json.*field 'token' must be a string"):
+        convert(copy, VERSION, tmp_path / "out")
+
+
+def test_allow_dangling_leaves_the_references_unchecked_as_for_nuscenes(root, tmp_path):
+    from nuparquet.conversion import validate
+
+    copy = _copy(root, tmp_path)
+    _edit(copy, "sample_annotation", lambda records: records[0].update(instance_token="gone"))
+    strict = validate(copy, VERSION)
+    assert sorted(p.file for p in strict.problems) == ["instance.json", "sample_annotation.json"]  # and its count
+    assert "instance_token 'gone'" in " ".join(str(p) for p in strict.problems)
+    assert validate(copy, VERSION, allow_dangling=True).problems == []
+
+
 def test_without_weather_annotation_it_converts_as_the_devkit_loads_it(root, tmp_path):
     copy = _copy(root, tmp_path)
     (copy / VERSION / "weather_annotation.json").unlink()
@@ -299,6 +319,14 @@ def test_a_lidar_pcd_without_intensity_or_of_another_type_is_refused_naming_the_
     text = str(caught.value)
     assert f"{first}" in text and "no field 'intensity'" in text
     assert f"{second}" in text and "'intensity' is float64" in text
+
+
+def test_the_generator_lays_out_keyframes_and_sweeps_as_nuscenes(ts, root):
+    for record in ts.sample_data:
+        folder = "samples" if record["is_key_frame"] else "sweeps"
+        assert record["filename"] == f"{folder}/{record['channel']}/{record['channel']}_{record['timestamp']}." + (
+            "jpg" if record["sensor_modality"] == "camera" else "pcd")
+        assert (root / record["filename"]).is_file()
 
 
 def test_the_generator_is_deterministic(root, tmp_path):
