@@ -94,6 +94,7 @@ GROUPS: dict[str, Group] = {
         ("tests/parity/test_geometry_math.py", "tests/test_geometry_contract.py", "tests/test_camera.py",
          "tests/test_box_projection_kernel.py",
          "tests/parity/test_points_queries_devkit.py::test_points_in_boxes_equal_devkit_and_num_lidar_pts_on_synthetic_data",
+         "tests/conversion/test_truckscenes.py::test_closest_pose_is_the_devkits_getclosest_with_its_ties",
          *_box_projection_small_tests()),
         not_mutated=("nuparquet/geometry/compiled.py",)),
     "projection": Group(
@@ -256,6 +257,10 @@ GROUPS: dict[str, Group] = {
          "nuparquet/rendering/pictures/nuimages.py"),
         ("tests/parity/test_nuimages_devkit.py", "tests/conversion/test_nuimages_convert.py", "tests/test_rle.py"),
         keyword="not extract"),
+    "truckscenes": Group(  # MAN TruckScenes: its reader and checks, and its generator (issue 40)
+        ("nuparquet/sources/truckscenes.py", "nuparquet/synth/truckscenes.py", "nuparquet/conversion/builders/ego_motion.py"),
+        ("tests/conversion/test_truckscenes.py",),
+        keyword="not extract"),
     "tracking": Group(  # the tracking benchmark: motmetrics' accumulator replayed, the devkit's metrics
         ("nuparquet/evaluation/tracking/*.py",),
         ("tests/evaluation/test_tracking_devkit.py", "tests/evaluation/test_tracking_matching.py",
@@ -270,7 +275,7 @@ GROUPS: dict[str, Group] = {
         ("tests/training/",),
         keyword="not extract", cache_conversions=True),
     "synth": Group(  # the generator makes every fixture: its own mutants must make theirs
-        ("nuparquet/synth/*.py",),
+        ("nuparquet/synth/*.py", "!nuparquet/synth/truckscenes.py"),
         ("tests/synth/", "tests/parity/test_synth_devkit.py"),
         keyword="not extract", cache_data=False),
 }
