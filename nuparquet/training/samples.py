@@ -16,6 +16,7 @@ import numpy as np
 
 from nuparquet.dataset import Dataset, as_dataset
 from nuparquet.errors import UsageError
+from nuparquet.index.bevformer import can_bus_vectors
 from nuparquet.index.compute import compute, offsets
 from nuparquet.index.inputs import read_inputs
 from nuparquet.index.labels import CLASSES
@@ -23,8 +24,12 @@ from nuparquet.index.options import DEFAULT_CAMERAS, DEFAULT_LIDAR
 from nuparquet.index.splits import assign_splits, converter_version, split_names
 from nuparquet.index.v2_arrays import gather_segments, v2_arrays
 from nuparquet.sensors.reader import XYZI, MissingSensorData
+from nuparquet.training.bev_map import BEV_CLASSES, BOUND_M, bev_mask, canvas, lidar2global
+from nuparquet.training.devkit_sweeps import devkit_points, radar_points
+from nuparquet.training.temporal import patched_can_bus, queue_rows, union2one
 
 BOX_FILTERS = ("valid_flag", "num_lidar_pts", None)
+SWEEPS_AS = ("mmdet3d", "devkit")
 
 
 def remove_close(points: np.ndarray, radius: float = 1.0) -> np.ndarray:
@@ -65,9 +70,18 @@ class Samples:
                  cameras: tuple[str, ...] | None = DEFAULT_CAMERAS, boxes: bool = True,
                  classes: tuple[str, ...] = CLASSES, velocity: bool = True, box_filter: str | None = "valid_flag",
                  close_radius_m: float = 1.0, pad_empty_sweeps: bool = True, version: str | None = None,
-                 lidar_channel: str = DEFAULT_LIDAR, rgb: bool = False) -> None:
+                 lidar_channel: str = DEFAULT_LIDAR, rgb: bool = False, sweeps_as: str = "mmdet3d",
+                 radars: tuple[str, ...] | str = (), radar_sweeps: int = 0, radar_filters: bool = True,
+                 can_bus: bool = False, bev_map: bool = False, bev_classes: tuple[str, ...] = BEV_CLASSES,
+                 bev_xbound: tuple[float, float, float] = BOUND_M, bev_ybound: tuple[float, float, float] = BOUND_M,
+                 queue_length: int = 1) -> None:
         if box_filter not in BOX_FILTERS:
             raise UsageError(f"box_filter must be one of {BOX_FILTERS}, not {box_filter!r}")
+        if sweeps_as not in SWEEPS_AS:
+            raise UsageError(f"sweeps_as must be one of {SWEEPS_AS}, not {sweeps_as!r}")
+        if queue_length < 1 or radar_sweeps < 0 or sweeps < 0:
+            raise UsageError(f"queue_length must be at least 1 and sweeps, radar_sweeps at least 0 (got "
+                             f"{queue_length}, {sweeps}, {radar_sweeps})")
         ds = as_dataset(dataset)
         version = converter_version(ds.version, version)
         if split not in split_names(version):
@@ -76,6 +90,15 @@ class Samples:
         self.cameras = tuple(cameras or ())
         self.classes, self.velocity, self.box_filter = tuple(classes), velocity, box_filter
         self.close_radius_m, self.pad_empty_sweeps, self.rgb = close_radius_m, pad_empty_sweeps, rgb
+        self.sweeps_as, self.lidar_channel, self.queue_length = sweeps_as, lidar_channel, queue_length
+        self.radars = tuple(ds.channels["radars"]) if radars == "all" else tuple(radars)
+        unknown = [r for r in self.radars if r not in ds.channels["radars"]]
+        if unknown:
+            raise UsageError(f"{', '.join(unknown)}: not a radar of {ds.root} (it has "
+                             f"{', '.join(ds.channels['radars']) or 'none'})")
+        self.radar_sweeps, self.radar_filters = radar_sweeps, radar_filters
+        self.bev_classes = tuple(bev_classes) if bev_map else ()
+        self.bev_patch_m, self.bev_canvas = canvas(bev_xbound, bev_ybound)
         self._reference = ds.reference
         self._ds: Dataset | None = ds
 
@@ -116,6 +139,13 @@ class Samples:
         self._ann_box = gt_bboxes_3d(arrays.ann_box, arrays.ann_velocity)  # (A, 9) float32
         self._ann_valid = arrays.ann_valid  # (A,) bool
         self._ann_num_lidar_pts = arrays.ann_num_lidar_pts.astype(np.int32)  # (A,)
+        lidar_rows = computed.lidar_row[picked]
+        # the keyframe lidar's poses, for the CAN bus patch and the map patch
+        self._lidar_t, self._lidar_q = d.sensor_t[lidar_rows], d.sensor_q[lidar_rows]  # (S, 3), (S, 4)
+        self._ego_t, self._ego_q = d.ego_t[lidar_rows], d.ego_q[lidar_rows]  # (S, 3), (S, 4)
+        self._can_bus = (patched_can_bus(can_bus_vectors(ds, inputs.sample_token[picked]), self._ego_t, self._ego_q)
+                         if can_bus else None)  # (S, 18) float64
+        self._location = _bytes(_locations(ds, inputs.sample_scene[picked])) if bev_map else None  # (S,)
         self.indices = np.arange(len(picked))  # the rows this object serves (a shard serves fewer)
 
     # -- pickling: small, and the dataset reopened where it is used ----------------------------------------------
@@ -156,14 +186,42 @@ class Samples:
         if not -len(self.indices) <= i < len(self.indices):
             raise IndexError(f"sample {i} of {len(self.indices)}")
         s = int(self.indices[i])
+        if self.queue_length == 1:
+            return self._frame(s)
+        # BEVFormer's queue: the frames before this one (rows of the whole split, whatever the shard), then union2one
+        rows = queue_rows(s, self.queue_length)
+        frames = [self._frame(r) for r in rows]
+        exists, can_bus = union2one([f["scene_token"] for f in frames], [f.get("can_bus") for f in frames])
+        for frame, flag, vector in zip(frames, exists, can_bus):
+            frame["prev_bev_exists"] = flag
+            if vector is not None:
+                frame["can_bus"] = vector
+        out = frames[-1]
+        out["queue"] = frames[:-1]
+        out["queue_index"] = np.array(rows, dtype=np.int64)
+        return out
+
+    def _frame(self, s: int) -> dict:
+        """The fields of sample row `s` on their own (no queue)."""
         out = {"sample_token": str(self.sample_token[s]), "timestamp_us": int(self.timestamp_us[s]),
                "scene_token": str(self.scene_token[s])}
         if self.lidar:
-            out["points"], out["lidar_sweeps"] = self._points(s)
+            out["points"], out["lidar_sweeps"] = (self._points(s) if self.sweeps_as == "mmdet3d" else devkit_points(
+                self.dataset, out["sample_token"], self.lidar_channel, self.lidar_channel, self.sweeps,
+                self.close_radius_m))
+        if self.radars:
+            out["radar_points"] = radar_points(self.dataset, out["sample_token"], self.radars, self.lidar_channel,
+                                               self.radar_sweeps, self.close_radius_m, self.radar_filters)
         if self.boxes:
             out.update(self._boxes(s))
         if self.cameras:
             out.update(self._images(s))
+        if self._can_bus is not None:
+            out["can_bus"] = self._can_bus[s].copy()
+        if self.bev_classes:
+            from_lidar = lidar2global(self._lidar_t[s], self._lidar_q[s], self._ego_t[s], self._ego_q[s])
+            out["gt_masks_bev"] = bev_mask(self.dataset.map(self._location[s].decode()), from_lidar,
+                                           self.bev_classes, self.bev_patch_m, self.bev_canvas)
         return out
 
     def _read_lidar(self, token: str, filename: str) -> np.ndarray:
@@ -252,6 +310,17 @@ def gt_bboxes_3d(box: np.ndarray, velocity: np.ndarray) -> np.ndarray:
     boxes = np.concatenate([box, velocity], axis=-1).astype(np.float32).reshape(-1, 9)
     boxes[:, 2] += boxes[:, 5] * np.float32(-0.5)
     return boxes
+
+
+def _locations(ds: Dataset, sample_scene: np.ndarray) -> np.ndarray:
+    """(S,) the map location of each sample's scene (scene -> log -> location)."""
+    import polars as pl
+
+    logs = ds.scan("tables/log").select(pl.col("token").alias("log_token"), "location")
+    scenes = ds.scan("tables/scene").select(pl.col("token").alias("scene_token"), "log_token").join(
+        logs, on="log_token", how="left").collect()
+    location = dict(zip(scenes["scene_token"].to_list(), scenes["location"].to_list()))
+    return np.array([location[t] for t in sample_scene.tolist()], dtype=str)
 
 
 def _text(values: np.ndarray) -> np.ndarray:
