@@ -25,7 +25,7 @@ def devkit_points(dataset, sample_token: str, channel: str, ref_channel: str, sw
 
 def radar_points(dataset, sample_token: str, radars: tuple[str, ...], ref_channel: str, sweeps: int,
                  min_distance_m: float, radar_filters: bool = True) -> np.ndarray:
-    """(R, F + 1) float32 every radar of `radars` in that order, each as `devkit_points` gives it, concatenated."""
-    parts = [devkit_points(dataset, sample_token, channel, ref_channel, sweeps, min_distance_m,
-                           radar_filters=radar_filters)[0] for channel in radars]
-    return np.concatenate(parts) if parts else np.zeros((0, 0), dtype=np.float32)
+    """(R, F + 1) float32 every radar of `radars` (at least one) in that order, each as `devkit_points` gives it,
+    concatenated."""
+    return np.concatenate([devkit_points(dataset, sample_token, channel, ref_channel, sweeps, min_distance_m,
+                                         radar_filters=radar_filters)[0] for channel in radars])

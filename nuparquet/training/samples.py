@@ -64,6 +64,34 @@ class Samples:
       float32 (the 3x3 intrinsic padded), `lidar2cam` (C, 4, 4) float64 (the infos'), `cam2lidar` (C, 4, 4)
       float64 (its inverse from the float32 rotation and translation), `lidar2img` (C, 4, 4) float32 = cam2img @
       lidar2cam in float32; cameras in `cameras` order (the infos' order)
+
+    Optional parts (off by default):
+
+    - `sweeps_as="devkit"`: `points` (P, 5) float32 as the devkit's `LidarPointCloud.from_file_multisweep(nusc,
+      sample, lidar_channel, lidar_channel, nsweeps=sweeps + 1, min_distance=close_radius_m)` gives them (every
+      cloud, the keyframe's too, without its close points; x, y, z [m] in the keyframe lidar frame, intensity,
+      and its `times` [s] as the fifth column); `lidar_sweeps`: how many previous sweeps it found
+    - `radars` (channel names or "all": the rig's, sorted): `radar_points` (R, 19) float32 for nuScenes radars
+      (the PCD's 18 fields, then the time lag [s]), each radar as the devkit's `RadarPointCloud.
+      from_file_multisweep(nusc, sample, radar, lidar_channel, nsweeps=radar_sweeps + 1, min_distance=
+      close_radius_m)` gives it (x, y, z [m] in the keyframe lidar frame; vx, vy, vx_comp, vy_comp [m/s] left in
+      the radar's frame, as the devkit leaves them; its default filters unless `radar_filters=False`), in
+      `radars` order, concatenated
+    - `can_bus=True`: `can_bus` (18,) float64, BEVFormer's vector as its `CustomNuScenesDataset.get_data_info`
+      hands it to the pipeline: the converter's `_get_can_bus_info` (the `sample_can_bus` dataset), then x, y, z
+      [m] of the lidar keyframe's ego pose (global frame), its rotation's w in values 3..6 (BEVFormer's quirk:
+      `temporal.patched_can_bus`), and its yaw [rad] and [deg] in [0, 360) as the last two; zeros 7..15 for a scene
+      without CAN bus
+    - `bev_map=True`: `gt_masks_bev` (K, H, W) uint8 0/1 of `bev_classes` (bevfusion's six by default; "divider":
+      road and lane dividers, "drivable_area*": road segments and lanes), a `bev_xbound` x `bev_ybound` patch
+      ([min, max, cell] m, default +-50 m at 0.5 m) centred on the lidar and turned with its yaw, as bevfusion's
+      `LoadBEVSegmentation` makes it through `Dataset.map(location).map_mask` (the map held per worker, once per
+      location)
+    - `queue_length=Q` > 1: BEVFormer's temporal queue: the sample's own fields plus `queue` (the Q - 1 previous
+      rows' fields, oldest first: rows i - Q + 1 .. i - 1 of the split's order, clamped at 0, so at a scene start
+      the queue reaches into the previous scene as BEVFormer's does), `queue_index` (Q,) int64 those rows then i,
+      and in every frame `prev_bev_exists` (False where the scene differs from the previous frame's, and in the
+      first) with `can_bus` position and angle made relative to the previous frame as its `union2one` does
     """
 
     def __init__(self, dataset: str | Dataset, split: str = "train", *, lidar: bool = True, sweeps: int = 10,
