@@ -62,3 +62,14 @@ def bev_mask(map_layers, from_lidar: np.ndarray, classes: tuple[str, ...], patch
         for layer in mappings[name]:
             labels[k, masks[layer_names.index(layer)]] = 1
     return labels
+
+
+def sample_locations(ds, sample_scene: np.ndarray) -> np.ndarray:
+    """(S,) the map location of each sample's scene (scene -> log -> location)."""
+    import polars as pl
+
+    logs = ds.scan("tables/log").select(pl.col("token").alias("log_token"), "location")
+    scenes = ds.scan("tables/scene").select(pl.col("token").alias("scene_token"), "log_token").join(
+        logs, on="log_token", how="left").collect()
+    location = dict(zip(scenes["scene_token"].to_list(), scenes["location"].to_list()))
+    return np.array([location[t] for t in sample_scene.tolist()], dtype=str)

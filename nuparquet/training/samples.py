@@ -24,19 +24,13 @@ from nuparquet.index.options import DEFAULT_CAMERAS, DEFAULT_LIDAR
 from nuparquet.index.splits import assign_splits, converter_version, split_names
 from nuparquet.index.v2_arrays import gather_segments, v2_arrays
 from nuparquet.sensors.reader import XYZI, MissingSensorData
-from nuparquet.training.bev_map import BEV_CLASSES, BOUND_M, bev_mask, canvas, lidar2global
+from nuparquet.training.bev_map import BEV_CLASSES, BOUND_M, bev_mask, canvas, lidar2global, sample_locations
 from nuparquet.training.devkit_sweeps import devkit_points, radar_points
+from nuparquet.training.mmdet3d import camera_matrices, gt_bboxes_3d, remove_close
 from nuparquet.training.temporal import patched_can_bus, queue_rows, union2one
 
 BOX_FILTERS = ("valid_flag", "num_lidar_pts", None)
 SWEEPS_AS = ("mmdet3d", "devkit")
-
-
-def remove_close(points: np.ndarray, radius: float = 1.0) -> np.ndarray:
-    """(P', D) the points of `points` (P, D) outside the square |x| < radius and |y| < radius (mmdetection3d's
-    `LoadPointsFromMultiSweeps._remove_close`)."""
-    close = (np.abs(points[:, 0]) < radius) & (np.abs(points[:, 1]) < radius)
-    return points[~close]
 
 
 class Samples:
@@ -173,7 +167,7 @@ class Samples:
         self._ego_t, self._ego_q = d.ego_t[lidar_rows], d.ego_q[lidar_rows]  # (S, 3), (S, 4)
         self._can_bus = (patched_can_bus(can_bus_vectors(ds, inputs.sample_token[picked]), self._ego_t, self._ego_q)
                          if can_bus else None)  # (S, 18) float64
-        self._location = _bytes(_locations(ds, inputs.sample_scene[picked])) if bev_map else None  # (S,)
+        self._location = _bytes(sample_locations(ds, inputs.sample_scene[picked])) if bev_map else None  # (S,)
         self.indices = np.arange(len(picked))  # the rows this object serves (a shard serves fewer)
 
     # -- pickling: small, and the dataset reopened where it is used ----------------------------------------------
@@ -307,48 +301,6 @@ class Samples:
             images.append(cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if self.rgb else image)
         same = len({im.shape for im in images}) == 1
         return {"img": np.stack(images) if same else images, **camera_matrices(self._cam2img[s], self._lidar2cam[s])}
-
-
-def camera_matrices(cam2img: np.ndarray, lidar2cam: np.ndarray) -> dict:
-    """cam2img, lidar2cam, cam2lidar, lidar2img (each (C, 4, 4)) from the infos' `cam2img` (C, 3, 3) and
-    `lidar2cam` (C, 4, 4), one camera at a time as BEVFusion's `BEVLoadMultiViewImageFromFiles` computes them (its
-    2-D float32 products, so the BLAS path is the same)."""
-    out: dict = {"cam2img": [], "lidar2cam": [], "cam2lidar": [], "lidar2img": []}
-    for intrinsic, from_lidar in zip(cam2img.tolist(), lidar2cam.tolist()):  # the infos' lists
-        lidar2cam_array = np.array(from_lidar).astype(np.float32)
-        rot, trans = lidar2cam_array[:3, :3], lidar2cam_array[:3, 3:4]
-        cam2lidar = np.eye(4)
-        cam2lidar[:3, :3] = rot.T
-        cam2lidar[:3, 3:4] = -1 * np.matmul(rot.T, trans.reshape(3, 1))
-        cam2img_array = np.eye(4).astype(np.float32)
-        cam2img_array[:3, :3] = np.array(intrinsic).astype(np.float32)
-        out["cam2img"].append(cam2img_array)
-        out["lidar2cam"].append(from_lidar)
-        out["cam2lidar"].append(cam2lidar)
-        out["lidar2img"].append(cam2img_array @ lidar2cam_array)
-    return {key: np.stack(values) if values else np.zeros((0, 4, 4)) for key, values in out.items()}
-
-
-def gt_bboxes_3d(box: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-    """(A, 9) float32 from the infos' `bbox_3d` (A, 7) (gravity centre) and `velocity` (A, 2), as mmdetection3d's
-    `NuScenesDataset.parse_ann_info` makes them: NaN velocity set to 0, concatenated, then
-    `LiDARInstance3DBoxes(origin=(0.5, 0.5, 0.5))` in float32 moves the centre to the bottom."""
-    velocity = velocity.copy()
-    velocity[np.isnan(velocity[:, 0])] = 0.0
-    boxes = np.concatenate([box, velocity], axis=-1).astype(np.float32).reshape(-1, 9)
-    boxes[:, 2] += boxes[:, 5] * np.float32(-0.5)
-    return boxes
-
-
-def _locations(ds: Dataset, sample_scene: np.ndarray) -> np.ndarray:
-    """(S,) the map location of each sample's scene (scene -> log -> location)."""
-    import polars as pl
-
-    logs = ds.scan("tables/log").select(pl.col("token").alias("log_token"), "location")
-    scenes = ds.scan("tables/scene").select(pl.col("token").alias("scene_token"), "log_token").join(
-        logs, on="log_token", how="left").collect()
-    location = dict(zip(scenes["scene_token"].to_list(), scenes["location"].to_list()))
-    return np.array([location[t] for t in sample_scene.tolist()], dtype=str)
 
 
 def _text(values: np.ndarray) -> np.ndarray:
