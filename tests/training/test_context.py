@@ -231,3 +231,30 @@ def test_bad_counts_are_refused(synth_out):
     for options in ({"queue_length": 0}, {"radar_sweeps": -1}, {"sweeps": -1}):
         with pytest.raises(UsageError, match="queue_length must be at least 1"):
             Samples(synth_out, "train", **options, **TRAIN)
+
+
+def test_with_every_part_the_object_still_pickles_small_and_reopens(synth_out):
+    import pickle
+
+    plain = Samples(synth_out, "train", lidar=False, cameras=(), **TRAIN)
+    every = Samples(synth_out, "train", lidar=False, cameras=(), radars="all", can_bus=True, bev_map=True,
+                    bev_xbound=(-20.0, 20.0, 1.0), bev_ybound=(-20.0, 20.0, 1.0), queue_length=2, **TRAIN)
+    data = pickle.dumps(every)
+    # per sample: its 18 CAN bus values and location only (the map is opened in the worker, not carried)
+    assert len(data) - len(pickle.dumps(plain)) < 300 * len(every)
+    again = pickle.loads(data)
+    assert again._ds is None
+    expected, item = every[7], again[7]
+    for key in ("radar_points", "can_bus", "gt_masks_bev", "queue_index"):
+        np.testing.assert_array_equal(item[key], expected[key])
+    assert item["gt_masks_bev"].shape == (6, 40, 40) and item["gt_masks_bev"].any()
+    assert item["queue"][0]["sample_token"] == expected["queue"][0]["sample_token"]
+
+
+def test_a_shards_queue_reads_the_rows_before_it_in_the_split(synth_out):
+    samples = Samples(synth_out, "train", lidar=False, cameras=(), boxes=False, queue_length=3, **TRAIN)
+    part = samples.shard(1, 2)
+    first = int(part.indices[0])
+    item = part[0]
+    assert item["queue_index"].tolist() == [max(0, first - 2), max(0, first - 1), first]
+    assert item["sample_token"] == samples.sample_token[first]
