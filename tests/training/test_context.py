@@ -122,16 +122,14 @@ def test_one_radar_and_an_unknown_one(synth_out):
 
 # --- the CAN bus vector ----------------------------------------------------------------------------------------------
 
-def bevformer_data_info_can_bus(nusc, can_bus, sample) -> np.ndarray:
+def bevformer_patch(can_bus, ego2global_translation, ego2global_rotation) -> np.ndarray:
     """`CustomNuScenesDataset.get_data_info`'s patch (BEVFormer master, commit 66b65f3a,
     projects/mmdet3d_plugin/datasets/nuscenes_dataset.py), `info['ego2global_*']` being the lidar keyframe's ego
     pose as its converter writes them."""
     from nuscenes.eval.common.utils import Quaternion, quaternion_yaw
 
-    sd_rec = nusc.get("sample_data", sample["data"]["LIDAR_TOP"])
-    pose_record = nusc.get("ego_pose", sd_rec["ego_pose_token"])
-    input_dict = dict(ego2global_translation=pose_record["translation"],
-                      ego2global_rotation=pose_record["rotation"], can_bus=can_bus)
+    input_dict = dict(ego2global_translation=ego2global_translation, ego2global_rotation=ego2global_rotation,
+                      can_bus=can_bus)
     rotation = Quaternion(input_dict['ego2global_rotation'])
     translation = input_dict['ego2global_translation']
     can_bus = input_dict['can_bus']
@@ -143,6 +141,32 @@ def bevformer_data_info_can_bus(nusc, can_bus, sample) -> np.ndarray:
     can_bus[-2] = patch_angle / 180 * np.pi
     can_bus[-1] = patch_angle
     return can_bus
+
+
+def bevformer_data_info_can_bus(nusc, can_bus, sample) -> np.ndarray:
+    sd_rec = nusc.get("sample_data", sample["data"]["LIDAR_TOP"])
+    pose_record = nusc.get("ego_pose", sd_rec["ego_pose_token"])
+    return bevformer_patch(can_bus, pose_record["translation"], pose_record["rotation"])
+
+
+def test_the_patch_turns_every_heading_into_0_to_360_degrees():
+    """Headings all round the circle (the synthetic scenes only turn left of east), unnormalised quaternions
+    included: the patch equals BEVFormer's, negative yaws moved up by 360 degrees."""
+    from nuparquet.training.temporal import patched_can_bus
+
+    rng = np.random.default_rng(1)
+    yaw = np.concatenate([np.linspace(-np.pi, np.pi, 13), rng.uniform(-np.pi, np.pi, 20)])
+    scale = rng.uniform(0.5, 2.0, len(yaw))
+    q = np.stack([np.cos(yaw / 2), 0.01 * rng.normal(size=len(yaw)), 0.01 * rng.normal(size=len(yaw)),
+                  np.sin(yaw / 2)], axis=1) * scale[:, None]
+    t = rng.normal(size=(len(yaw), 3)) * 1000
+    vectors = rng.normal(size=(len(yaw), 18))
+    ours = patched_can_bus(vectors, t, q)
+    for k in range(len(yaw)):
+        expected = bevformer_patch(vectors[k].copy(), t[k].tolist(), q[k].tolist())
+        np.testing.assert_array_equal(ours[k, :16], expected[:16])
+        np.testing.assert_allclose(ours[k, 16:], expected[16:], rtol=1e-12, atol=1e-9)
+    assert (ours[:, -1] > 180).any() and (ours[:, -1] < 180).any() and (ours[:, -1] >= 0).all()
 
 
 @pytest.fixture(scope="module")
