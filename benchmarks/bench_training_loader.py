@@ -1,7 +1,7 @@
-"""Row 16: the training loader (`nuparquet.training.Samples`) against mmdetection3d's loading pipeline restated over
-the same samples, and the memory of a data-loader worker against one holding the devkit's `NuScenes`.
+"""Rows 16a-16c: the training loader (`nuparquet.training.Samples`) against mmdetection3d's loading pipeline
+restated over the same samples, and the memory of a data-loader worker against one holding the devkit's `NuScenes`.
 
-    .venv/bin/python benchmarks/bench_training_loader.py [--scenes 4] [--samples-per-scene 10] [--repeats 1]
+    .venv/bin/python benchmarks/bench_training_loader.py [--scenes 6] [--samples-per-scene 20] [--repeats 1]
 
 Data: a cached synthetic set with 1600x900 camera JPEGs and lidar/radar files for every keyframe and sweep
 (`.bench-cache/training/`, `synthesize(with_images=True, with_lidar=True)`), converted, and its v2 infos
@@ -20,7 +20,13 @@ Each configuration runs in a fresh process (`--child`): it starts 1 or 2 workers
 torch), each worker takes every n-th sample (a DataLoader's split of a map-style dataset), and reports its count,
 the points it produced (checked equal between ours and mmdet3d) and its peak RSS (`VmHWM` of /proc/self/status:
 `ru_maxrss` would carry the parent's high-water mark across exec). samples/s = samples / the epoch's wall time,
-worker start-up included; "steady" leaves out each worker's start-up (import, open, first item).
+worker start-up included; "steady" leaves out each worker's start-up (spawn, imports, open, first item), what a
+long epoch or `persistent_workers=True` sees.
+
+Row 16c: one worker's peak memory on the 100-scene metadata-only set (`bench_data.scenes_out(100)`, 4,000 samples,
+no sensor files): ours unpickles a boxes-only `Samples` of the split and reads 200 items; the reference builds the
+devkit's `NuScenes` in the worker and reads the same number of samples' boxes (`get_boxes`). Both grow with the
+dataset: this is the metadata each worker holds, the sensor pipeline of rows 16a-b comes on top of either.
 """
 
 from __future__ import annotations
@@ -39,6 +45,8 @@ SPLIT = "train"
 VERSION = "v1.0-trainval"
 SWEEPS = 10
 LOADERS = ("ours", "mmdet3d", "devkit")
+META_SCENES = 100  # the metadata-only set of row 16c (bench_data.scenes_out)
+META_SAMPLES = 200  # samples each row 16c worker reads (boxes only)
 TARGET_SPEED = 1.5
 TARGET_MEMORY = 0.25
 
@@ -127,6 +135,25 @@ def mmdet3d_pipeline(entry: dict, root: Path) -> dict:
     return results
 
 
+class DevkitBoxes:
+    """A worker holding the devkit's `NuScenes` (built in the worker) and reading each sample's boxes through it."""
+
+    def __init__(self, root: Path) -> None:
+        self.root, self.nusc = root, None
+
+    def open(self) -> None:
+        from nuscenes.nuscenes import NuScenes
+
+        self.nusc = NuScenes(VERSION, str(self.root), verbose=False)
+
+    def __len__(self) -> int:
+        return META_SAMPLES
+
+    def __getitem__(self, i: int) -> dict:
+        sample = self.nusc.sample[i]
+        return {"boxes": self.nusc.get_boxes(sample["data"]["LIDAR_TOP"])}
+
+
 class Mmdet3dLoader:
     """A map-style dataset over the infos' `data_list` (held whole, as mmdetection3d's dataset holds it)."""
 
@@ -157,15 +184,15 @@ def _vm_hwm_mb() -> float:
     return float("nan")
 
 
-def worker(loader, worker_id: int, num_workers: int, queue) -> None:
+def worker(loader, worker_id: int, num_workers: int, limit: int, queue) -> None:
     start = time.perf_counter()
     if hasattr(loader, "open"):
         loader.open()
     count, points, first_s = 0, 0, None
-    for i in range(worker_id, len(loader), num_workers):
+    for i in range(worker_id, min(len(loader), limit), num_workers):
         item = loader[i]
         count += 1
-        points += len(item["points"])
+        points += len(item.get("points", ()))
         if first_s is None:
             first_s = time.perf_counter() - start
             steady = time.perf_counter()
@@ -178,17 +205,24 @@ def child(kind: str, workers: int, root: str, out: str, infos: str) -> None:
     import multiprocessing
 
     start = time.perf_counter()
+    limit = META_SAMPLES if kind.endswith("-meta") else 1 << 62
     if kind == "ours":
         from nuparquet.training import Samples
 
         loader = Samples(out, SPLIT, sweeps=SWEEPS, version=VERSION)
+    elif kind == "ours-meta":  # boxes only: the metadata set has no sensor files
+        from nuparquet.training import Samples
+
+        loader = Samples(out, SPLIT, lidar=False, cameras=(), sweeps=SWEEPS, version=VERSION)
+    elif kind == "devkit-meta":
+        loader = DevkitBoxes(Path(root))
     else:
         loader = Mmdet3dLoader(Path(infos), Path(root), VERSION if kind == "devkit" else None)
     build_s = time.perf_counter() - start
     context = multiprocessing.get_context("spawn")
     queue = context.Queue()
     start = time.perf_counter()
-    procs = [context.Process(target=worker, args=(loader, w, workers, queue)) for w in range(workers)]
+    procs = [context.Process(target=worker, args=(loader, w, workers, limit, queue)) for w in range(workers)]
     for p in procs:
         p.start()
     reports = [queue.get() for _ in procs]
@@ -197,15 +231,17 @@ def child(kind: str, workers: int, root: str, out: str, infos: str) -> None:
     epoch_s = time.perf_counter() - start
     samples = sum(r["samples"] for r in reports)
     steady = sum(r["samples"] - 1 for r in reports) / max(r["steady_s"] for r in reports)
+    samples_in_loader = len(loader)
     print(json.dumps({"build_s": build_s, "epoch_s": epoch_s, "samples": samples, "samples_per_s": samples / epoch_s,
                       "steady_samples_per_s": steady, "points": sum(r["points"] for r in reports),
                       "worker_peak_rss_mb": max(r["peak_rss_mb"] for r in reports),
-                      "first_item_s": max(r["first_s"] for r in reports), "pickle_bytes": len(pickle.dumps(loader))}))
+                      "first_item_s": max(r["first_s"] for r in reports), "pickle_bytes": len(pickle.dumps(loader)),
+                      "loader_samples": samples_in_loader}))
 
 
 # --- the row ----------------------------------------------------------------------------------------------------
 
-def run(scenes: int = 4, samples_per_scene: int = 10, repeats: int = 1) -> dict:
+def run(scenes: int = 6, samples_per_scene: int = 20, repeats: int = 1) -> dict:
     from harness import Row, load_average, log, megabytes, python_child, repeat, summarize
 
     root, out, infos = dataset(scenes, samples_per_scene)
@@ -243,14 +279,37 @@ def run(scenes: int = 4, samples_per_scene: int = 10, repeats: int = 1) -> dict:
             target=f">= {TARGET_SPEED}x, <= {TARGET_MEMORY} of the memory",
             met=same and speed >= TARGET_SPEED and memory <= TARGET_MEMORY,
         ))
+    import bench_data
+
+    meta_root, meta_out = bench_data.scenes_root(META_SCENES), bench_data.scenes_out(META_SCENES)
+    for kind in ("ours-meta", "devkit-meta"):
+        cmd = python_child(__file__, "--child", kind, 1, meta_root, meta_out, "-")
+        figures[kind] = summarize(repeat(cmd, repeats, label=kind), build_s="build_s", samples="samples",
+                                  worker_peak_rss_mb="worker_peak_rss_mb", pickle_bytes="pickle_bytes",
+                                  loader_samples="loader_samples", first_item_s="first_item_s")
+        commands[kind] = " ".join(map(str, cmd))
+    ours, dev = figures["ours-meta"], figures["devkit-meta"]
+    memory = ours["worker_peak_rss_mb"] / dev["worker_peak_rss_mb"]
+    rows.append(Row(
+        id="16c",
+        benchmark=f"one data-loader worker's peak memory, {META_SCENES}-scene metadata set (split {SPLIT}: "
+        f"{ours['loader_samples']:.0f} samples; {META_SAMPLES} samples' boxes read)",
+        ours=f"{megabytes(ours['worker_peak_rss_mb'])} (the `Samples` pickle {ours['pickle_bytes'] / 2**20:.1f} MB, "
+        f"built in {ours['build_s']:.1f} s in the parent)",
+        reference=f"a worker holding the devkit's `NuScenes`: {megabytes(dev['worker_peak_rss_mb'])} (built in the "
+        f"worker: first item after {dev['first_item_s']:.1f} s)",
+        ratio=f"{memory:.2f} of the memory",
+        target=f"<= {TARGET_MEMORY} of the memory",
+        met=memory <= TARGET_MEMORY,
+    ))
     return {"name": "training_loader", "figures": figures, "commands": commands, "same_points": same,
             "load": load_average(), "rows": rows}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--scenes", type=int, default=4)
-    parser.add_argument("--samples-per-scene", type=int, default=10)
+    parser.add_argument("--scenes", type=int, default=6)
+    parser.add_argument("--samples-per-scene", type=int, default=20)
     parser.add_argument("--repeats", type=int, default=1)
     parser.add_argument("--child", nargs=5, metavar=("KIND", "WORKERS", "ROOT", "OUT", "INFOS"),
                         help=argparse.SUPPRESS)
