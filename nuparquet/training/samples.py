@@ -78,7 +78,8 @@ class Samples:
       without CAN bus
     - `bev_map=True`: `gt_masks_bev` (K, H, W) uint8 0/1 of `bev_classes` (bevfusion's six by default; "divider":
       road and lane dividers, "drivable_area*": road segments and lanes), a `bev_xbound` x `bev_ybound` patch
-      ([min, max, cell] m, default +-50 m at 0.5 m) centred on the lidar and turned with its yaw, as bevfusion's
+      ([min, max, cell] m, default +-50 m at 0.5 m) centred on the lidar and turned with its yaw, indexed [class,
+      x cell, y cell] of that frame (its transpose of the map mask), as bevfusion's
       `LoadBEVSegmentation` makes it through `Dataset.map(location).map_mask` (the map held per worker, once per
       location)
     - `queue_length=Q` > 1: BEVFormer's temporal queue: the sample's own fields plus `queue` (the Q - 1 previous
