@@ -16,7 +16,7 @@ import numpy as np
 
 from nuparquet.dataset import Dataset, as_dataset
 from nuparquet.errors import UsageError
-from nuparquet.index.bevformer import can_bus_vectors
+from nuparquet.index.bevformer import CAN_BUS_DATASET, can_bus_vectors
 from nuparquet.index.compute import compute, offsets
 from nuparquet.index.inputs import read_inputs
 from nuparquet.index.labels import CLASSES
@@ -98,10 +98,9 @@ class Samples:
                  can_bus: bool = False, bev_map: bool = False, bev_classes: tuple[str, ...] = BEV_CLASSES,
                  bev_xbound: tuple[float, float, float] = BOUND_M, bev_ybound: tuple[float, float, float] = BOUND_M,
                  queue_length: int = 1) -> None:
-        if box_filter not in BOX_FILTERS:
-            raise UsageError(f"box_filter must be one of {BOX_FILTERS}, not {box_filter!r}")
-        if sweeps_as not in SWEEPS_AS:
-            raise UsageError(f"sweeps_as must be one of {SWEEPS_AS}, not {sweeps_as!r}")
+        for name, value, allowed in (("box_filter", box_filter, BOX_FILTERS), ("sweeps_as", sweeps_as, SWEEPS_AS)):
+            if value not in allowed:
+                raise UsageError(f"{name} must be one of {allowed}, not {value!r}")
         if queue_length < 1 or radar_sweeps < 0 or sweeps < 0:
             raise UsageError(f"queue_length must be at least 1 and sweeps, radar_sweeps at least 0 (got "
                              f"{queue_length}, {sweeps}, {radar_sweeps})")
@@ -115,11 +114,13 @@ class Samples:
         self.close_radius_m, self.pad_empty_sweeps, self.rgb = close_radius_m, pad_empty_sweeps, rgb
         self.sweeps_as, self.lidar_channel, self.queue_length = sweeps_as, lidar_channel, queue_length
         self.radars = tuple(ds.channels["radars"]) if radars == "all" else tuple(radars)
-        unknown = [r for r in self.radars if r not in ds.channels["radars"]]
-        if unknown:
+        if unknown := [r for r in self.radars if r not in ds.channels["radars"]]:
             raise UsageError(f"{', '.join(unknown)}: not a radar of {ds.root} (it has "
                              f"{', '.join(ds.channels['radars']) or 'none'})")
         self.radar_sweeps, self.radar_filters = radar_sweeps, radar_filters
+        if can_bus and CAN_BUS_DATASET not in ds.datasets:
+            raise UsageError(f"{ds.root} has no {CAN_BUS_DATASET} dataset, which can_bus=True reads: convert the "
+                             "dataset again with its CAN bus expansion (DATAROOT/can_bus)")
         self.bev_classes = tuple(bev_classes) if bev_map else ()
         self.bev_patch_m, self.bev_canvas = canvas(bev_xbound, bev_ybound)
         self._reference = ds.reference

@@ -118,6 +118,8 @@ def test_one_radar_and_an_unknown_one(synth_out):
         Samples(synth_out, "train", radars=("RADAR_NOPE",), **TRAIN)
     with pytest.raises(UsageError, match="sweeps_as must be one of"):
         Samples(synth_out, "train", sweeps_as="mmdet", **TRAIN)
+    with pytest.raises(UsageError, match="box_filter must be one of"):
+        Samples(synth_out, "train", box_filter="valid", **TRAIN)
 
 
 # --- the CAN bus vector ----------------------------------------------------------------------------------------------
@@ -282,3 +284,10 @@ def test_a_shards_queue_reads_the_rows_before_it_in_the_split(synth_out):
     item = part[0]
     assert item["queue_index"].tolist() == [max(0, first - 2), max(0, first - 1), first]
     assert item["sample_token"] == samples.sample_token[first]
+
+
+def test_can_bus_without_the_can_bus_expansion_is_refused(map_out):
+    from nuparquet.errors import UsageError
+
+    with pytest.raises(UsageError, match="has no sample_can_bus dataset, which can_bus=True reads"):
+        Samples(map_out, "train", lidar=False, cameras=(), can_bus=True, **TRAIN)
