@@ -194,7 +194,8 @@ GROUPS: dict[str, Group] = {
         ("nuparquet/rendering/*.py", "nuparquet/rendering/video/*.py", "!nuparquet/rendering/plan.py",
          "!nuparquet/rendering/mosaic.py", "!nuparquet/rendering/video/video.py", "!nuparquet/rendering/map_canvas.py"),
         ("tests/rendering/test_render.py", "tests/rendering/test_bev.py", "tests/rendering/test_frame_index.py",
-         "tests/rendering/test_lidar_colors.py", "tests/rendering/test_predictions.py",
+         "tests/rendering/test_lidar_colors.py", "tests/rendering/test_lidar_predictions.py",
+         "tests/rendering/test_predictions.py",
          "tests/rendering/test_pipeline.py", "tests/rendering/test_rigs.py", "tests/rendering/test_video.py",
          "tests/rendering/test_decode.py", "tests/rendering/test_legend.py", "tests/rendering/test_loop.py",
          "tests/rendering/test_colorings.py",
@@ -219,7 +220,7 @@ GROUPS: dict[str, Group] = {
         ("tests/devkit/", "tests/parity/test_devkit_tables.py", "tests/parity/test_devkit_boxes.py",
          "tests/parity/test_devkit_utils.py", "tests/parity/test_devkit_printers.py",
          "tests/parity/test_devkit_clients.py", "tests/rendering/test_colorings.py",
-         "tests/parity/test_predict_helper_devkit.py"),
+         "tests/parity/test_predict_helper_devkit.py", "tests/parity/test_devkit_can_bus.py"),
         keyword="not extract", cache_conversions=True),
     "evaluation": Group(
         ("nuparquet/evaluation/*.py",),
@@ -262,7 +263,7 @@ GROUPS: dict[str, Group] = {
         keyword="not extract", cache_conversions=True),
     "segmentation": Group(  # the lidarseg benchmark: the devkit's class mapper and confusion-matrix arithmetic
         ("nuparquet/evaluation/segmentation/*.py",),
-        ("tests/evaluation/test_lidarseg_devkit.py",),
+        ("tests/evaluation/test_lidarseg_devkit.py", "tests/evaluation/test_lidarseg_slices.py"),
         keyword="not extract", cache_conversions=True),
     "training": Group(  # samples for training: the index's arrays read as mmdetection3d's loading pipeline
         ("nuparquet/training/*.py",),
