@@ -12,7 +12,7 @@ before the clock starts (wall time of each step in-process, peak RSS of the proc
 - record walk: what map clients do per map (HDMapNet, PGP): for every lane, its polygon's exterior node coordinates
   through `get('polygon', ...)` / `get('node', ...)`, and every lane's outgoing lanes; ours rebuilds the layers it
   touches on first access, which is counted here; checked equal.
-Prints rows 16a-16c and writes benchmarks/results/<UTC time>-devkit_map.json.
+Prints rows 17a-17c and writes benchmarks/results/<UTC time>-devkit_map.json.
 """
 
 from __future__ import annotations
@@ -78,7 +78,7 @@ def run(repeats: int = 3, scenes: int = 200) -> dict:
     root, out = make_data(scenes)
     location = largest_map(root)
     path = root / "maps" / "expansion" / f"{location}.json"
-    log(f"row 16: map {location} ({path.stat().st_size / 2**20:.1f} MiB): devkit face vs the devkit's NuScenesMap")
+    log(f"row 17: map {location} ({path.stat().st_size / 2**20:.1f} MiB): devkit face vs the devkit's NuScenesMap")
     (CACHE / "devkit_map_patches.json").write_text(json.dumps(_patches(root, location)))
     keys = {k: k for k in ("construct_s", "mask_first_s", "mask_second_s", "walk_s", "walk_again_s", "import_s")}
     commands = {side: python_child(__file__, "--child", side, str(root), str(out), location) for side in ("ours", "devkit")}
@@ -101,15 +101,15 @@ def run(repeats: int = 3, scenes: int = 200) -> dict:
     }
     what = f"devkit face, map {location} ({result['map_mib']:.1f} MiB)"
     result["rows"] = [
-        Row(id="16a", benchmark=f"{what}: NuScenesMap(...) construction", ours=seconds(ours["construct_s"]),
+        Row(id="17a", benchmark=f"{what}: NuScenesMap(...) construction", ours=seconds(ours["construct_s"]),
             reference=f"devkit {seconds(devkit['construct_s'])}", ratio=f"{result['speedup_construct']:,.0f}x",
             target="≥ 50x", met=result["speedup_construct"] >= 50),
-        Row(id="16b", benchmark=f"{what}: get_map_mask, 100 m patch, 1000 x 1000, 9 layers, first / second call",
+        Row(id="17b", benchmark=f"{what}: get_map_mask, 100 m patch, 1000 x 1000, 9 layers, first / second call",
             ours=f"{seconds(ours['mask_first_s'])} / {seconds(ours['mask_second_s'])}",
             reference=f"devkit {seconds(devkit['mask_first_s'])} / {seconds(devkit['mask_second_s'])}",
             ratio=f"{result['speedup_mask_first']:.1f}x / {result['speedup_mask_second']:.1f}x",
             target="≥ 10x, pixel-equal", met=result["speedup_mask_second"] >= 10 and same_mask),
-        Row(id="16c", benchmark=f"{what}: record walk ({result['lanes']:,} lanes: polygon, nodes, outgoing), first "
+        Row(id="17c", benchmark=f"{what}: record walk ({result['lanes']:,} lanes: polygon, nodes, outgoing), first "
             "(ours builds the layers it touches) / again; construction + first walk",
             ours=f"{seconds(ours['walk_s'])} / {seconds(ours['walk_again_s'])}; "
             f"{seconds(ours['construct_s'] + ours['walk_s'])}",
@@ -118,7 +118,7 @@ def run(repeats: int = 3, scenes: int = 200) -> dict:
             ratio=f"{result['speedup_walk']:.2f}x / {devkit['walk_again_s'] / ours['walk_again_s']:.2f}x; "
             f"{(devkit['construct_s'] + devkit['walk_s']) / (ours['construct_s'] + ours['walk_s']):.1f}x",
             target="report, same answers", met=None,
-            note=f"row 16: whole processes {seconds(ours['wall_s'])} / {megabytes(ours['max_rss_mb'])} (ours) and "
+            note=f"row 17: whole processes {seconds(ours['wall_s'])} / {megabytes(ours['max_rss_mb'])} (ours) and "
             f"{seconds(devkit['wall_s'])} / {megabytes(devkit['max_rss_mb'])} (devkit): peak RSS "
             f"{result['rss_ratio']:.2f}x the devkit's; module imports {seconds(ours['import_s'])} (ours) and "
             f"{seconds(devkit['import_s'])} (devkit), outside the construction; same answers: mask {same_mask}, "
