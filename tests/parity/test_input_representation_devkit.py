@@ -237,7 +237,7 @@ def test_load_all_maps_serves_the_converted_maps_without_json(objects):
     theirs, ours = objects
     maps = our_static.load_all_maps(ours["helper"])
     assert list(maps) == sorted(theirs["maps"])
-    for location, nusc_map in theirs["maps"].items():
+    for location in theirs["maps"]:
         assert maps[location] is ours["nusc"]._dataset.map(location)  # the dataset's, read once
         assert maps[location].location == location
 

@@ -15,7 +15,6 @@ from typing import Any
 
 import cv2
 import numpy as np
-
 from pyquaternion import Quaternion
 
 from nuparquet.devkit.prediction.helper import quaternion_yaw, quaternion_yaws
@@ -106,12 +105,12 @@ def draw_agent_boxes(center_agent_annotation: dict[str, Any], center_agent_pixel
     """Fill every record's box of `agent_history` into `base_image` (in place), the centre agent red, the others
     `get_color(category_name)`, each faded by its step when its agent has more than one."""
     agent_x, agent_y = center_agent_annotation['translation'][:2]
-    records = [annotation for annotations in agent_history.values() for annotation in annotations]
+    records = [annotation for track in agent_history.values() for annotation in track]
     boxes = np.intp(track_boxes(records, (agent_x, agent_y), center_agent_pixels, resolution))
     b = 0
-    for instance_token, annotations in agent_history.items():
-        num_points = len(annotations)
-        for i, annotation in enumerate(annotations):
+    for instance_token, track in agent_history.items():
+        num_points = len(track)
+        for i, annotation in enumerate(track):
             if instance_token == center_agent_annotation['instance_token']:
                 color = (255, 0, 0)
             else:

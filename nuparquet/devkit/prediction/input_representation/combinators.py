@@ -19,10 +19,10 @@ def add_foreground_to_image(base_image: np.ndarray, foreground_image: np.ndarray
     """
     if not base_image.shape == foreground_image.shape:
         raise ValueError("base_image and foreground image must have the same shape."
-                         " Received {} and {}".format(base_image.shape, foreground_image.shape))
+                         f" Received {base_image.shape} and {foreground_image.shape}")
     if not (base_image.dtype == "uint8" and foreground_image.dtype == "uint8"):
         raise ValueError("base_image and foreground image must be of type 'uint8'."
-                         " Received {} and {}".format(base_image.dtype, foreground_image.dtype))
+                         f" Received {base_image.dtype} and {foreground_image.dtype}")
     # grey 0 counts as background: a dark colour such as (0, 0, 1) is not drawn (OpenCV's grey rounds it to 0)
     img2gray = cv2.cvtColor(foreground_image, cv2.COLOR_BGR2GRAY)
     _, mask = cv2.threshold(img2gray, 0, 255, cv2.THRESH_BINARY)
