@@ -325,6 +325,11 @@ def test_static_layer_helpers(objects):
             got = our_static.draw_lanes_in_agent_frame(400, node["x"], node["y"], yaw, 30, 0.2, 1, layers)
             assert_same_image(got, want, "draw_lanes_in_agent_frame")
             assert want.any()
+        # no lane within the radius: nothing drawn, no error
+        far = (node["x"] + 1e4, node["y"])
+        want = theirs_module.draw_lanes_in_agent_frame(200, *far, 0.3, 30, 0.2, 1, nusc_map)
+        assert_same_image(our_static.draw_lanes_in_agent_frame(200, *far, 0.3, 30, 0.2, 1, layers), want, "no lanes")
+        assert not want.any()
         # a colour function of the client's own, called with the devkit's arguments
         lanes = theirs_module.get_lanes_in_radius(node["x"], node["y"], 30, 1, nusc_map)
 
