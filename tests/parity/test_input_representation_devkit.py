@@ -103,8 +103,9 @@ def compare_rasters(theirs, ours, pairs, static_options=None, agent_options=None
     painted = np.zeros(2, np.int64)
     for instance, sample in pairs:
         parts = []
-        for i, (got_part, want_part) in enumerate(((got_input.static_layer_rasterizer, want_input.static_layer_rasterizer),
-                                                   (got_input.agent_rasterizer, want_input.agent_rasterizer))):
+        sides = ((got_input.static_layer_rasterizer, want_input.static_layer_rasterizer),
+                 (got_input.agent_rasterizer, want_input.agent_rasterizer))
+        for i, (got_part, want_part) in enumerate(sides):
             want = want_part.make_representation(instance, sample)
             got = got_part.make_representation(instance, sample)
             assert_same_image(got, want, (type(want_part).__name__, instance, sample))
@@ -275,7 +276,8 @@ def test_pixel_coordinates_crops_and_rotation_matrices():
         assert our_utils.get_crops(*window) == their_utils.get_crops(*window)
     for yaw in (-np.pi, -2.0, -0.3, 0.0, 0.7, np.pi / 2, 3.1):
         for shape in ((800, 800, 3), (500, 700, 3)):
-            assert np.array_equal(our_utils.get_rotation_matrix(shape, yaw), their_utils.get_rotation_matrix(shape, yaw))
+            assert np.array_equal(our_utils.get_rotation_matrix(shape, yaw),
+                                  their_utils.get_rotation_matrix(shape, yaw))
 
 
 def test_rotate_and_crop_is_the_full_warp_cropped():
@@ -304,7 +306,8 @@ def test_static_layer_helpers(objects):
         assert our_static.correct_yaw(yaw) == theirs_module.correct_yaw(yaw)
     mask = np.repeat(np.random.default_rng(1).integers(0, 2, (50, 60, 1)).astype(np.uint8), 3, 2)
     for color in [(255, 255, 255), (300, 5.9, 0), (0.5, 100.7, 250.2)]:
-        got, want = our_static.change_color_of_binary_mask(mask, color), theirs_module.change_color_of_binary_mask(mask, color)
+        got = our_static.change_color_of_binary_mask(mask, color)
+        want = theirs_module.change_color_of_binary_mask(mask, color)
         assert np.array_equal(got, want) and got.dtype == want.dtype
         assert np.array_equal(our_static._colored_mask(mask[..., 0], color), want)
     yaws = np.linspace(-np.pi, np.pi, 721)
