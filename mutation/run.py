@@ -217,12 +217,16 @@ GROUPS: dict[str, Group] = {
         ("tests/index/",),
         keyword="not extract", cache_conversions=True),
     "devkit": Group(
-        ("nuparquet/devkit/**/*.py",),
+        ("nuparquet/devkit/**/*.py", "!nuparquet/devkit/prediction/input_representation/*.py"),
         ("tests/devkit/", "tests/parity/test_devkit_tables.py", "tests/parity/test_devkit_boxes.py",
          "tests/parity/test_devkit_utils.py", "tests/parity/test_devkit_printers.py",
          "tests/parity/test_devkit_clients.py", "tests/rendering/test_colorings.py",
          "tests/parity/test_predict_helper_devkit.py", "tests/parity/test_devkit_can_bus.py"),
         keyword="not extract", cache_conversions=True),
+    "rasters": Group(  # the prediction models' input rasters (issue 37)
+        ("nuparquet/devkit/prediction/input_representation/*.py",),
+        ("tests/parity/test_input_representation_devkit.py",),
+        cache_conversions=True),
     "evaluation": Group(
         ("nuparquet/evaluation/*.py",),
         ("tests/evaluation/",),
