@@ -217,7 +217,8 @@ GROUPS: dict[str, Group] = {
         ("tests/index/",),
         keyword="not extract", cache_conversions=True),
     "devkit": Group(
-        ("nuparquet/devkit/**/*.py", "!nuparquet/devkit/map_expansion/*.py"),
+        ("nuparquet/devkit/**/*.py", "!nuparquet/devkit/map_expansion/*.py",
+         "!nuparquet/devkit/prediction/input_representation/*.py"),
         ("tests/devkit/", "tests/parity/test_devkit_tables.py", "tests/parity/test_devkit_boxes.py",
          "tests/parity/test_devkit_utils.py", "tests/parity/test_devkit_printers.py",
          "tests/parity/test_devkit_clients.py", "tests/rendering/test_colorings.py",
@@ -229,6 +230,10 @@ GROUPS: dict[str, Group] = {
          "tests/parity/test_devkit_arcline_path_utils.py", "tests/parity/test_devkit_map_edges.py",
          "tests/map/test_map_datasets.py::test_export_json_writes_every_map_file_back_exactly"),
         keyword="not extract", cache_conversions=True),
+    "rasters": Group(  # the prediction models' input rasters (issue 37)
+        ("nuparquet/devkit/prediction/input_representation/*.py",),
+        ("tests/parity/test_input_representation_devkit.py",),
+        cache_conversions=True),
     "evaluation": Group(
         ("nuparquet/evaluation/*.py",),
         ("tests/evaluation/",),
