@@ -44,7 +44,6 @@ from __future__ import annotations
 import networkx as nx
 import numpy as np
 from nuscenes.eval.common.utils import Quaternion, quaternion_yaw
-from scipy.spatial import distance
 from scipy.spatial.distance import cdist
 from shapely import affinity, ops, strtree
 from shapely.geometry import LinearRing, LineString, MultiLineString, MultiPolygon, Point, box
