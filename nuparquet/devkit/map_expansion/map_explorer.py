@@ -324,6 +324,9 @@ class NuScenesMapExplorer(MapRenders):
                     for layer_name in layer_names}
         if not len(layer_names):
             return {}
+        for layer_name in layer_names:  # the devkit's getattr(map_api, layer_name) of a name that is no layer
+            if layer_name not in self.map_api.layer_names:
+                raise AttributeError(f"'NuScenesMap' object has no attribute '{layer_name}'")
         return self.map_api._map_layers.records_in_patch(tuple(box_coords), list(layer_names), mode)
 
     def is_record_in_patch(self, layer_name: str, token: str, box_coords: Tuple[float, float, float, float],
