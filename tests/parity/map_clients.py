@@ -1037,6 +1037,45 @@ class LoadBEVSegmentation:
         return data
 
 
+def mask_for_lines_as_in_shapely_1(lines, mask):
+    """The devkit's `NuScenesMapExplorer.mask_for_lines` as it ran under shapely 1, where a MultiLineString iterated
+    over its parts: under shapely 2 its `for line in lines` raises TypeError, so the devkit's `get_map_mask` fails
+    (and LoadBEVSegmentation with it) wherever a divider leaves and re-enters the patch. Put in the devkit's place
+    to have its answer there."""
+    import cv2
+
+    if lines.geom_type == 'MultiLineString':
+        for line in lines.geoms:  # shapely 1: `for line in lines:`
+            coords = np.asarray(list(line.coords), np.int32)
+            coords = coords.reshape((-1, 2))
+            cv2.polylines(mask, [coords], False, 1, 2)
+    else:
+        coords = np.asarray(list(lines.coords), np.int32)
+        coords = coords.reshape((-1, 2))
+        cv2.polylines(mask, [coords], False, 1, 2)
+
+    return mask
+
+
+def divider_cut_in_pieces(nusc_map, location, lidar_pose, patch_m=100.0, seeds=range(100, 200)):
+    """The first seeded grid pose (`grid_poses`, 14 a seed) whose patch of `patch_m` square cuts a road or lane
+    divider into several pieces; None if there is none."""
+    from nuscenes.map_expansion.map_api import NuScenesMapExplorer
+
+    lines = [nusc_map.extract_line(record['line_token'])
+             for layer in ('road_divider', 'lane_divider') for record in getattr(nusc_map, layer)]
+    for seed in seeds:
+        for pose in grid_poses(nusc_map, location, lidar_pose, 14, seed=seed):
+            data = bevfusion_data(pose)
+            lidar2global = data["ego2global"] @ data["lidar2ego"]
+            v = np.dot(lidar2global[:3, :3], np.array([1, 0, 0]))
+            patch = NuScenesMapExplorer.get_patch_coord(
+                (lidar2global[0, 3], lidar2global[1, 3], patch_m, patch_m), np.arctan2(v[1], v[0]) / np.pi * 180)
+            if any(line.intersection(patch).geom_type == 'MultiLineString' for line in lines):
+                return pose
+    return None
+
+
 # --- 5. trajdata ---------------------------------------------------------------------------------------------------
 
 def order_matches(pts, ref):

@@ -115,3 +115,22 @@ def test_pgp_lane_graphs(poses, theirs, ours):
     assert sum(len(answer["lane_ids"]) for answer in expected) > 500
     assert sum(sum(map(len, answer["e_prox"])) for answer in expected) > 500
     assert_same(got, expected, "PGP map_representation")
+
+
+def test_bevfusion_where_a_divider_leaves_and_reenters_the_patch_the_devkit_raises_and_ours_draws_it(
+        poses, theirs, ours, monkeypatch):
+    """Under shapely 2 the devkit's `mask_for_lines` iterates a MultiLineString and raises, so bevfusion's loader
+    fails on the devkit wherever a divider is cut in pieces by the patch; ours gives the mask the devkit drew under
+    shapely 1 (its `mask_for_lines` with the parts iterated), pixel for pixel."""
+    from nuscenes.map_expansion.map_api import NuScenesMapExplorer
+
+    location = "boston-seaport"
+    pose = mc.divider_cut_in_pieces(theirs["maps"][location], location, poses[0])
+    assert pose is not None
+    with pytest.raises(TypeError, match="not iterable"):
+        mc.bevfusion_samples(theirs["maps"], [pose])
+    got = mc.bevfusion_samples(ours["maps"], [pose])
+    monkeypatch.setattr(NuScenesMapExplorer, "mask_for_lines", staticmethod(mc.mask_for_lines_as_in_shapely_1))
+    expected = mc.bevfusion_samples(theirs["maps"], [pose])
+    assert expected[0][5].any()  # the dividers drawn
+    assert_same(got, expected, "bevfusion LoadBEVSegmentation, a divider in pieces")
