@@ -85,6 +85,28 @@ def run_client(name: str, side: dict, poses: list[dict]):
     raise SystemExit(f"unknown client {name!r}")
 
 
+MAP_PACKAGES = (os.path.join("", "nuscenes", "map_expansion", ""),
+                os.path.join("", "nuparquet", "devkit", "map_expansion", ""))
+
+
+def map_api_seconds(name: str, side: dict, poses: list[dict]) -> tuple[float, float]:
+    """(the client's seconds under cProfile, the part of them inside the map expansion's functions when called from
+    outside it: the client's calls of the map API, everything they call included)."""
+    import cProfile
+    import pstats
+
+    profile = cProfile.Profile()
+    profile.enable()
+    run_client(name, side, poses)
+    profile.disable()
+    stats = pstats.Stats(profile).stats
+    inside = lambda func: any(package in func[0] for package in MAP_PACKAGES)  # noqa: E731
+    total = max(entry[3] for entry in stats.values())
+    in_map_api = sum(edge[3] for func, entry in stats.items() if inside(func)
+                     for caller, edge in entry[4].items() if not inside(caller))
+    return total, in_map_api
+
+
 def build_side(which: str, root: Path, bare: Path, out: Path, locations: list[str]) -> tuple[dict, float]:
     """The side's modules and its four maps, and the seconds their construction took."""
     import importlib
@@ -107,6 +129,8 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=400, help="keyframes for ours (0: every keyframe)")
     parser.add_argument("--devkit-samples", type=int, default=20, help="keyframes for the devkit (a prefix of ours)")
     parser.add_argument("--clients", default=",".join(PER_KEYFRAME + ("trajdata",)))
+    parser.add_argument("--profile", type=int, default=0,
+                        help="also profile each side on this many of the devkit's keyframes: the map API's share")
     args = parser.parse_args()
 
     import numpy as np
@@ -131,7 +155,7 @@ def main() -> None:
     rows, figures = [], {}
     construction = {"devkit": [], "ours": []}
     for client in args.clients.split(","):
-        timings, walls, answers = {}, {}, {}
+        timings, walls, answers, shares = {}, {}, {}, {}
         for which in ("devkit", "ours"):
             side, built_s = build_side(which, root, bare, out, locations)
             construction[which].append(built_s)
@@ -143,6 +167,10 @@ def main() -> None:
             answers[which] = answer
             log(f"  {client} {which}: {timings[which]:.2f} s CPU, {walls[which]:.2f} s wall "
                 f"({built_s:.2f} s construction)")
+            if args.profile and client != "trajdata":
+                total, in_map_api = map_api_seconds(client, side, subset[:args.profile])
+                shares[which] = in_map_api / total
+                log(f"    profiled on {args.profile}: {in_map_api:.2f} of {total:.2f} s in the map API")
         if client == "trajdata":
             expected, got = answers["devkit"], answers["ours"]
             per = {w: timings[w] / len(locations) for w in timings}
@@ -155,12 +183,14 @@ def main() -> None:
         if found:
             raise SystemExit(f"{client}: the answers differ: " + "; ".join(found))
         ratio = per["devkit"] / per["ours"]
-        figures[client] = dict(per_cpu_s=per, cpu_s=timings, wall_s=walls, unit=unit, ratio=ratio,
+        whole_note = (f"; share of the time in the map API (profiled): devkit {shares['devkit']:.0%}, "
+                      f"ours {shares['ours']:.0%}") if shares else ""
+        figures[client] = dict(per_cpu_s=per, cpu_s=timings, wall_s=walls, unit=unit, ratio=ratio, map_api_share=shares,
                                devkit_samples=len(devkit_poses), ours_samples=len(ours_poses))
         whole = f"; every keyframe ({len(poses)}): ours {seconds(per['ours'] * len(poses))}, " \
                 f"devkit {seconds(per['devkit'] * len(poses))}" if unit == "keyframe" else ""
         rows.append(Row(f"16 {client}: per {unit}", seconds(per["ours"]), seconds(per["devkit"]), times(ratio),
-                        f"≥ {TARGET:.0f}×", ratio >= TARGET, note=f"{client}: answers equal{whole}",
+                        f"≥ {TARGET:.0f}×", ratio >= TARGET, note=f"{client}: answers equal{whole}{whole_note}",
                         id=f"16{client[0]}"))
     build = {w: float(np.median(v)) for w, v in construction.items()}
     rows.insert(0, Row(f"16 construction: NuScenesMap x {len(locations)}", seconds(build["ours"]),
