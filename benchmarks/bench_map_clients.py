@@ -1,4 +1,4 @@
-"""Row 16: six real map clients (tests/parity/map_clients.py) on `nuparquet.devkit.map_expansion` vs the devkit's.
+"""Row 17: six real map clients (tests/parity/map_clients.py) on `nuparquet.devkit.map_expansion` vs the devkit's.
 
     .venv/bin/python benchmarks/bench_map_clients.py [--scenes 100] [--samples 400] [--devkit-samples 20]
         [--clients hdmapnet,maptr,streammapnet,bevfusion,pgp,trajdata]
@@ -189,13 +189,13 @@ def main() -> None:
                                devkit_samples=len(devkit_poses), ours_samples=len(ours_poses))
         whole = f"; every keyframe ({len(poses)}): ours {seconds(per['ours'] * len(poses))}, " \
                 f"devkit {seconds(per['devkit'] * len(poses))}" if unit == "keyframe" else ""
-        rows.append(Row(f"16 {client}: per {unit}", seconds(per["ours"]), seconds(per["devkit"]), times(ratio),
+        rows.append(Row(f"17 {client}: per {unit}", seconds(per["ours"]), seconds(per["devkit"]), times(ratio),
                         f"≥ {TARGET:.0f}×", ratio >= TARGET, note=f"{client}: answers equal{whole}{whole_note}",
-                        id=f"16{client[0]}"))
+                        id=f"17{client[0]}"))
     build = {w: float(np.median(v)) for w, v in construction.items()}
-    rows.insert(0, Row(f"16 construction: NuScenesMap x {len(locations)}", seconds(build["ours"]),
+    rows.insert(0, Row(f"17 construction: NuScenesMap x {len(locations)}", seconds(build["ours"]),
                        seconds(build["devkit"]), times(build["devkit"] / build["ours"]), "≥ 50×",
-                       build["devkit"] / build["ours"] >= 50, note="median over the clients' fresh builds", id="16c"))
+                       build["devkit"] / build["ours"] >= 50, note="median over the clients' fresh builds", id="17c"))
     report_alone({"name": "map_clients", "rows": rows, "figures": figures, "construction_s": construction,
                   "keyframes": len(poses), "args": vars(args)})
 

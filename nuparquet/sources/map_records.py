@@ -11,7 +11,7 @@ from __future__ import annotations
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from nuparquet.sources.json_records import to_records
+from nuparquet.sources.json_records import records_from_columns
 
 KEYED_LAYERS = ("arcline_path_3", "connectivity")  # a JSON object keyed by lane token (the `lane_token` column)
 
@@ -21,38 +21,37 @@ def map_entries(manifest: dict) -> dict[str, dict]:
     return {entry["location"]: entry for entry in manifest.get("files", ()) if entry["kind"] == "map_expansion"}
 
 
-def _layer_table(dataset, layer: str, location: str) -> pa.Table:
-    """One location's rows of `map/<layer>` in file order, read by pyarrow (nested structs keep their field order),
-    through the dataset's storage (local or remote)."""
-    filesystem = dataset.filesystem[0] if dataset.is_remote else None
-    tables = [pq.ParquetFile(path, filesystem=filesystem).read() for path, _ in dataset.files(f"map/{layer}")]
-    if not tables:
-        return pa.table({})
+def _layer_table(dataset, layer: str, location: str, columns: list[str] | None = None) -> pa.Table:
+    """One location's rows of `map/<layer>` in file order (`columns` only, when given), read by pyarrow (nested
+    structs keep their field order), through the dataset's storage (local or remote)."""
     import pyarrow.compute as pc
 
+    filesystem = dataset.filesystem[0] if dataset.is_remote else None
+    wanted = None if columns is None else list(dict.fromkeys([*columns, "location"]))
+    tables = [pq.ParquetFile(path, filesystem=filesystem).read(columns=wanted)
+              for path, _ in dataset.files(f"map/{layer}")]
+    if not tables:
+        return pa.table({})
     table = pa.concat_tables(tables)
     return table.filter(pc.equal(table.column("location"), location))
 
 
-def layer_rows(dataset, layer: str, location: str) -> list[dict]:
-    """The rows of one map's layer, in file order, without the columns nuparquet added."""
-    table = _layer_table(dataset, layer, location)
-    return table.drop_columns([c for c in ("location", "geometry", "bbox") if c in table.column_names]).to_pylist()
-
-
 def layer_records(dataset, entry: dict, layer: str) -> list[dict] | dict:
     """Layer `layer` of the map file of manifest entry `entry` as `json.load` gave it: a list of records, or for
-    `arcline_path_3` / `connectivity` a dict by lane token (the file's order). New objects on every call."""
+    `arcline_path_3` / `connectivity` a dict by lane token (the file's order). New objects on every call. Only the
+    file's fields are read (not the geometry), column by column."""
     facts = entry["layers"][layer]
-    rows = layer_rows(dataset, layer, entry["location"])
-    lanes = [row.pop("lane_token") for row in rows] if layer in KEYED_LAYERS else None
-    records = to_records(rows, facts["keys"], facts.get("json_fields", []), facts.get("int_values", {}),
-                         facts.get("key_orders", {}))
+    keys = facts["keys"]
+    table = _layer_table(dataset, layer, entry["location"], keys + (["lane_token"] if layer in KEYED_LAYERS else []))
+    columns = {k: table.column(k).to_pylist() for k in keys}
+    records = records_from_columns(columns, table.num_rows, keys, facts.get("json_fields", []),
+                                   facts.get("int_values", {}), facts.get("key_orders", {}))
+    if layer not in KEYED_LAYERS:
+        return records
+    lanes = table.column("lane_token").to_pylist()
     if layer == "arcline_path_3":
         return {lane: record["paths"] for lane, record in zip(lanes, records)}
-    if lanes is not None:
-        return dict(zip(lanes, records))
-    return records
+    return dict(zip(lanes, records))
 
 
 def map_file(dataset, entry: dict) -> dict:

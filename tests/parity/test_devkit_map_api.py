@@ -334,11 +334,11 @@ def test_lanes_arclines_connectivity_and_closest_lane(pairs):
             assert ours.get_arcline_path(token) == theirs.get_arcline_path(token)
             assert ours.get_outgoing_lane_ids(token) == theirs.get_outgoing_lane_ids(token)
             assert ours.get_incoming_lane_ids(token) == theirs.get_incoming_lane_ids(token)
-        for calls in ((theirs.get_arcline_path, ours.get_arcline_path),):
-            for call in calls:
-                with pytest.raises(ValueError, match="does not have a valid arcline path"):
-                    call("no-such-lane")
-        for call in (theirs.get_outgoing_lane_ids, ours.get_incoming_lane_ids):
+        for call in (theirs.get_arcline_path, ours.get_arcline_path):
+            with pytest.raises(ValueError, match="does not have a valid arcline path"):
+                call("no-such-lane")
+        for call in (theirs.get_outgoing_lane_ids, theirs.get_incoming_lane_ids, ours.get_outgoing_lane_ids,
+                     ours.get_incoming_lane_ids):
             with pytest.raises(ValueError, match="no-such-lane is not a valid lane"):
                 call("no-such-lane")
         tokens = lanes[:25] + ["no-such-lane"]  # a token without paths: [] as the devkit's
@@ -361,7 +361,6 @@ def test_lanes_arclines_connectivity_and_closest_lane(pairs):
 
 
 def test_next_roads_from_lanes_blocks_and_segments(pairs):
-    rng = np.random.default_rng(17)
     kinds = set()
     for theirs, ours in pairs.values():
         for layer in ("lane", "road_block", "road_segment"):
@@ -375,4 +374,13 @@ def test_next_roads_from_lanes_blocks_and_segments(pairs):
             with pytest.raises(AssertionError, match="No suitable layer"):
                 call(-1e6, -1e6)
     assert kinds >= {"lane"}
-    assert rng is not None
+
+
+def test_a_pickled_map_reopens_the_same_output(pairs):
+    import pickle
+
+    theirs, ours = pairs["boston-seaport"]
+    copy = pickle.loads(pickle.dumps(ours))
+    assert copy is not ours and copy.dataroot == ours.dataroot and copy.parquet == ours.parquet
+    x, y = theirs.node[0]["x"], theirs.node[0]["y"]
+    assert copy.lane == theirs.lane and copy.get_closest_lane(x, y) == theirs.get_closest_lane(x, y)

@@ -8,6 +8,9 @@ One change: the devkit draws polygons with `descartes.PolygonPatch`, which raise
 LINETOs, holes after their exterior) from the rings' coordinates. The devkit sets pyplot's 'seaborn-v0_8-whitegrid'
 style when imported; here it is set when a figure is first drawn, so programs that never render keep their style.
 The figures are returned (fig, axes) as the devkit's; `plt.savefig` where it writes `out_path`.
+
+Longer than our ~300-line norm on purpose: it is the devkit's figure code statement for statement, so the pixels
+are its pixels.
 """
 
 from __future__ import annotations
