@@ -1335,8 +1335,10 @@ def populate_vector_map(arcline_path_utils, vector_map, nusc_map, extract_lane_a
 
 def lane_and_edges_or_error(arcline_path_utils, nusc_map, lane_record):
     """`extract_lane_and_edges`, or (the centre line, the error it raised, None): its left/right split wants
-    exactly one run of right-hand polygon nodes, which holds on nuScenes' lanes and not on every synthetic one
-    (a node level with the centre line), so that run is compared by the error both sides raise."""
+    exactly one run of right-hand polygon nodes. On about half the synthetic lanes `discretize_lane` puts two
+    points ~4 mm apart where one arcline segment meets the next (kept: trajdata drops only those < 1e-10 m apart),
+    the direction there is a few mm long and skewed, and the polygon node nearest it lands on the wrong side; such
+    a lane is compared by the error both sides raise."""
     try:
         return extract_lane_and_edges(arcline_path_utils, nusc_map, lane_record)
     except ValueError as error:
