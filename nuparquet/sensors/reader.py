@@ -159,6 +159,16 @@ class SensorReader:
                              "points")
         return points, found
 
+    def labels(self, token: str, labels: str) -> np.ndarray:
+        """(P,) int64: the "lidarseg" or "panoptic" ground-truth labels of lidar frame `token` alone (without its
+        points): from `lidar_points/` when the frame is there with them, else the label file."""
+        column = LABEL_COLUMNS[labels]
+        if column in self.converted_columns("lidar"):
+            frame = self.converted(token, "lidar", [column])
+            if frame is not None and frame[column].null_count() == 0:
+                return frame[column].to_numpy().astype(np.int64)
+        return self.label_file(token, labels)
+
     def label_file(self, token: str, labels: str) -> np.ndarray:
         """(P,) int64: the lidarseg or panoptic label file `tables/<labels>` names for sample_data `token`."""
         from nuparquet.frames.sweeps import read_point_file

@@ -54,8 +54,8 @@ class LidarsegResult:
 
 
 def split_frames(ds, split: str) -> tuple[pl.DataFrame, list[str]]:
-    """The keyframe LIDAR_TOP readings (token, filename) of the split's scenes in the dataset, in the devkit's
-    order (the split's scene order, then by time), and notes (scenes of the split not in the dataset)."""
+    """The keyframe LIDAR_TOP readings (token, filename, scene_name) of the split's scenes in the dataset, in the
+    devkit's order (the split's scene order, then by time), and notes (scenes of the split not in the dataset)."""
     from nuparquet.evaluation.splits import split_scene_names
 
     names = split_scene_names(split, dataroot=ds.dataroot, version=ds.version)
@@ -71,7 +71,7 @@ def split_frames(ds, split: str) -> tuple[pl.DataFrame, list[str]]:
     found = frames["scene_name"].n_unique()
     notes = [] if found == len(names) else [f"the dataset holds {found} of the {len(names)} scenes of split {split}: "
                                             "evaluated on those"]
-    return frames.select("token", "filename"), notes
+    return frames.select("token", "filename", "scene_name"), notes
 
 
 def evaluate_lidarseg(dataset, results, out=None, options: EvalOptions | None = None, *,
@@ -112,7 +112,7 @@ def evaluate_lidarseg(dataset, results, out=None, options: EvalOptions | None = 
                              "scenes (the devkit has no confusion matrix to score)")
         rep.set_total(frames.height)
         confusion = np.zeros((NUM_CLASSES, NUM_CLASSES), dtype=np.int64)
-        for token, filename in frames.iter_rows():
+        for token, filename in frames.select("token", "filename").iter_rows():
             _, fine = ds.sensors.lidar(token, filename, labels="lidarseg")
             bad = np.flatnonzero((fine < 0) | (fine >= len(lookup)))
             if len(bad) == 0:

@@ -1,0 +1,200 @@
+"""The panoptic segmentation and panoptic tracking evaluation against nuscenes-devkit's NuScenesPanopticEval
+itself, on the generated labelled set (Panoptic nuScenes ground truth: category index * 1000 + instance id, ids
+stable along a track): seeded perturbed submissions (instances split, merged, labelled as stuff and stuff as
+things, identities switched between frames, fragments of classes absent from the ground truth, instances under
+min_inst_points), the perfect submission, a frame whose ground truth is all ignored; ground truth from
+`lidar_points/` and from the label files. The written result files are compared as JSON text, every float
+exactly, except PQ-dagger / PTQ-dagger, whose last bits the devkit's set order decides (docs/CONTRACTS.md)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import SYNTH_VERSION
+
+sys.path.insert(0, str(Path(__file__).parent))
+import panoptic_submissions as make  # noqa: E402
+
+pytestmark = pytest.mark.devkit
+
+DAGGERS = {"segmentation": "PQ_dagger", "tracking": "PTQ_dagger"}
+
+
+@pytest.fixture(scope="module")
+def devkit_nusc(labelled_root):
+    from nuscenes import NuScenes
+
+    return NuScenes(SYNTH_VERSION, dataroot=str(labelled_root), verbose=False)
+
+
+def devkit_panoptic(nusc, results: Path, task: str, min_points: int, out: Path, monkeypatch):
+    """NuScenesPanopticEval(nusc, results, "train", task, min_points).evaluate(), its split list cut to the scenes
+    the small set holds: (the written file's text, the evaluator)."""
+    from nuscenes.eval.lidarseg import utils
+    from nuscenes.eval.panoptic import evaluate
+    from nuscenes.utils.splits import create_splits_scenes
+
+    present = {scene["name"] for scene in nusc.scene}
+    names = [name for name in create_splits_scenes()["train"] if name in present]
+    with monkeypatch.context() as patch:
+        for module in (utils, evaluate):
+            patch.setattr(module, "create_splits_scenes", lambda verbose=False: {"train": names})
+        evaluator = evaluate.NuScenesPanopticEval(nusc, str(results), "train", task, min_points, out_dir=str(out))
+        evaluator.evaluate()
+    return (out / f"{task}-result.json").read_text(), evaluator
+
+
+def assert_equal_to_devkit(ours: dict, theirs_text: str) -> None:
+    """Every value exactly, the daggers within 1e-12 relative, and the daggers exactly the mean, in class index
+    order, of the devkit's own per-class values."""
+    theirs = json.loads(theirs_text)
+    assert list(ours) == list(theirs)
+    mine = json.loads(json.dumps(ours))
+    for task, key in DAGGERS.items():
+        if task not in theirs:
+            continue
+        per_class = theirs[task]
+        term = key.removesuffix("_dagger")
+        expected = np.mean([per_class[n][term] for n in make_names()[1:11]] +
+                           [per_class[n]["IoU"] for n in make_names()[11:]])
+        assert mine[task]["all"][key] == expected
+        assert mine[task]["all"][key] == pytest.approx(per_class["all"][key], rel=1e-12, abs=0)
+        mine[task]["all"][key] = per_class["all"][key]
+    assert json.dumps(mine, indent=2) == theirs_text
+
+
+def make_names() -> tuple[str, ...]:
+    from nuparquet.evaluation.segmentation.classes import COARSE_NAMES
+
+    return COARSE_NAMES
+
+
+def _counts_equal(result, evaluator) -> None:
+    seg = evaluator.evaluator["segmentation"]
+    classes = result.classes
+    assert classes["tp"].to_list() == seg.pan_tp.tolist()
+    assert classes["fp"].to_list() == seg.pan_fp.tolist()
+    assert classes["fn"].to_list() == seg.pan_fn.tolist()
+    assert classes["iou_sum"].to_list() == seg.pan_iou.tolist()
+    if "tracking" in evaluator.evaluator:
+        track = evaluator.evaluator["tracking"]
+        assert classes["tracking_tp"].to_list() == track.pan_tp.tolist()
+        assert classes["tracking_iou_sum"].to_list() == track.pan_iou.tolist()
+        assert classes["switches"].to_list() == track.pan_ids.tolist()
+        assert classes["soft_switches"].to_list() == track.pan_soft_ids.tolist()
+
+
+@pytest.mark.parametrize(("seed", "task", "min_points", "dtype"), [
+    (1, "segmentation", 15, np.uint16), (2, "tracking", 15, np.int32), (3, "tracking", 40, np.uint16),
+    (4, "tracking", 0, np.int64)])
+def test_perturbed_submissions_equal_the_devkit(labelled_out, devkit_nusc, seed, task, min_points, dtype,
+                                                tmp_path, monkeypatch):
+    from nuparquet.evaluation.panoptic import evaluate_panoptic
+
+    results = make.write(devkit_nusc, tmp_path / "results", seed, dtype=dtype)
+    theirs, evaluator = devkit_panoptic(devkit_nusc, results, task, min_points, tmp_path / "devkit", monkeypatch)
+    ours = evaluate_panoptic(labelled_out, results, tmp_path / "ours", split="train", min_inst_points=min_points,
+                             task="panoptic" if task == "segmentation" else "panoptic-tracking")
+    assert_equal_to_devkit(ours.metrics, theirs)
+    _counts_equal(ours, evaluator)
+    written = json.loads((tmp_path / "ours" / f"{task}-result.json").read_text())
+    assert written == json.loads(json.dumps(ours.metrics))
+    # the perturbations reach the edges: misses and false instances, instances under the minimum counted nowhere
+    classes = ours.classes
+    assert classes["fn"].sum() > 0 and classes["fp"].sum() > 0 and classes["tp"].sum() > 0
+    seg = ours.metrics["segmentation"]
+    assert 0 < seg["all"]["PQ"] < 1
+    instances = ours.instances
+    if min_points > 0:
+        assert instances.filter(instances["term"].is_null() & (instances["points"] < min_points)).height > 0
+    # classes the ground truth does not hold, predicted: RQ 0 (FPs, no TP), PQ 0, counted into the means
+    absent = classes.filter((classes["tp"] == 0) & (classes["fn"] == 0) & (classes["fp"] > 0))
+    assert absent.height > 0 or min_points == 40
+    # the instance table's terms are the counts
+    for term, column in (("TP", "tp"), ("FN", "fn")):
+        per_class = instances.filter((instances["side"] == "gt") & (instances["term"] == term))["class_index"]
+        assert np.bincount(per_class.to_numpy(), minlength=17).tolist() == classes[column].to_list()
+    fps = instances.filter((instances["side"] == "pred") & (instances["term"] == "FP"))["class_index"]
+    assert np.bincount(fps.to_numpy(), minlength=17).tolist() == classes["fp"].to_list()
+    if task == "tracking":
+        assert classes["switches"].sum() > 0
+        assert np.isfinite(ours.metrics["tracking"]["all"]["PAT"])
+
+
+def test_the_perfect_submission_scores_one(labelled_out, devkit_nusc, tmp_path, monkeypatch):
+    from nuparquet.evaluation.panoptic import evaluate_panoptic
+
+    results = make.write(devkit_nusc, tmp_path / "results", None)
+    theirs, _ = devkit_panoptic(devkit_nusc, results, "tracking", 15, tmp_path / "devkit", monkeypatch)
+    ours = evaluate_panoptic(labelled_out, results, split="train", task="panoptic-tracking")
+    assert_equal_to_devkit(ours.metrics, theirs)
+    present = ours.classes.filter(ours.classes["tp"] > 0)["class"].to_list()
+    for name in present:
+        assert ours.metrics["segmentation"][name]["PQ"] == 1.0
+    assert ours.metrics["tracking"]["all"]["TQ"] == 1.0
+    assert ours.classes["switches"].sum() == 0 and ours.classes["fp"].sum() == 0 and ours.classes["fn"].sum() == 0
+
+
+def test_ground_truth_ids_are_stable_along_tracks(devkit_nusc):
+    """The generator's panoptic labels: one instance id per annotation instance across a scene's frames, its
+    category index the annotation's."""
+    by_label: dict[tuple[str, int], set] = {}
+    for sample in devkit_nusc.sample:
+        token = sample["data"]["LIDAR_TOP"]
+        raw, _ = make.ground_truth(devkit_nusc, token)
+        scene = sample["scene_token"]
+        categories = {}
+        for ann_token in sample["anns"]:
+            ann = devkit_nusc.get("sample_annotation", ann_token)
+            categories.setdefault(ann["instance_token"], devkit_nusc.get("category", devkit_nusc.get(
+                "instance", ann["instance_token"])["category_token"])["index"])
+        for label in np.unique(raw[raw % 1000 > 0]).tolist():
+            by_label.setdefault((scene, label % 1000), set()).add(label // 1000)
+        assert all(label // 1000 in categories.values() for label in np.unique(raw[raw % 1000 > 0]).tolist())
+    assert by_label and all(len(cats) == 1 for cats in by_label.values())  # an id keeps its category in a scene
+    assert any(sum(1 for s in devkit_nusc.sample if s["scene_token"] == scene) > 1 for scene, _ in by_label)
+
+
+@pytest.fixture(scope="module")
+def ignored_root(labelled_root, tmp_path_factory) -> tuple[Path, Path, str]:
+    """The labelled set with its first keyframe's panoptic labels all noise (ignored), converted without points:
+    the ground truth then comes from the label files. (dataroot, OUT, the ignored frame's token)."""
+    from nuparquet.conversion import convert
+
+    root = tmp_path_factory.mktemp("panoptic-ignored") / "data"
+    root.mkdir()
+    for name in ("samples", "sweeps", "maps", "lidarseg"):
+        (root / name).symlink_to(labelled_root / name)
+    shutil.copytree(labelled_root / SYNTH_VERSION, root / SYNTH_VERSION)
+    shutil.copytree(labelled_root / "panoptic", root / "panoptic")
+    records = json.loads((root / SYNTH_VERSION / "panoptic.json").read_text())
+    first = root / records[0]["filename"]
+    np.savez_compressed(first, data=np.zeros(len(np.load(first)["data"]), dtype=np.uint16))
+    out = tmp_path_factory.mktemp("panoptic-ignored-out") / "out"
+    convert(root, SYNTH_VERSION, out, workers=1)
+    return root, out, records[0]["sample_data_token"]
+
+
+def test_an_all_ignored_frame_and_labels_from_files_equal_the_devkit(ignored_root, tmp_path, monkeypatch):
+    from nuscenes import NuScenes
+
+    from nuparquet.evaluation.panoptic import evaluate_panoptic
+
+    root, out, ignored = ignored_root
+    nusc = NuScenes(SYNTH_VERSION, dataroot=str(root), verbose=False)
+    results = make.write(nusc, tmp_path / "results", 7)
+    theirs, _ = devkit_panoptic(nusc, results, "tracking", 15, tmp_path / "devkit", monkeypatch)
+    ours = evaluate_panoptic(out, results, split="train", task="panoptic-tracking")
+    assert ignored in ours.frames
+    import polars as pl
+
+    # its points are all dropped before instances are formed, predictions too (the devkit's filter by ground truth)
+    assert ours.instances.filter(pl.col("sample_data_token") == ignored).is_empty()
+    assert ours.instances["sample_data_token"].n_unique() == len(ours.frames) - 1
+    assert_equal_to_devkit(ours.metrics, theirs)
