@@ -198,3 +198,147 @@ def test_an_all_ignored_frame_and_labels_from_files_equal_the_devkit(ignored_roo
     assert ours.instances.filter(pl.col("sample_data_token") == ignored).is_empty()
     assert ours.instances["sample_data_token"].n_unique() == len(ours.frames) - 1
     assert_equal_to_devkit(ours.metrics, theirs)
+
+
+@pytest.fixture()
+def submission(devkit_nusc, tmp_path) -> Path:
+    return make.write(devkit_nusc, tmp_path / "results", 5)
+
+
+def _first_file(results: Path) -> tuple[Path, str]:
+    path = sorted((results / "panoptic" / "train").iterdir())[0]
+    return path, path.name.removesuffix("_panoptic.npz")
+
+
+def _evaluate(out, results, **fields):
+    from nuparquet.evaluation.panoptic import evaluate_panoptic
+
+    return evaluate_panoptic(out, results, split="train", **fields)
+
+
+def test_a_missing_frame_names_its_file_and_token(labelled_out, submission):
+    from nuparquet.errors import InputError
+
+    path, token = _first_file(submission)
+    path.unlink()
+    with pytest.raises(InputError, match=f"{path}.*no predictions for lidar sample_data {token}"):
+        _evaluate(labelled_out, submission)
+    shutil.rmtree(submission / "panoptic" / "train")
+    with pytest.raises(InputError, match="panoptic/train does not exist"):
+        _evaluate(labelled_out, submission)
+
+
+def test_a_wrong_length_names_the_token_and_both_counts(labelled_out, submission):
+    from nuparquet.errors import InputError
+
+    path, token = _first_file(submission)
+    pred = np.load(path)["data"]
+    np.savez_compressed(path, data=np.append(pred, pred[:1]))
+    with pytest.raises(InputError, match=f"{len(pred) + 1} predictions for lidar sample_data {token}, which has "
+                       f"{len(pred)} points"):
+        _evaluate(labelled_out, submission)
+
+
+@pytest.mark.parametrize(("bad", "dtype"), [(17000, np.uint16), (16999 + 1, np.int32), (-1, np.int32)])
+def test_a_label_whose_class_is_out_of_range_is_refused(labelled_out, submission, bad, dtype):
+    from nuparquet.errors import InputError
+
+    path, token = _first_file(submission)
+    pred = np.load(path)["data"].astype(dtype)
+    pred[3] = bad
+    np.savez_compressed(path, data=pred)
+    with pytest.raises(InputError, match=f"label {bad} at point 3 of lidar sample_data {token} has a class outside "
+                       "0..16"):
+        _evaluate(labelled_out, submission)
+    pred[3] = 16999  # the largest label of the last class is taken
+    np.savez_compressed(path, data=pred)
+    _evaluate(labelled_out, submission)
+
+
+@pytest.mark.parametrize("content", ["no data", "floats", "two dims", "not a zip"])
+def test_an_unreadable_prediction_file_names_it(labelled_out, submission, content):
+    from nuparquet.errors import InputError
+
+    path, token = _first_file(submission)
+    pred = np.load(path)["data"]
+    if content == "no data":
+        np.savez_compressed(path, labels=pred)
+        message = "no 'data' array \\(it holds labels\\)"
+    elif content == "floats":
+        np.savez_compressed(path, data=pred.astype(np.float32))
+        message = "'data' is float32 of shape"
+    elif content == "two dims":
+        np.savez_compressed(path, data=pred.reshape(1, -1))
+        message = "'data' is uint16 of shape \\(1, "
+    else:
+        path.write_bytes(b"not a zip")
+        message = "not a readable .npz file"
+    with pytest.raises(InputError, match=f"{message}.*{token}|{token}.*{message}"):
+        _evaluate(labelled_out, submission)
+
+
+def test_the_submission_json_is_checked(labelled_out, submission):
+    from nuparquet.errors import InputError, UsageError
+
+    meta_path = submission / "train" / "submission.json"
+    for meta, message in (({**make.META, "use_lidar": 1}, "meta.use_lidar must be true or false"),
+                          ({**make.META, "task": "detection"}, "meta.task must be one of segmentation, tracking"),
+                          ({"use_lidar": True}, "\"meta\" must hold exactly use_camera")):
+        meta_path.write_text(json.dumps({"meta": meta}))
+        with pytest.raises(InputError, match=message):
+            _evaluate(labelled_out, submission)
+    meta_path.write_text("{not json")
+    with pytest.raises(InputError, match="submission.json: cannot be read as JSON"):
+        _evaluate(labelled_out, submission)
+    meta_path.write_text(json.dumps({"meta": {**make.META, "task": "tracking"}}))
+    with pytest.raises(UsageError, match="is a tracking submission: evaluate it with --task panoptic-tracking"):
+        _evaluate(labelled_out, submission)
+    _evaluate(labelled_out, submission, task="panoptic-tracking")  # the task the devkit's main would take
+    meta_path.unlink()
+    with pytest.raises(InputError, match="submission.json does not exist"):
+        _evaluate(labelled_out, submission)
+    with pytest.raises(UsageError, match="a panoptic submission is a folder"):
+        _evaluate(labelled_out, _first_file(submission)[0])
+
+
+def test_settings_that_do_not_apply_are_refused(labelled_out, submission):
+    from nuparquet.errors import UsageError
+
+    with pytest.raises(UsageError, match="--by, --config and --config-file do not apply to --task panoptic"):
+        _evaluate(labelled_out, submission, by=("scene",))
+    with pytest.raises(UsageError, match="--min-inst-points must be 0 or more"):
+        _evaluate(labelled_out, submission, min_inst_points=-1)
+    with pytest.raises(UsageError, match="evaluates --task panoptic or panoptic-tracking, not lidarseg"):
+        _evaluate(labelled_out, submission, task="lidarseg")
+
+
+def test_a_split_without_thing_instances_is_refused_for_tracking(labelled_out, submission, monkeypatch):
+    """The devkit's TQ divides a Python 0.0 by 0 there (ZeroDivisionError): a clear error instead."""
+    from nuparquet.errors import InputError
+
+    with pytest.raises(InputError, match="no ground-truth thing instance has more than min_inst_points=100000"):
+        _evaluate(labelled_out, submission, task="panoptic-tracking", min_inst_points=100000)
+    seg = _evaluate(labelled_out, submission, min_inst_points=100000)  # segmentation: no FN nor FP counted
+    assert seg.classes["fn"].sum() == 0 and seg.classes["fp"].sum() == 0
+
+
+def test_the_one_verb_and_the_cli_write_the_devkit_file(labelled_out, devkit_nusc, submission, tmp_path,
+                                                         monkeypatch, capsys):
+    import nuparquet
+    from nuparquet.cli.main import main
+
+    theirs, _ = devkit_panoptic(devkit_nusc, submission, "tracking", 15, tmp_path / "devkit", monkeypatch)
+    front = nuparquet.evaluate(labelled_out, submission, tmp_path / "front", task="panoptic-tracking", split="train")
+    assert_equal_to_devkit(front.metrics, theirs)
+    written = (tmp_path / "front" / "tracking-result.json").read_text()
+    assert sorted(p.name for p in (tmp_path / "front").iterdir()) == ["classes.parquet", "instances.parquet",
+                                                                     "tracking-result.json"]
+    assert main(["eval", str(labelled_out), "--task", "panoptic-tracking", "--results", str(submission),
+                 "--split", "train", "--out", str(tmp_path / "cli"), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert (tmp_path / "cli" / "tracking-result.json").read_text() == written
+    assert "Panoptic nuScenes tracking:" in printed and "PAT: " in printed and "driveable_surface" in printed
+    assert main(["eval", str(labelled_out), "--task", "panoptic", "--results", str(submission), "--split", "train",
+                 "--out", str(tmp_path / "seg"), "--min-inst-points", "40", "--quiet"]) == 0
+    seg_theirs, _ = devkit_panoptic(devkit_nusc, submission, "segmentation", 40, tmp_path / "devkit40", monkeypatch)
+    assert_equal_to_devkit(json.loads((tmp_path / "seg" / "segmentation-result.json").read_text()), seg_theirs)
