@@ -99,10 +99,10 @@ def print_panoptic(metrics: dict) -> None:
         print(f"Panoptic nuScenes {task}:")
         print("  " + "  ".join(f"{key}: {_number(value, 0)}" for key, value in figures["all"].items()))
         keys = list(next(value for name, value in figures.items() if name != "all"))
-        print("%-20s\t" % "Class" + "\t".join(f"{key:<6}" for key in keys))
+        print(f"{'Class':<20}\t" + "\t".join(f"{key:<6}" for key in keys))
         for name, values in figures.items():
             if name != "all":
-                print("%-20s\t" % name + "\t".join(_number(values[key]) for key in keys))
+                print(f"{name:<20}\t" + "\t".join(_number(values[key]) for key in keys))
 
 
 def run(args) -> int:

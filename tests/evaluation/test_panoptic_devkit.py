@@ -10,16 +10,13 @@ from __future__ import annotations
 
 import json
 import shutil
-import sys
 from pathlib import Path
 
 import numpy as np
+import panoptic_submissions as make  # tests/evaluation/, on sys.path under pytest
 import pytest
 
 from tests.conftest import SYNTH_VERSION
-
-sys.path.insert(0, str(Path(__file__).parent))
-import panoptic_submissions as make  # noqa: E402
 
 pytestmark = pytest.mark.devkit
 
@@ -206,7 +203,7 @@ def submission(devkit_nusc, tmp_path) -> Path:
 
 
 def _first_file(results: Path) -> tuple[Path, str]:
-    path = sorted((results / "panoptic" / "train").iterdir())[0]
+    path = min((results / "panoptic" / "train").iterdir())
     return path, path.name.removesuffix("_panoptic.npz")
 
 

@@ -12,7 +12,11 @@ from __future__ import annotations
 import numpy as np
 
 from nuparquet.evaluation.panoptic.segments import FrameSegments
-from nuparquet.evaluation.segmentation.classes import COARSE_NAMES, IGNORE_INDEX, NUM_CLASSES
+from nuparquet.evaluation.segmentation.classes import (
+    COARSE_NAMES,
+    IGNORE_INDEX,
+    NUM_CLASSES,
+)
 
 EPS = 1e-15  # PanopticEval.eps
 INCLUDE = np.array([c for c in range(NUM_CLASSES) if c != IGNORE_INDEX], dtype=np.int64)

@@ -24,9 +24,17 @@ from nuparquet.errors import InputError, UsageError
 from nuparquet.evaluation.options import EvalOptions
 from nuparquet.evaluation.panoptic.quality import PanopticQuality, class_kind
 from nuparquet.evaluation.panoptic.segments import frame_segments
-from nuparquet.evaluation.panoptic.submission import predictions_folder, read_meta, read_predictions
+from nuparquet.evaluation.panoptic.submission import (
+    predictions_folder,
+    read_meta,
+    read_predictions,
+)
 from nuparquet.evaluation.panoptic.tracking import PanopticTracking
-from nuparquet.evaluation.segmentation.classes import COARSE_NAMES, NUM_CLASSES, fine_to_coarse_lookup
+from nuparquet.evaluation.segmentation.classes import (
+    COARSE_NAMES,
+    NUM_CLASSES,
+    fine_to_coarse_lookup,
+)
 from nuparquet.options import resolve
 from nuparquet.progress import OnProgress, Reporter
 

@@ -8,15 +8,28 @@ PTQ-dagger's last bits (`quality.dagger`); the float32 sums are numpy's (docs/CO
 
 from __future__ import annotations
 
+import itertools
 import warnings
 
 import numpy as np
 
-from nuparquet.evaluation.panoptic.quality import (EPS, INCLUDE, IOU_THRESHOLD, MIN_STUFF_INDEX, THING_INDICES,
-                                                   dagger, quality_terms, semantic_iou)
-from nuparquet.evaluation.panoptic.segments import FrameSegments
-from nuparquet.evaluation.segmentation.classes import COARSE_NAMES, IGNORE_INDEX, NUM_CLASSES
 from nuparquet.errors import InputError
+from nuparquet.evaluation.panoptic.quality import (
+    EPS,
+    INCLUDE,
+    IOU_THRESHOLD,
+    MIN_STUFF_INDEX,
+    THING_INDICES,
+    dagger,
+    quality_terms,
+    semantic_iou,
+)
+from nuparquet.evaluation.panoptic.segments import FrameSegments
+from nuparquet.evaluation.segmentation.classes import (
+    COARSE_NAMES,
+    IGNORE_INDEX,
+    NUM_CLASSES,
+)
 
 UNMATCHED = 1  # the devkit's prediction id for "no match" (and, after its + 1, the ignore class's label 0)
 
@@ -160,7 +173,7 @@ class PanopticTracking:
                     gt_id_aq = np.sum(counts_pr_id ** 2 / np.double(track_length + fp_pr_id)) / np.double(track_length)
                     gt_id_is = 1.0
                     if track_length > 1:
-                        switches = sum(1 for before, after in zip(pr_ids, pr_ids[1:])
+                        switches = sum(1 for before, after in itertools.pairwise(pr_ids)
                                        if after != before or before == UNMATCHED)
                         gt_id_is = 1 - (switches / np.double(track_length - 1))
                     accumulate_tq += np.sqrt(gt_id_aq * gt_id_is)
