@@ -19,7 +19,6 @@ from nuparquet.evaluation.panoptic.quality import (
     INCLUDE,
     IOU_THRESHOLD,
     MIN_STUFF_INDEX,
-    THING_INDICES,
     dagger,
     quality_terms,
     semantic_iou,
@@ -35,15 +34,22 @@ UNMATCHED = 1  # the devkit's prediction id for "no match" (and, after its + 1, 
 
 
 class _Scene:
-    """One scene's association state, keyed as the devkit keys it (labels + 1)."""
+    """One scene's association state, keyed as the devkit keys it (labels + 1). The devkit keeps one dict per
+    class; a ground-truth label determines its class (`gt_class`), so one dict in first-seen order holds each
+    class's dict in its own order (a frame adds its instances by label, which orders them by class too)."""
 
     def __init__(self):
+        self.gt_class: dict[int, int] = {}  # thing instances seen with > min points: their class
+        self.gt_points: dict[int, int] = {}  # `gts`: those instances' summed points
         self.pred_points: dict[int, int] = {}  # `preds`: thing predictions of > min points, their summed points
-        self.gt_points = [{} for _ in range(NUM_CLASSES)]  # `gts`: per class, thing instances, summed points
-        self.intersections = [{} for _ in range(NUM_CLASSES)]  # `intersects`: per class, (gt, pred) -> points
+        self.intersections: dict[tuple[int, int], int] = {}  # `intersects`: (gt, pred of any class) -> points
         self.pred_frames: dict[int, int] = {}  # `instance_preds`: predictions of > min points, frames seen
-        self.gt_matches = [{} for _ in range(NUM_CLASSES)]  # `instance_gts`: per class, gt -> matched pred per frame
-        self.previous: dict[int, tuple[np.ndarray, np.ndarray]] | None = None  # per thing class: matched gt, pred
+        self.gt_matches: dict[int, list] = {}  # `instance_gts`: gt -> its matched prediction per frame
+        self.previous: tuple[np.ndarray, np.ndarray] | None = None  # the last frame's matched things: gt, pred
+
+    def of_class(self, stats: dict, cl: int) -> list:
+        """The (gt, value) items of `stats` whose instance is of class `cl`, in first-seen order."""
+        return [(g, value) for g, value in stats.items() if self.gt_class[g] == cl]
 
 
 def _accumulate(stats: dict, keys, values: np.ndarray) -> None:
@@ -72,8 +78,8 @@ class PanopticTracking:
         scene = self.scenes.setdefault(scene_name, _Scene())
         minimum = self.min_inst_points
         self.confusion += seg.confusion
-        _accumulate(scene.pred_frames, seg.pred_ids[seg.pred_points > minimum],
-                    np.ones(int((seg.pred_points > minimum).sum()), dtype=np.int64))
+        seen = seg.pred_points > minimum
+        _accumulate(scene.pred_frames, seg.pred_ids[seen], np.ones(int(seen.sum()), dtype=np.int64))
         pairs = np.flatnonzero(seg.same_class)
         gi, pi = seg.pair_gt[pairs], seg.pair_pred[pairs]
         inter = seg.pair_points[pairs]
@@ -90,48 +96,47 @@ class PanopticTracking:
         self.fn += np.bincount(seg.gt_class[~matched_gt & (seg.gt_points >= minimum)], minlength=NUM_CLASSES)
         fp = ~matched_pred & (seg.pred_points >= minimum) & (seg.pred_class != IGNORE_INDEX)
         self.fp += np.bincount(seg.pred_class[fp], minlength=NUM_CLASSES)
-        current = {}
-        for cl in THING_INDICES:
-            of_class = tp & (classes == cl)
-            current[cl] = (seg.gt_ids[gi[of_class]], seg.pred_ids[pi[of_class]], ious[of_class])
-            if scene.previous is not None:
-                self._count_switches(cl, scene.previous[cl], current[cl])
-            self._associate(scene, seg, cl)
-        scene.previous = {cl: value[:2] for cl, value in current.items()}
+        things = tp & (classes < MIN_STUFF_INDEX)  # by ground truth, then prediction: as each class's own order
+        current = (seg.gt_ids[gi[things]], seg.pred_ids[pi[things]], ious[things], classes[things])
+        if scene.previous is not None:
+            self._count_switches(scene.previous, current)
+        scene.previous = current[:2]
+        self._associate(scene, seg)
 
-    def _count_switches(self, cl: int, previous, current) -> None:
-        """Matched ground-truth instances of both frames whose matched prediction changed (their IoUs summed in
-        float32 from a Python 0.0, as the devkit's loop does)."""
+    def _count_switches(self, previous, current) -> None:
+        """Matched thing instances of both frames whose matched prediction changed; per class their IoUs summed in
+        float32 from a Python 0.0, in label order, as the devkit's loop does."""
         gt_prev, pred_prev = previous
-        gt_cur, pred_cur, iou_cur = current
+        gt_cur, pred_cur, iou_cur, class_cur = current
         _, prev_ind, cur_ind = np.intersect1d(gt_prev, gt_cur, return_indices=True)
-        switches, soft = 0, 0.0
-        for prev_i, cur_i in zip(prev_ind, cur_ind):
-            if pred_prev[prev_i] != pred_cur[cur_i]:
-                switches += 1
-                soft += iou_cur[cur_i]
-        self.switches[cl] += switches
-        self.soft_switches[cl] += soft
+        switched = cur_ind[pred_prev[prev_ind] != pred_cur[cur_ind]]
+        self.switches += np.bincount(class_cur[switched], minlength=NUM_CLASSES)
+        for cl in np.unique(class_cur[switched]):
+            soft = 0.0
+            for iou in iou_cur[switched[class_cur[switched] == cl]]:
+                soft += iou
+            self.soft_switches[cl] += soft
 
-    def _associate(self, scene: _Scene, seg: FrameSegments, cl: int) -> None:
-        """The class-agnostic part of `get_panoptic_track_stats` for thing class `cl`."""
+    def _associate(self, scene: _Scene, seg: FrameSegments) -> None:
+        """The class-agnostic part of `get_panoptic_track_stats`, every thing class at once."""
         minimum = self.min_inst_points
-        valid = (seg.gt_class == cl) & (seg.gt_points > minimum)
-        _accumulate(scene.gt_points[cl], seg.gt_ids[valid], seg.gt_points[valid])
-        preds = (seg.pred_class == cl) & (seg.pred_points > minimum)
+        thing = (seg.gt_class < MIN_STUFF_INDEX) & (seg.gt_points > minimum)
+        scene.gt_class.update(zip(seg.gt_ids[thing].tolist(), seg.gt_class[thing].tolist()))
+        _accumulate(scene.gt_points, seg.gt_ids[thing], seg.gt_points[thing])
+        preds = (seg.pred_class != IGNORE_INDEX) & (seg.pred_class < MIN_STUFF_INDEX) & (seg.pred_points > minimum)
         _accumulate(scene.pred_points, seg.pred_ids[preds], seg.pred_points[preds])
-        pairs = np.flatnonzero(valid[seg.pair_gt])  # with predictions of every class
+        pairs = np.flatnonzero(thing[seg.pair_gt])  # with predictions of every class
         gi, pi = seg.pair_gt[pairs], seg.pair_pred[pairs]
         inter = seg.pair_points[pairs]
-        gt_ids, pred_ids = seg.gt_ids[gi].tolist(), seg.pred_ids[pi].tolist()
-        _accumulate(scene.intersections[cl], zip(gt_ids, pred_ids), inter)
+        gt_ids, pred_ids = seg.gt_ids[gi], seg.pred_ids[pi]
+        _accumulate(scene.intersections, zip(gt_ids.tolist(), pred_ids.tolist()), inter)
         ious = inter.astype(np.float32) / (seg.gt_points[gi] + seg.pred_points[pi] - inter).astype(np.float32)
         tp = ious > IOU_THRESHOLD
-        matches = scene.gt_matches[cl]
-        for g, p in zip(np.asarray(gt_ids)[tp].tolist(), np.asarray(pred_ids)[tp].tolist()):
+        matches = scene.gt_matches
+        for g, p in zip(gt_ids[tp].tolist(), pred_ids[tp].tolist()):
             matches.setdefault(g, []).append(p)
-        matched = set(np.asarray(gt_ids)[tp].tolist())
-        for g in seg.gt_ids[valid].tolist():
+        matched = set(gt_ids[tp].tolist())
+        for g in seg.gt_ids[thing].tolist():
             if g not in matched:
                 matches.setdefault(g, []).append(UNMATCHED)
 
@@ -163,7 +168,7 @@ class PanopticTracking:
         accumulate_tq, accumulate_norm = 0.0, 0
         for scene in self.scenes.values():
             for cl in INCLUDE:
-                for pr_ids in scene.gt_matches[cl].values():
+                for _, pr_ids in scene.of_class(scene.gt_matches, cl):
                     unique_pr_id, counts_pr_id = np.unique(pr_ids, return_counts=True)
                     track_length = len(pr_ids)
                     keep = unique_pr_id != UNMATCHED
@@ -215,15 +220,15 @@ class PanopticTracking:
         association = np.zeros(NUM_CLASSES, dtype=np.double)
         for scene in self.scenes.values():
             rank = {p: i for i, p in enumerate(scene.pred_points)}
+            by_gt: dict[int, list] = {}
+            for (g, p), points in scene.intersections.items():
+                if p in rank:
+                    by_gt.setdefault(g, []).append((rank[p], p, points))
             for cl in INCLUDE:
-                gts = scene.gt_points[cl]
+                gts = scene.of_class(scene.gt_points, cl)
                 num_tubes[cl] += len(gts)
-                by_gt: dict[int, list] = {}
-                for (g, p), points in scene.intersections[cl].items():
-                    if p in rank:
-                        by_gt.setdefault(g, []).append((rank[p], p, points))
                 outer_sum_iou = 0.0
-                for g, gt_size in gts.items():
+                for g, gt_size in gts:
                     inner_sum_iou = 0.0
                     for _, p, tpa in sorted(by_gt.get(g, ())):
                         pr_size = scene.pred_points[p]
