@@ -307,6 +307,12 @@ def test_settings_that_do_not_apply_are_refused(labelled_out, submission):
         _evaluate(labelled_out, submission, min_inst_points=-1)
     with pytest.raises(UsageError, match="evaluates --task panoptic or panoptic-tracking, not lidarseg"):
         _evaluate(labelled_out, submission, task="lidarseg")
+    import nuparquet
+
+    for task in ("detection", "lidarseg"):  # the minimum is the panoptic tasks' alone
+        with pytest.raises(UsageError, match=f"--min-inst-points applies to --task panoptic and panoptic-tracking, "
+                           f"not {task}"):
+            nuparquet.evaluate(labelled_out, submission, task=task, min_inst_points=16)
 
 
 def test_a_split_without_thing_instances_is_refused_for_tracking(labelled_out, submission, monkeypatch):
