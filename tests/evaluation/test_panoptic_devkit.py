@@ -345,3 +345,27 @@ def test_the_one_verb_and_the_cli_write_the_devkit_file(labelled_out, devkit_nus
                  "--out", str(tmp_path / "seg"), "--min-inst-points", "40", "--quiet"]) == 0
     seg_theirs, _ = devkit_panoptic(devkit_nusc, submission, "segmentation", 40, tmp_path / "devkit40", monkeypatch)
     assert_equal_to_devkit(json.loads((tmp_path / "seg" / "segmentation-result.json").read_text()), seg_theirs)
+
+
+def test_labels_no_category_maps_and_a_dataset_without_panoptic_are_refused(labelled_out, submission, monkeypatch):
+    import nuparquet
+    from nuparquet.dataset.core import Dataset
+    from nuparquet.errors import InputError, UsageError
+    from nuparquet.evaluation.panoptic import run
+
+    ds = nuparquet.open(labelled_out)
+    lookup = run.fine_to_coarse_lookup(ds)
+    with monkeypatch.context() as patch:
+        unmapped = lookup.copy()
+        unmapped[:] = -1  # as if no category held any index the labels use
+        patch.setattr(run, "fine_to_coarse_lookup", lambda dataset: unmapped)
+        with pytest.raises(InputError, match="panoptic label .* at point 0 of lidar sample_data .*: category index "
+                           ".* is the index of no category"):
+            _evaluate(labelled_out, submission)
+        patch.setattr(run, "fine_to_coarse_lookup", lambda dataset: lookup[:1])  # shorter than the indices used
+        with pytest.raises(InputError, match="is the index of no category"):
+            _evaluate(labelled_out, submission)
+    names = [name for name in ds.datasets if name != "tables/panoptic"]
+    monkeypatch.setattr(Dataset, "datasets", property(lambda self: names))
+    with pytest.raises(UsageError, match="has no panoptic labels"):
+        _evaluate(ds, submission)
