@@ -369,3 +369,45 @@ def test_labels_no_category_maps_and_a_dataset_without_panoptic_are_refused(labe
     monkeypatch.setattr(Dataset, "datasets", property(lambda self: names))
     with pytest.raises(UsageError, match="has no panoptic labels"):
         _evaluate(ds, submission)
+
+
+@pytest.mark.parametrize("instances", [30, 300])  # 300 x 300 pairs: counted by a sort, not a table of them all
+def test_a_frames_pairs_are_the_devkits_unique_combinations(instances):
+    from nuparquet.evaluation.panoptic.segments import frame_segments
+
+    rng = np.random.default_rng(instances)
+    class_of = np.arange(32) % 17  # fine index -> coarse class (0: ignored)
+    gt = rng.choice([1, 2, 3, 4], 2 * instances) * 1000 + rng.integers(1, instances + 1, 2 * instances)
+    pred = rng.integers(1, 5, 2 * instances) * 1000 + rng.integers(0, instances, 2 * instances)
+    seg = frame_segments(gt, pred, class_of)
+    offset = 2 ** 32  # the devkit's key: prediction + offset * ground truth, each + 1
+    combos, counts = np.unique((pred + 1) + offset * (gt + 1), return_counts=True)
+    assert (seg.gt_ids[seg.pair_gt] + 0).tolist() == (combos // offset).tolist()
+    assert seg.pred_ids[seg.pair_pred].tolist() == (combos % offset).tolist()
+    assert seg.pair_points.tolist() == counts.tolist()
+    ids, points = np.unique(gt + 1, return_counts=True)
+    assert seg.gt_ids.tolist() == ids.tolist() and seg.gt_points.tolist() == points.tolist()
+
+
+def test_the_class_table_says_which_classes_are_things_and_stuff(labelled_out, devkit_nusc, submission):
+    from nuscenes.eval.panoptic.utils import PanopticClassMapper
+
+    mapper = PanopticClassMapper(devkit_nusc)
+    result = _evaluate(labelled_out, submission, task="panoptic-tracking")
+    classes = result.classes
+    assert classes.columns[:7] == ["class_index", "class", "kind", "tp", "fp", "fn", "iou_sum"]
+    kinds = dict(zip(classes["class"].to_list(), classes["kind"].to_list()))
+    assert {name for name, kind in kinds.items() if kind == "thing"} == set(mapper.things)
+    assert {name for name, kind in kinds.items() if kind == "stuff"} == set(mapper.stuff)
+    assert [name for name, kind in kinds.items() if kind == "ignore"] == [mapper.ignore_class["name"]]
+    # both sides of a match say TP; a matched prediction names the ground truth it matched, with the same IoU
+    instances = result.instances
+    tp_gt = instances.filter((instances["side"] == "gt") & (instances["term"] == "TP")).sort("sample_data_token",
+                                                                                               "label")
+    tp_pred = instances.filter((instances["side"] == "pred") & (instances["term"] == "TP"))
+    assert tp_gt.height == tp_pred.height == classes["tp"].sum() > 0
+    joined = tp_gt.join(tp_pred, left_on=["sample_data_token", "label"],
+                        right_on=["sample_data_token", "matched_label"], suffix="_pred")
+    assert joined.height == tp_gt.height
+    assert (joined["matched_label"] == joined["label_pred"]).all() and (joined["iou"] == joined["iou_pred"]).all()
+    assert instances.filter(instances["term"].is_null())["matched_label"].is_null().all()
