@@ -24,6 +24,8 @@ MIN_STUFF_INDEX = 11  # PanopticClassMapper: classes 1..10 are things, 11..16 st
 THING_INDICES = tuple(range(1, MIN_STUFF_INDEX))
 STUFF_INDICES = tuple(range(MIN_STUFF_INDEX, NUM_CLASSES))
 IOU_THRESHOLD = 0.5
+TERMS = (None, "TP", "FN", "FP")  # an instance's PQ term by code (None: unmatched, under min_inst_points)
+NO_TERM, TP, FN, FP = range(len(TERMS))
 
 
 def class_kind(index: int) -> str:
@@ -70,7 +72,8 @@ class PanopticQuality:
 
     def add(self, seg: FrameSegments) -> dict:
         """Count one frame (`addBatch`); returns its instances' terms: {"gt": ..., "pred": ...}, each a dict of
-        arrays (index into the frame's ids, matched other side's index or -1, IoU or NaN, counted term)."""
+        arrays (index into the frame's ids, matched other side's index or -1, IoU or NaN, the code of its term in
+        TERMS)."""
         self.confusion += seg.confusion
         pairs = np.flatnonzero(seg.same_class)
         gi, pi = seg.pair_gt[pairs], seg.pair_pred[pairs]
@@ -96,10 +99,10 @@ class PanopticQuality:
         self.fn += np.bincount(seg.gt_class[fn], minlength=NUM_CLASSES)
         self.fp += np.bincount(seg.pred_class[fp], minlength=NUM_CLASSES)
         return {"gt": {"index": np.arange(len(seg.gt_ids)), "match": gt_match, "iou": gt_iou,
-                       "term": np.where(gt_match >= 0, "TP", np.where(fn, "FN", ""))},
+                       "term": np.where(gt_match >= 0, TP, np.where(fn, FN, NO_TERM))},
                 "pred": {"index": np.flatnonzero(instance), "match": pred_match[instance],
-                         "iou": pred_iou[instance], "term": np.where(pred_match >= 0, "TP",
-                                                                     np.where(fp, "FP", ""))[instance]}}
+                         "iou": pred_iou[instance],
+                         "term": np.where(pred_match >= 0, TP, np.where(fp, FP, NO_TERM))[instance]}}
 
     def metrics(self) -> dict:
         """`NuScenesPanopticEval.evaluate_segmentation`'s dict: {"all": {PQ, SQ, RQ, mIoU, PQ_dagger}, class name:

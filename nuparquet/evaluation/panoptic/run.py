@@ -22,7 +22,7 @@ import polars as pl
 
 from nuparquet.errors import InputError, UsageError
 from nuparquet.evaluation.options import EvalOptions
-from nuparquet.evaluation.panoptic.quality import PanopticQuality, class_kind
+from nuparquet.evaluation.panoptic.quality import TERMS, PanopticQuality, class_kind
 from nuparquet.evaluation.panoptic.segments import frame_segments
 from nuparquet.evaluation.panoptic.submission import (
     predictions_folder,
@@ -197,10 +197,9 @@ def instance_table(frames: list) -> pl.DataFrame:
         "points": pl.Series(joined["points"], dtype=pl.Int64),
         "matched_label": pl.Series(joined["matched_label"], dtype=pl.Int64),
         "iou": pl.Series(joined["iou"], dtype=pl.Float64),
-        "term": pl.Series(joined["term"].astype(str).tolist(), dtype=pl.String)})
+        "term": pl.Series(np.array(TERMS, dtype=object)[joined["term"].astype(np.int64)].tolist(), dtype=pl.String)})
     return table.with_columns(pl.when(pl.col("matched_label") >= 0).then(pl.col("matched_label"))
-                              .alias("matched_label"),
-                              pl.when(pl.col("term") != "").then(pl.col("term")).alias("term"))
+                              .alias("matched_label"))
 
 
 def write(out: Path, result: PanopticResult, devkit_task: str) -> None:

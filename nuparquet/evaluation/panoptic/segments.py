@@ -47,9 +47,9 @@ def _distinct(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(ids, counts, index of each value into ids) of small non-negative integers (labels + 1, below 2**16 + 1):
     a bincount, the same sorted distinct values and counts as np.unique, without its sort."""
     counts = np.bincount(values)
-    ids = np.flatnonzero(counts)
-    rank = np.zeros(len(counts), dtype=np.int64)
-    rank[ids] = np.arange(len(ids))
+    present = counts > 0  # nonzero of a bool mask: several times faster than of the counts
+    ids = np.flatnonzero(present)
+    rank = np.cumsum(present) - 1  # each value's index among the distinct ones
     return ids, counts[ids], rank[values]
 
 
@@ -68,7 +68,7 @@ def frame_segments(gt: np.ndarray, pred: np.ndarray, gt_class_of: np.ndarray) ->
     key = gt_rank * width + pred_rank  # sorted keys: by ground truth, then prediction
     if len(gt_ids) * width <= max(4 * len(key), 1 << 16):
         pairs = np.bincount(key)
-        found = np.flatnonzero(pairs)
+        found = np.flatnonzero(pairs > 0)
         pair_points = pairs[found]
     else:  # very many instances on both sides: a sort instead of a table of every combination
         found, pair_points = np.unique(key, return_counts=True)
