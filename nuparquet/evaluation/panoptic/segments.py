@@ -16,7 +16,6 @@ import numpy as np
 
 from nuparquet.evaluation.segmentation.classes import IGNORE_INDEX, NUM_CLASSES
 
-PRED_LABEL_LIMIT = NUM_CLASSES * 1000  # predictions are checked to be below (submission.read_predictions)
 
 
 @dataclass
@@ -54,9 +53,9 @@ def _distinct(values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def frame_segments(gt: np.ndarray, pred: np.ndarray, gt_class_of: np.ndarray) -> FrameSegments:
-    """The segments of one frame. `gt`, `pred`: (P,) int64 raw panoptic labels (predictions checked to be below
-    PRED_LABEL_LIMIT); `gt_class_of`: (F,) the coarse class of each fine category index (every index `gt // 1000`
-    uses checked to map)."""
+    """The segments of one frame. `gt`, `pred`: (P,) int64 raw panoptic labels (predictions checked to be of a
+    class 0..16: `submission.read_predictions`); `gt_class_of`: (F,) the coarse class of each fine category index
+    (every index `gt // 1000` uses checked to map)."""
     gt_sem = gt_class_of[gt // 1000]
     pred_sem = pred // 1000
     confusion = np.bincount(pred_sem * NUM_CLASSES + gt_sem,
