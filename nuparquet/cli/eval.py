@@ -54,7 +54,8 @@ def register(sub) -> None:
                    "of lidarseg/<split>/<token>_lidarseg.bin and <split>/submission.json; panoptic and "
                    "panoptic-tracking a folder of panoptic/<split>/<token>_panoptic.npz and <split>/submission.json")
     p.add_argument("--out", metavar="DIR", help="write metrics_summary.json, metrics_details.json, plots/, "
-                   "predictions/, ground_truth/ (and slices/ with --by) here; without it the metrics are only printed")
+                   "predictions/, ground_truth/ (and slices/ with --by) here (panoptic: <segmentation|tracking>-"
+                   "result.json, classes.parquet, instances.parquet); without it the metrics are only printed")
     add_options(p, EvalOptions)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
