@@ -281,6 +281,10 @@ GROUPS: dict[str, Group] = {
         ("nuparquet/evaluation/segmentation/*.py",),
         ("tests/evaluation/test_lidarseg_devkit.py", "tests/evaluation/test_lidarseg_slices.py"),
         keyword="not extract", cache_conversions=True),
+    "panoptic": Group(  # the panoptic benchmarks: the devkit's PanopticEval and PanopticTrackingEval arithmetic
+        ("nuparquet/evaluation/panoptic/*.py",),
+        ("tests/evaluation/test_panoptic_devkit.py",),
+        keyword="not extract", cache_conversions=True),
     "training": Group(  # samples for training: the index's arrays read as mmdetection3d's loading pipeline
         ("nuparquet/training/*.py",),
         ("tests/training/",),

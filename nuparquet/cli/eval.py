@@ -16,6 +16,7 @@ examples:
   nuparquet eval OUT --results results_nusc.json --split val --out eval/
   nuparquet eval OUT --results results_nusc.json --split mini_val --by distance,night --out eval/
   nuparquet eval OUT --results results_nusc.json --by num_lidar_pts --bins 0,1,5,20,100,100000
+  nuparquet eval OUT --task panoptic-tracking --results panoptic_results/ --split val --out eval/
 
 Writes DIR/metrics_summary.json and DIR/metrics_details.json (the devkit's files: keys, structure and values),
 DIR/plots/*.png (the devkit's PR and TP curves), DIR/predictions/ (one row per predicted box: sample, scene,
@@ -37,7 +38,8 @@ arguments (unknown split, configuration or slice; an --out that holds files with
 def register(sub) -> None:
     p = sub.add_parser(
         "eval",
-        help="evaluate a submission (detection: mAP, NDS; tracking: AMOTA; lidarseg: mIoU) exactly as "
+        help="evaluate a submission (detection: mAP, NDS; tracking: AMOTA; lidarseg: mIoU; panoptic: PQ; "
+        "panoptic-tracking: PAT, LSTQ) exactly as "
         "nuscenes-devkit, per slice too",
         description="Compute the nuScenes detection metrics of a submission (results.json) from the converted "
         "dataset, exactly as nuscenes-devkit's DetectionEval does (class ranges, bike-rack filter, greedy "
@@ -49,9 +51,11 @@ def register(sub) -> None:
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
     p.add_argument("--results", metavar="RESULTS.json", required=True, help="the submission, nuScenes format: "
                    "detection/tracking {\"meta\": {...}, \"results\": {sample_token: [box, ...]}}; lidarseg a folder "
-                   "of lidarseg/<split>/<token>_lidarseg.bin and <split>/submission.json")
+                   "of lidarseg/<split>/<token>_lidarseg.bin and <split>/submission.json; panoptic and "
+                   "panoptic-tracking a folder of panoptic/<split>/<token>_panoptic.npz and <split>/submission.json")
     p.add_argument("--out", metavar="DIR", help="write metrics_summary.json, metrics_details.json, plots/, "
-                   "predictions/, ground_truth/ (and slices/ with --by) here; without it the metrics are only printed")
+                   "predictions/, ground_truth/ (and slices/ with --by) here (panoptic: <segmentation|tracking>-"
+                   "result.json, classes.parquet, instances.parquet); without it the metrics are only printed")
     add_options(p, EvalOptions)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(run=run)
@@ -90,6 +94,18 @@ def print_lidarseg(metrics: dict) -> None:
         print(f"{name:<20}\t{_number(iou)}")
 
 
+def print_panoptic(metrics: dict) -> None:
+    """Each task's "all" figures, then one class a line (NuScenesPanopticEval's verbose printout is its JSON)."""
+    for task, figures in metrics.items():
+        print(f"Panoptic nuScenes {task}:")
+        print("  " + "  ".join(f"{key}: {_number(value, 0)}" for key, value in figures["all"].items()))
+        keys = list(next(value for name, value in figures.items() if name != "all"))
+        print(f"{'Class':<20}\t" + "\t".join(f"{key:<6}" for key in keys))
+        for name, values in figures.items():
+            if name != "all":
+                print(f"{name:<20}\t" + "\t".join(_number(values[key]) for key in keys))
+
+
 def run(args) -> int:
     from nuparquet.cli.output import print_frame
     from nuparquet.evaluation.run import evaluate
@@ -102,6 +118,8 @@ def run(args) -> int:
         print(format_summary(result.summary))
     elif options.task == "lidarseg":
         print_lidarseg(result.metrics)
+    elif options.task in ("panoptic", "panoptic-tracking"):
+        print_panoptic(result.metrics)
     else:
         print_summary(result.summary)
     if result.slices is not None:

@@ -19,10 +19,11 @@ class EvalOptions:
     """How to evaluate a submission: which benchmark, which split, which settings, which slices (the submission and
     where the metrics go are the verb's arguments: `evaluate(ds, results, out, ...)`)."""
 
-    task: Literal["detection", "tracking", "lidarseg"] = option(
+    task: Literal["detection", "tracking", "lidarseg", "panoptic", "panoptic-tracking"] = option(
         "detection", help="the benchmark: detection (DetectionEval: mAP, TP errors, NDS; default), tracking "
         "(TrackingEval: AMOTA, AMOTP, MOTA, IDS...), lidarseg (LidarSegEval: mIoU, frequency-weighted IoU; "
-        "--results is the submission folder)")
+        "--results is the submission folder), panoptic (NuScenesPanopticEval segmentation: PQ, SQ, RQ, mIoU, "
+        "PQ-dagger), panoptic-tracking (its tracking too: PAT, LSTQ, PTQ, sPTQ, MOTSA...; --results the folder)")
     split: str = option("val", help="the split evaluated: train, val, test, mini_train, mini_val, train_detect, "
                         "train_track, or a custom split of <dataroot>/<version>/splits.json (default val)")
     config: str | None = option(None, metavar="NAME",
@@ -37,6 +38,8 @@ class EvalOptions:
         "columns, e.g. 0,20,40")
     plots: bool = option(True, help="write the task's plots as PNG into DIR/plots: the devkit's PR and TP curves "
                          "(detection, tracking), IoU per class and the confusion matrix (lidarseg); --no-plots: skip")
+    min_inst_points: int = option(15, metavar="N", help="panoptic tasks: the fewest points of an instance "
+                                  "counted as a false negative or positive (the devkit's --min_inst_points; default 15)")
     overwrite: bool = option(False, help="replace DIR if it already holds files")
 
     def __post_init__(self) -> None:

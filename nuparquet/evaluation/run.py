@@ -141,6 +141,8 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
     from nuparquet.dataset import as_dataset
 
     options = resolve(EvalOptions, options, fields)
+    if options.min_inst_points != EvalOptions.min_inst_points and not options.task.startswith("panoptic"):
+        raise UsageError(f"--min-inst-points applies to --task panoptic and panoptic-tracking, not {options.task}")
     if options.task != "detection":  # the other benchmarks, each in its own package, through the one verb
         return task_function(options.task)(dataset, results, out, options, on_progress=on_progress)
     config = resolve_config(options.config, options.config_file)

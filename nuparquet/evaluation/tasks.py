@@ -9,6 +9,8 @@ import importlib
 TASKS = {
     "tracking": "nuparquet.evaluation.tracking.run:evaluate_tracking",
     "lidarseg": "nuparquet.evaluation.segmentation.run:evaluate_lidarseg",
+    "panoptic": "nuparquet.evaluation.panoptic.run:evaluate_panoptic",
+    "panoptic-tracking": "nuparquet.evaluation.panoptic.run:evaluate_panoptic",
 }
 
 

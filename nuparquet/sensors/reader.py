@@ -59,6 +59,7 @@ class SensorReader:
     def __init__(self, dataset) -> None:
         self.dataset = dataset
         self._columns: dict[str, list[str]] = {}
+        self._label_files: dict[str, dict[str, str]] = {}
 
     # -- where the files are ---------------------------------------------------------------------------------------
 
@@ -163,6 +164,16 @@ class SensorReader:
                              "points")
         return points, found
 
+    def labels(self, token: str, labels: str) -> np.ndarray:
+        """(P,) int64: the "lidarseg" or "panoptic" ground-truth labels of lidar frame `token` alone (without its
+        points): from `lidar_points/` when the frame is there with them, else the label file."""
+        column = LABEL_COLUMNS[labels]
+        if column in self.converted_columns("lidar"):
+            frame = self.converted(token, "lidar", [column])
+            if frame is not None and frame[column].null_count() == 0:
+                return frame[column].to_numpy().astype(np.int64)
+        return self.label_file(token, labels)
+
     def label_file(self, token: str, labels: str) -> np.ndarray:
         """(P,) int64: the lidarseg or panoptic label file `tables/<labels>` names for sample_data `token`."""
         from nuparquet.frames.sweeps import read_point_file
@@ -171,12 +182,15 @@ class SensorReader:
         if f"tables/{labels}" not in self.dataset.datasets:
             raise UsageError(f"{self.dataset.root} has no {labels} labels (the dataroot had no {labels}.json when "
                              "converted)")
-        names = (self.dataset.scan(f"tables/{labels}").filter(pl.col("sample_data_token") == token)
-                 .select("filename").collect())
-        if names.is_empty():
+        if labels not in self._label_files:  # one read of the small index table, not a query per frame
+            table = self.dataset.scan(f"tables/{labels}").select("sample_data_token", "filename").collect()
+            pairs = zip(table["sample_data_token"].to_list(), table["filename"].to_list())
+            self._label_files[labels] = dict(reversed(list(pairs)))  # a token listed twice: its first file
+        filename = self._label_files[labels].get(token)
+        if filename is None:
             raise UsageError(f"sample_data {token} has no {labels} labels (only lidar keyframes have them)")
         reader = read_panoptic_npz if labels == "panoptic" else read_lidarseg_bin
-        return read_point_file(reader, self.path(names["filename"][0])).astype(np.int64)
+        return read_point_file(reader, self.path(filename)).astype(np.int64)
 
     def file(self, token: str, filename: str, modality: str) -> Path:
         """The frame's file, which must exist: MissingSensorData saying where the data was looked for."""
