@@ -137,3 +137,19 @@ def test_a_table_whose_files_disagree_with_the_manifest_is_an_error():
     table._length = 6
     with pytest.raises(ValueError, match="6"):
         table[0]
+
+
+def test_a_record_naming_a_sample_that_is_not_there_is_refused_naming_both_tokens():
+    """The reverse index (`sample["anns"]`, `sample["data"]`) of an output converted with --allow-dangling: the first
+    record whose sample_token is no sample's is named with that token, not a KeyError of a column."""
+    from nuparquet.devkit.reverse import SampleLinks
+    from nuparquet.errors import InputError
+
+    samples = [f"{i:032x}" for i in range(3)]
+    index = TokenIndex(token_bytes(pa.array(samples)))
+    fine = pa.table({"token": ["a" * 32, "b" * 32], "sample_token": [samples[2], samples[0]]})
+    assert SampleLinks._samples_of(index, fine, "sample_annotation").tolist() == [2, 0]
+    dangling = pa.table({"token": ["a" * 32, "b" * 32, "c" * 32], "sample_token": [samples[1], "f" * 32, "e" * 32]})
+    with pytest.raises(InputError, match=f"^sample_annotation {'b' * 32} names sample {'f' * 32}, which is not in "
+                                         "the sample table$"):
+        SampleLinks._samples_of(index, dangling, "sample_annotation")
