@@ -241,6 +241,8 @@ def schema_for(dataset: str) -> Schema | None:
         return schemas["map/<lane layer>" if dataset.removeprefix("map/") in DICT_LAYERS else "map/<layer>"]
     if dataset.startswith("tables/"):
         return table_schemas().get(dataset.removeprefix("tables/"))
+    if dataset.startswith("sensor_files/"):  # one schema for the embedded files of every modality
+        return schemas["sensor_files/<modality>"]
     return None
 
 
