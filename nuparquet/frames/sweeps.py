@@ -156,11 +156,10 @@ def _file_bytes(dataset, row: dict, modality: str) -> tuple[bytes, str]:
     """(bytes, where from) of a frame's file through the sensor reader (embedded, else under the dataroot); a file
     that cannot be read an InputError naming it (a missing one is the reader's MissingSensorData)."""
     from nuparquet.errors import InputError
-    from nuparquet.sensors.reader import MissingSensorData
 
     try:
         return dataset.sensors.file_bytes(row["token"], row["filename"], modality, where=True)
-    except MissingSensorData:
+    except FileNotFoundError:  # the reader's MissingSensorData, which says where it looked
         raise
     except OSError as exc:
         raise InputError(f"unreadable point file: {row['filename']} ({exc.strerror or exc})") from None
