@@ -14,7 +14,6 @@ from __future__ import annotations
 import threading
 
 import numpy as np
-import pyarrow.parquet as pq
 
 EMBEDDED_PREFIX = "sensor_files/"
 
@@ -38,12 +37,14 @@ class EmbeddedFiles:
         self.name = embedded_name(modality)
         self._index: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._paths: list[str] = []
-        self._files: dict[int, pq.ParquetFile] = {}
+        self._files: dict = {}  # part -> its open pyarrow ParquetFile (pyarrow loads only when files are embedded)
         self._last: tuple[tuple[int, int], list] | None = None  # ((part, group), its bytes as Python objects)
         self._lock = threading.Lock()  # a ParquetFile is not safe to read from two threads (the renderers')
 
-    def _parquet(self, part: int) -> pq.ParquetFile:
+    def _parquet(self, part: int):
         if part not in self._files:
+            import pyarrow.parquet as pq
+
             filesystem = self.dataset.filesystem
             self._files[part] = pq.ParquetFile(self._paths[part], filesystem=filesystem[0] if filesystem else None)
         return self._files[part]
