@@ -1,13 +1,14 @@
 """Embedded-sensor row: training samples read from the sensor files embedded in the output (`convert --embed
 camera,lidar,radar`, no dataroot) against the same samples read from the local files, in one run.
 
-    .venv/bin/python benchmarks/embedded_sensors.py [--repeats 5] [--sweeps 10]
+    PYTHONPATH=. .venv/bin/python benchmarks/embedded_sensors.py [--repeats 5] [--sweeps 0]
 
 Data: the real two-scene extract (`../shared/data/nuscenes-extract`), converted twice into the bench cache: with
 `--embed camera,lidar,radar` (opened with a dataroot that does not exist, so every byte comes from
 `sensor_files/`) and without (opened on the extract: every byte from the files). Both are read through the same
 `nuparquet.training.Samples(ds, "val", version="v1.0-mini", sweeps=N)`: per sample the six camera JPEGs decoded,
-LIDAR_TOP and N sweeps aggregated, the boxes, so what differs is only where the bytes come from. The files stay
+LIDAR_TOP and N sweeps aggregated (the extract holds keyframe files only: N = 0), the boxes, so what differs is
+only where the bytes come from. The files stay
 in the page cache (a warm-up epoch for each side first); the two sides alternate, `--repeats` epochs each, in
 this process; the figure is the median samples/s. Also timed: the bytes alone (`ds.sensors.file_bytes` of every
 keyframe camera and lidar file of the epoch), embedded vs file.
@@ -67,7 +68,7 @@ def bytes_epoch(ds, files: list[tuple[str, str, str]]) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--sweeps", type=int, default=10)
+    parser.add_argument("--sweeps", type=int, default=0)
     args = parser.parse_args()
 
     import os

@@ -3,10 +3,11 @@
 dataset's own storage (a local folder, or an object store with its `storage_options`, as every scan).
 
 Finding a frame: on first use the `sample_data_token` column of every part file is read once (no bytes) into a
-sorted array of (token, part, row group, row): memory is about (token length + 24) bytes per embedded file (~3 MB
-for the 34k keyframe images of trainval, ~70 MB for all its 1.2M camera files, keyframes and sweeps). A frame's
-read is then one row group of its scene's file (~1 MiB, or the one file larger than that); the last group read is
-kept, so a channel read in time order (a video, an MCAP export) reads each group once.
+sorted array of (token, part, row group, row): memory is about (token length + 12) bytes per embedded file (~2 MB
+for the 41k camera files of v1.0-mini's 10 scenes, ~55 MB for trainval's 1.2M), plus the footers of the last
+`OPEN_FILES` part files. A frame's read is then one row group of its scene's file (at most 256 KiB, or the one file
+larger than that); the last group read is kept, so a channel read in time order (a video, an MCAP export) reads
+each group once.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import threading
 import numpy as np
 
 EMBEDDED_PREFIX = "sensor_files/"
+OPEN_FILES = 8  # part files kept open (footers: ~0.5 kB per row group, ~0.5 MB for a trainval scene's images)
 
 
 def embedded_name(modality: str) -> str:
@@ -42,12 +44,17 @@ class EmbeddedFiles:
         self._lock = threading.Lock()  # a ParquetFile is not safe to read from two threads (the renderers')
 
     def _parquet(self, part: int):
-        if part not in self._files:
+        """The open part file (its footer parsed once while it stays among the `OPEN_FILES` last used)."""
+        file = self._files.pop(part, None)
+        if file is None:
             import pyarrow.parquet as pq
 
             filesystem = self.dataset.filesystem
-            self._files[part] = pq.ParquetFile(self._paths[part], filesystem=filesystem[0] if filesystem else None)
-        return self._files[part]
+            file = pq.ParquetFile(self._paths[part], filesystem=filesystem[0] if filesystem else None)
+        self._files[part] = file  # most recently used last
+        while len(self._files) > OPEN_FILES:
+            self._files.pop(next(iter(self._files)))
+        return file
 
     def index(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(tokens sorted, part, row group, row in group) of every embedded file (read once)."""

@@ -9,7 +9,7 @@ when a frame is there).
 
 One part file per scene (`part-{i:05d}.parquet`, scenes in name order; manifest `scene_parts` maps a scene to its
 file), rows in channel then time order. Memory: the files are read and written one row group at a time (whole
-files, at most `ROW_GROUP_BYTES` unless one file is larger), never a whole scene or modality.
+files, at most `ROW_GROUP_BYTES` (256 KiB) unless one file is larger), never a whole scene or modality.
 """
 
 from __future__ import annotations
@@ -28,9 +28,11 @@ from nuparquet.schemas import dataset_schemas
 from nuparquet.sensors.embedded import embedded_name
 from nuparquet.sensors.reader import inside
 
-# A row group closes before the file that would take it past this: reading one frame reads ~1 MiB at most (one
-# nuScenes camera image is ~100-300 kB, a lidar file ~700 kB: then alone in its group).
-ROW_GROUP_BYTES = 1 << 20
+# A row group closes before the file that would take it past this: reading one frame reads one group (pyarrow
+# reads a column chunk whole), so a nuScenes camera image (~100-300 kB) or lidar file (~700 kB) is alone or
+# nearly so in its group, radar files (~5 kB) ~50 to a group. 1 MiB groups made a single image's read ~5x slower
+# than the file's (benchmarks/embedded_sensors.py); smaller ones only grow the footers (~0.5 kB per group).
+ROW_GROUP_BYTES = 256 << 10
 _DICTIONARY = ["scene_name", "channel"]
 
 
