@@ -78,12 +78,18 @@ def frame_image(sensors, row: dict, size: tuple[int, int], scale: float) -> np.n
     else the file under the dataroot). InputError naming the file when it is missing or unreadable."""
     from nuparquet.errors import InputError
 
-    try:
-        data, name = sensors.file_bytes(row["token"], row["filename"], "camera", where=True)
-    except OSError as exc:  # MissingSensorData (neither embedded nor a file) too
-        data, name = None, getattr(exc, "path", None) or str(exc.filename or row["filename"])
-    image = None if data is None else decode_image_data(np.frombuffer(data, np.uint8), name, size, scale,
-                                                        (row["width"], row["height"]))
+    image, name = decode_frame(sensors, row["token"], row["filename"], size, scale, (row["width"], row["height"]))
     if image is None:
         raise InputError(f"missing or unreadable image file: {name}")
     return image
+
+
+def decode_frame(sensors, token: str, filename: str, size: tuple[int, int], scale: float,
+                 expected_px: tuple[int, int] | None = None) -> tuple[np.ndarray | None, str]:
+    """(`decode_image` of a camera frame's bytes read through the sensor reader, or None when they are missing or
+    unreadable; where they were looked for)."""
+    try:
+        data, name = sensors.file_bytes(token, filename, "camera", where=True)
+    except OSError as exc:  # MissingSensorData (neither embedded nor a file) too
+        return None, getattr(exc, "path", None) or str(exc.filename or filename)
+    return decode_image_data(np.frombuffer(data, np.uint8), name, size, scale, expected_px), name

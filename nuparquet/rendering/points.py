@@ -56,7 +56,8 @@ class CloudReader:
             categories = dataset.scan("tables/category").select("index", "name").drop_nulls("index").collect()
             names = dict(zip(categories["index"].to_list(), categories["name"].to_list()))
         filenames = lidar["filename"].to_list()
-        return cls([str(dataroot / name) for name in filenames], lidar["token"].to_list(), filenames,
+        return cls([str(dataroot / name) if dataroot is not None else name for name in filenames],
+                   lidar["token"].to_list(), filenames,
                    dataset.sensors, color, names)
 
     def cloud(self, lidar: int) -> tuple[np.ndarray, np.ndarray | None]:

@@ -116,7 +116,7 @@ def test_a_training_sample_without_a_dataroot_equals_the_one_read_from_files(emb
     _same_items(embedded, files)
 
 
-def test_a_picture_and_an_mcap_export_without_a_dataroot_equal_those_from_files(embed_out, synth_out, synth_root,
+def test_pictures_a_video_and_an_mcap_export_without_a_dataroot_equal_those_from_files(embed_out, synth_out, synth_root,
                                                                                  no_root, tmp_path):
     from nuparquet.mcap.export import export_mcap
     from nuparquet.rendering.pictures.sample_data import render_sample_data
@@ -127,6 +127,9 @@ def test_a_picture_and_an_mcap_export_without_a_dataroot_equal_those_from_files(
         np.testing.assert_array_equal(render_sample_data(embedded, token, nsweeps=2),
                                       render_sample_data(files, token, nsweeps=2))
     scene = files.scene_names()[0]
+    for name, ds in (("files", files), ("embedded", embedded)):  # a scene video, lidar points drawn on the images
+        nuparquet.render(ds, scene, out=tmp_path / f"{name}.mp4", scale=0.2, lidar=True)
+    assert (tmp_path / "embedded.mp4").read_bytes() == (tmp_path / "files.mp4").read_bytes()
     here = export_mcap(files, scene, tmp_path / "files.mcap")
     there = export_mcap(embedded, scene, tmp_path / "embedded.mcap")
     assert there.sensor_bytes == here.sensor_bytes > 0 and not there.missing
