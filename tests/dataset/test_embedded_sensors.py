@@ -6,6 +6,7 @@ what is not embedded is refused naming it and the flag."""
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import polars as pl
@@ -154,6 +155,48 @@ def test_an_output_embedding_only_its_camera_says_the_points_are_missing(camera_
                                                 "\\(the lidar points of sample_data .*, not converted: convert "
                                                 "--sensors lidar, not embedded: convert --embed lidar; "):
         samples[0]
+
+
+@pytest.fixture(scope="module")
+def gapped(synth_root, synth_out, tmp_path_factory):
+    """(dataroot, output, {modality: (token, filename)}): `synth_root` linked file by file, its first camera image
+    and its last lidar sweep deleted, converted with --embed camera,lidar."""
+    import os
+    import shutil
+
+    root = tmp_path_factory.mktemp("gapped") / "data"
+    shutil.copytree(synth_root, root, copy_function=os.link)
+    frames = {}
+    ds = nuparquet.open(synth_out)  # the same records
+    for modality, pick in (("camera", 0), ("lidar", -1)):
+        rows = ds.scan("frames").filter(pl.col("modality").cast(pl.String) == modality).sort("filename").collect()
+        frames[modality] = (rows["token"][pick], rows["filename"][pick])
+        (root / frames[modality][1]).unlink()
+    return root, converted(tmp_path_factory, "gapped-embed", root, SYNTH_VERSION, embed="camera,lidar"), frames
+
+
+def test_a_file_missing_at_conversion_is_listed_and_read_from_the_dataroot_when_there(gapped, synth_root, no_root):
+    root, out, frames = gapped
+    manifest = json.loads((out / "manifest.json").read_text())
+    for modality, (token, filename) in frames.items():
+        entry = manifest["datasets"][f"sensor_files/{modality}"]
+        assert entry["missing_count"] == 1 and entry["missing_files"] == [filename]
+        assert entry["rows"] == entry["frames"] == _frames(nuparquet.open(out), modality).height - 1
+        assert not nuparquet.open(out).scan(f"sensor_files/{modality}").filter(
+            pl.col("sample_data_token") == token).collect().height
+        with pytest.raises(MissingSensorData, match=f"^missing (image|point) file: {re.escape(filename)} \\(the {modality} .* of "
+                                                    f"sample_data {token}: not in sensor_files/{modality}/, its file "
+                                                    "was missing at conversion; and no dataroot"):
+            nuparquet.open(out, dataroot=no_root).sensors.file_bytes(token, filename, modality)
+        # the file back under a dataroot given: read from there
+        assert nuparquet.open(out, dataroot=synth_root).sensors.file_bytes(token, filename, modality) == \
+            (synth_root / filename).read_bytes()
+    assert any("sensor_files/camera: 1 sensor file(s) missing, not embedded" in w for w in manifest["warnings"])
+    from nuparquet.conversion import convert
+    from nuparquet.problems import ProblemsFound
+
+    with pytest.raises(ProblemsFound, match="sensor file missing \\(--strict\\)"):
+        convert(root, SYNTH_VERSION, out.parent / "strict", embed="camera", strict=True)
 
 
 def test_embed_refuses_an_unknown_modality(synth_root, tmp_path, capsys):
