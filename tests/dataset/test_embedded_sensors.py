@@ -159,34 +159,42 @@ def test_an_output_embedding_only_its_camera_says_the_points_are_missing(camera_
 
 @pytest.fixture(scope="module")
 def gapped(synth_root, synth_out, tmp_path_factory):
-    """(dataroot, output, {modality: (token, filename)}): `synth_root` linked file by file, its first camera image
-    and its last lidar sweep deleted, converted with --embed camera,lidar."""
+    """(dataroot, output, {modality: (token, filename)}, progress events): `synth_root` linked file by file, its
+    first camera image, its last lidar sweep and every radar file deleted, converted with --embed camera,lidar,radar."""
     import os
     import shutil
 
     root = tmp_path_factory.mktemp("gapped") / "data"
     shutil.copytree(synth_root, root, copy_function=os.link)
-    frames = {}
     ds = nuparquet.open(synth_out)  # the same records
-    for modality, pick in (("camera", 0), ("lidar", -1)):
+    frames = {}
+    for modality, pick in (("camera", 0), ("lidar", -1), ("radar", 0)):
         rows = ds.scan("frames").filter(pl.col("modality").cast(pl.String) == modality).sort("filename").collect()
         frames[modality] = (rows["token"][pick], rows["filename"][pick])
-        (root / frames[modality][1]).unlink()
-    return root, converted(tmp_path_factory, "gapped-embed", root, SYNTH_VERSION, embed="camera,lidar"), frames
+        for name in (rows["filename"] if modality == "radar" else [frames[modality][1]]):
+            (root / name).unlink()
+    events = []
+    out = root.parent / "out"
+    nuparquet.convert(root, SYNTH_VERSION, out, embed=MODALITIES, on_progress=events.append)
+    return root, out, frames, events
 
 
 def test_a_file_missing_at_conversion_is_listed_and_read_from_the_dataroot_when_there(gapped, synth_root, no_root):
-    root, out, frames = gapped
+    root, out, frames, _ = gapped
     manifest = json.loads((out / "manifest.json").read_text())
     for modality, (token, filename) in frames.items():
         entry = manifest["datasets"][f"sensor_files/{modality}"]
-        assert entry["missing_count"] == 1 and entry["missing_files"] == [filename]
-        assert entry["rows"] == entry["frames"] == _frames(nuparquet.open(out), modality).height - 1
+        every = _frames(nuparquet.open(out), modality).height
+        missing = every if modality == "radar" else 1  # radar: every file gone, an empty dataset
+        assert entry["missing_count"] == missing and filename in entry["missing_files"]
+        assert entry["rows"] == entry["frames"] == every - missing
+        assert nuparquet.open(out).scan(f"sensor_files/{modality}").collect().height == every - missing
         assert not nuparquet.open(out).scan(f"sensor_files/{modality}").filter(
             pl.col("sample_data_token") == token).collect().height
-        with pytest.raises(MissingSensorData, match=f"^missing (image|point) file: {re.escape(filename)} \\(the {modality} .* of "
-                                                    f"sample_data {token}: not in sensor_files/{modality}/, its file "
-                                                    "was missing at conversion; and no dataroot"):
+        with pytest.raises(MissingSensorData, match=f"^missing (image|point) file: {re.escape(filename)} \\(the "
+                                                    f"{modality} .* of sample_data {token}: not in "
+                                                    f"sensor_files/{modality}/, its file was missing at conversion; "
+                                                    "and no dataroot"):
             nuparquet.open(out, dataroot=no_root).sensors.file_bytes(token, filename, modality)
         # the file back under a dataroot given: read from there
         assert nuparquet.open(out, dataroot=synth_root).sensors.file_bytes(token, filename, modality) == \
@@ -197,6 +205,30 @@ def test_a_file_missing_at_conversion_is_listed_and_read_from_the_dataroot_when_
 
     with pytest.raises(ProblemsFound, match="sensor file missing \\(--strict\\)"):
         convert(root, SYNTH_VERSION, out.parent / "strict", embed="camera", strict=True)
+
+
+def test_the_progress_total_counts_a_unit_per_scene_of_each_embedded_modality(gapped):
+    """Set once, never grown, reached: one unit per builder and one per scene it embeds (two scenes)."""
+    events = gapped[3]
+    totals = {e.total for e in events if e.total is not None}
+    assert len(totals) == 1 and events[-1].finished and events[-1].done == events[-1].total == totals.pop()
+    steps = [e.step for e in events if e.step]
+    for modality in MODALITIES:
+        assert sum(s.startswith(f"sensor_files/{modality} scene-") for s in steps) == 2, modality
+
+
+def test_the_bytes_are_stored_uncompressed_the_names_dictionary_encoded(embed_out):
+    """A read of one file is a copy out of its column chunk (JPEG and float32 points barely compress); the scene and
+    channel names are dictionaries, the other columns zstd."""
+    for modality in MODALITIES:
+        meta = pq.ParquetFile(next((embed_out / f"sensor_files/{modality}").glob("*.parquet"))).metadata
+        names = meta.schema.to_arrow_schema().names
+        for g in range(meta.num_row_groups):
+            column = {name: meta.row_group(g).column(i) for i, name in enumerate(names)}
+            assert column["bytes"].compression == "UNCOMPRESSED"
+            assert not any("DICTIONARY" in e for e in column["bytes"].encodings)
+            assert column["sample_data_token"].compression == column["filename"].compression == "ZSTD"
+            assert all(any("DICTIONARY" in e for e in column[c].encodings) for c in ("scene_name", "channel"))
 
 
 def test_embed_refuses_an_unknown_modality(synth_root, tmp_path, capsys):

@@ -52,13 +52,13 @@ def write_scene(path, rows: pl.DataFrame, dataroot) -> tuple[int, list[str]]:
     """The files of one scene's `rows` into the part file `path`: (rows written, filenames missing or outside the
     dataroot)."""
     written, missing, batch, batch_bytes = 0, [], [], 0
-    with pq.ParquetWriter(path, schema(), compression={"bytes": "none", **{c: "zstd" for c in schema().names
-                                                                           if c != "bytes"}},
-                          use_dictionary=_DICTIONARY, write_statistics=["scene_name", "channel", "timestamp"]) as writer:
+    arrow = schema()
+    compression = {name: "zstd" for name in arrow.names} | {"bytes": "none"}
+    with pq.ParquetWriter(path, arrow, compression=compression, use_dictionary=_DICTIONARY,
+                          write_statistics=["scene_name", "channel", "timestamp"]) as writer:
         def flush() -> None:
             if batch:
-                table = pa.Table.from_pylist(batch, schema=schema())
-                writer.write_table(table, row_group_size=len(batch))
+                writer.write_table(pa.Table.from_pylist(batch, schema=arrow), row_group_size=len(batch))
         for row in rows.iter_rows(named=True):
             file = inside(dataroot, row["filename"])
             try:
