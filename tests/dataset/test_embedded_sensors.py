@@ -17,7 +17,7 @@ import nuparquet
 from nuparquet.conversion.builders.sensor_files import ROW_GROUP_BYTES
 from nuparquet.errors import UsageError
 from nuparquet.sensors.reader import MissingSensorData
-from tests.conftest import SYNTH_VERSION, converted
+from tests.conftest import EXTRACT_VERSION, SYNTH_VERSION, converted
 
 MODALITIES = ("camera", "lidar", "radar")
 BUCKET = "nuparquet-embedded"
@@ -87,6 +87,32 @@ def test_the_sensor_reader_without_a_dataroot_gives_what_the_files_give(embed_ou
     points, _ = embedded.sensors.lidar(lidar["token"], lidar["filename"])
     raw = np.fromfile(synth_root / lidar["filename"], dtype=np.float32).reshape(-1, 5)
     np.testing.assert_array_equal(points, raw[:, :4])
+
+
+def test_the_real_extract_s_images_are_embedded_byte_for_byte_and_serve_the_loader(extract_root, tmp_path_factory,
+                                                                                    no_root):
+    """Real JPEGs (the extract holds its keyframes' files, not its sweeps'): each present file embedded as it is,
+    each absent one listed, and a training item's images decoded from the output equal cv2.imread of the files."""
+    import cv2
+
+    from nuparquet.training import Samples
+
+    out = converted(tmp_path_factory, "extract-embed-camera", extract_root, EXTRACT_VERSION, embed="camera")
+    ds = nuparquet.open(out, dataroot=no_root)
+    frames = _frames(ds, "camera")
+    present = [name for name in frames["filename"].to_list() if (extract_root / name).is_file()]
+    entry = ds.manifest["datasets"]["sensor_files/camera"]
+    assert entry["rows"] == len(present) > 400 and entry["missing_count"] == frames.height - len(present) > 0
+    stored = ds.scan("sensor_files/camera").select("filename", "bytes").collect()
+    assert sorted(stored["filename"].to_list()) == sorted(present)
+    for name, data in stored.iter_rows():
+        assert data == (extract_root / name).read_bytes(), name
+    samples = Samples(ds, "val", version="v1.0-mini", lidar=False, boxes=False, sweeps=0)
+    item = samples[len(samples) - 1]
+    tokens = [t.decode() for t in samples._cam_token[samples.indices[-1]]]
+    names = dict(ds.scan("frames").filter(pl.col("token").is_in(tokens)).select("token", "filename").collect().rows())
+    for image, token in zip(item["img"], tokens):
+        np.testing.assert_array_equal(image, cv2.imread(str(extract_root / names[token]), cv2.IMREAD_COLOR))
 
 
 def _same_items(a, b) -> None:
