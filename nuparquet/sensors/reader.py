@@ -73,7 +73,7 @@ class SensorReader:
     def root(self, what: str = "the sensor files", *, otherwise: str = "") -> Path:
         """The local dataroot holding the sensor files: UsageError saying `what` is read from it when it is not
         there (`otherwise`: what else the user may do, e.g. ", or --no-videos")."""
-        if self.dataset.is_remote and self.dataset._dataroot is None:  # never the recorded local dataroot
+        if self.dataset.is_remote and not self.dataset.dataroot_given:  # never the recorded local dataroot
             embedded = embedded_modalities(self.dataset.datasets)
             raise UsageError(f"{self.dataset.root} is on object storage and does not hold {what} (it embeds "
                              f"{', '.join(embedded) or 'no sensor files'}): convert with --embed camera,lidar,radar "
