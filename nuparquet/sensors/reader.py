@@ -122,8 +122,9 @@ class SensorReader:
 
     def points(self, token: str, filename: str, modality: str, columns=None) -> pl.DataFrame:
         """One frame's points as a polars DataFrame: from the converted dataset when the frame is there (`columns`,
-        default every sensor field the dataset has), else from its file (lidar: x, y, z, intensity, ring; radar:
-        the PCD fields; `columns` that a file does not hold, such as labels, left out).
+        default every sensor field the dataset has), else from its file (lidar: x, y, z, intensity, ring, or a
+        lidar `.pcd`'s fields as lidar_points names them (TruckScenes: x, y, z, intensity, point_timestamp);
+        radar: the PCD fields; `columns` that a file does not hold, such as labels, left out).
 
         Raises:
             MissingSensorData: neither converted nor a file under the dataroot.
@@ -134,10 +135,15 @@ class SensorReader:
         frame = self.converted(token, modality, columns)
         if frame is not None:
             return frame
-        from nuparquet.sources.points import lidar_from_bytes, radar_from_bytes
+        from nuparquet.sources.points import (
+            is_pcd, lidar_from_bytes, lidar_pcd_from_bytes, pcd_column, radar_from_bytes,
+        )
 
-        data, source = self.file_bytes(token, filename, modality, where=True)
-        if modality == "lidar":
+        data, source = self.file_bytes(token, filename, modality, where=True)  # embedded, else the file
+        if modality == "lidar" and is_pcd(filename):  # TruckScenes: a PCD, named as lidar_points names its fields
+            records = lidar_pcd_from_bytes(source, data)
+            frame = pl.DataFrame({pcd_column(name): records[name] for name in records.dtype.names})
+        elif modality == "lidar":
             values = lidar_from_bytes(source, data, len(LIDAR_FIELDS))
             frame = pl.DataFrame({name: values[:, j] for j, name in enumerate(LIDAR_FIELDS)})
         else:
