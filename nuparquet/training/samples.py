@@ -23,7 +23,7 @@ from nuparquet.index.labels import CLASSES
 from nuparquet.index.options import DEFAULT_CAMERAS, DEFAULT_LIDAR
 from nuparquet.index.splits import assign_splits, converter_version, split_names
 from nuparquet.index.v2_arrays import gather_segments, v2_arrays
-from nuparquet.sensors.reader import XYZI, MissingSensorData
+from nuparquet.sensors.reader import XYZI
 from nuparquet.training.bev_map import BEV_CLASSES, BOUND_M, bev_mask, canvas, lidar2global, sample_locations
 from nuparquet.training.devkit_sweeps import devkit_points, radar_points
 from nuparquet.training.mmdet3d import camera_matrices, gt_bboxes_3d, remove_close
