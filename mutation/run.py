@@ -257,9 +257,14 @@ GROUPS: dict[str, Group] = {
          "tests/site/test_report.py::test_scenes_subset_and_no_videos"),
         keyword="not extract"),
     # --- this stage (issues 36-41) ---------------------------------------------------------------------------------
-    "sensors": Group(  # the one sensor reader: converted points or files, local or remote
-        ("nuparquet/sensors/*.py",),
+    "embedded": Group(  # sensor files inside the dataset (`convert --embed`): written, then read back by token
+        ("nuparquet/sensors/embedded.py", "nuparquet/conversion/builders/sensor_files.py"),
+        ("tests/dataset/test_embedded_sensors.py",),
+        keyword="not extract"),
+    "sensors": Group(  # the one sensor reader: converted points, embedded files or files, local or remote
+        ("nuparquet/sensors/*.py", "!nuparquet/sensors/embedded.py"),
         ("tests/dataset/test_object_store.py", "tests/dataset/test_sensor_reader.py", "tests/parity/test_sweeps_devkit.py",
+         "tests/dataset/test_embedded_sensors.py",
          "tests/rendering/test_lidar_colors.py",
          "tests/mcap/test_export.py::test_an_unreadable_point_file_stops_the_export_with_the_reason"),
         keyword="not extract"),

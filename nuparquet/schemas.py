@@ -233,8 +233,8 @@ def dataset_schemas() -> dict[str, Schema]:
 
 def schema_for(dataset: str) -> Schema | None:
     """The schema of the dataset written as `dataset` (a manifest name): its own, or its family's for map layers
-    (`map/<layer>`, `map/<lane layer>`); None for datasets typed wholly by inference (`can_bus/<message>`, extra
-    source tables)."""
+    (`map/<layer>`, `map/<lane layer>`) and embedded files (`sensor_files/<modality>`); None for datasets typed
+    wholly by inference (`can_bus/<message>`, extra source tables)."""
     schemas = dataset_schemas()
     if dataset in schemas:
         return schemas[dataset]
@@ -244,7 +244,7 @@ def schema_for(dataset: str) -> Schema | None:
         return schemas["map/<lane layer>" if dataset.removeprefix("map/") in DICT_LAYERS else "map/<layer>"]
     if dataset.startswith("tables/"):
         return table_schemas().get(dataset.removeprefix("tables/"))
-    return None
+    return schemas["sensor_files/<modality>"] if dataset.startswith("sensor_files/") else None
 
 
 def check_columns(table: pa.Table, schema: Schema) -> None:

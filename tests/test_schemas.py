@@ -29,7 +29,8 @@ def test_every_nuscenes_table_and_derived_dataset_has_a_schema():
                                     "lidarseg", "panoptic"}
     assert set(dataset_schemas()) == {"frames", "annotations", "scenes", "instances", "lidar_points", "radar_points",
                                       "sample_can_bus", "map/<layer>", "map/<lane layer>", "map/lane_centerlines",
-                                      "findings", "objects", "surfaces", "sample_ego_motion"}
+                                      "findings", "objects", "surfaces", "sample_ego_motion",
+                                      "sensor_files/<modality>"}
 
 
 def test_every_nuimages_table_has_a_schema_and_its_references_name_one():
@@ -53,6 +54,7 @@ def test_schema_for_finds_a_manifest_name_s_schema():
     assert schema_for("frames") is dataset_schemas()["frames"]
     assert schema_for("map/arcline_path_3") is dataset_schemas()["map/<lane layer>"]  # keyed by lane token
     assert schema_for("map/lane") is dataset_schemas()["map/<layer>"]
+    assert schema_for("sensor_files/camera") is dataset_schemas()["sensor_files/<modality>"]
     assert schema_for("tables/object_ann") is None and schema_for("can_bus/pose") is None
 
 

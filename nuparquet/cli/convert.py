@@ -20,8 +20,10 @@ def register(sub) -> None:
         "Output is written to a hidden sibling and renamed into place only when complete. Sensor files "
         "are not needed (partial downloads are fine) unless --sensors asks for the point clouds: then "
         "lidar_points/ and radar_points/ (one row per point, with lidarseg/panoptic labels when present; see "
-        "docs/points.md) are converted scene by scene on --workers processes. Exit 1 if the input has problems "
-        "(all are listed).",
+        "docs/points.md) are converted scene by scene on --workers processes, or --embed asks for the files "
+        "themselves: sensor_files/camera/, sensor_files/lidar/, sensor_files/radar/ (byte for byte, one part per "
+        "scene), so the output alone serves images and points without a dataroot (e.g. from object storage). "
+        "Exit 1 if the input has problems (all are listed).",
         epilog="example: nuparquet convert /data/nuscenes --version v1.0-mini --out nusc-mini --sensors lidar,radar",
     )
     p.add_argument("dataroot", help="dataset root holding the version folder (e.g. /data/nuscenes)")

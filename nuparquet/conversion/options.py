@@ -14,6 +14,7 @@ from nuparquet.sources.point_layout import LIDAR_FIELDS, NUSCENES_LIDAR_COLUMNS
 # small enough to keep trainval's peak memory low, large enough that per-batch overhead is negligible.
 SCENES_PER_BATCH = 10
 SENSOR_MODALITIES = ("lidar", "radar")
+EMBED_MODALITIES = ("camera", "lidar", "radar")
 
 
 @dataclass
@@ -32,8 +33,14 @@ class ConvertOptions:
         (), metavar="LIST",
         help="also convert these sensors' point files into lidar_points/ and radar_points/ (comma-separated: "
              "lidar,radar; default none). Keyframes only unless --sweeps; scenes run on --engine with --workers")
+    embed: tuple[str, ...] = option(
+        (), metavar="LIST",
+        help="also store these sensors' files byte for byte in the output, keyframes and sweeps, as "
+             "sensor_files/<modality>/ (comma-separated: camera,lidar,radar; default none), so the output alone "
+             "(no dataroot: e.g. on object storage) serves images and points to the training loader, the renderers "
+             "and export-mcap")
     sweeps: bool = option(False, help="with --sensors: convert the sweeps' point files too, not only keyframes'")
-    strict: bool = option(False, help="with --sensors: a missing sensor file is an error (default: the files "
+    strict: bool = option(False, help="with --sensors or --embed: a missing sensor file is an error (default: the files "
                                       "are listed in manifest.json and counted in one warning)")
     source_format: str = option(
         "auto", metavar="NAME", choices=("auto", "nuscenes", "nuimages", "truckscenes"),
@@ -50,6 +57,11 @@ class ConvertOptions:
         unknown = [s for s in self.sensors if s not in SENSOR_MODALITIES]
         if unknown:
             raise UsageError(f"--sensors takes {', '.join(SENSOR_MODALITIES)} (got {', '.join(unknown)})")
+        embed = self.embed.split(",") if isinstance(self.embed, str) else self.embed
+        self.embed = tuple(dict.fromkeys(s.strip().lower() for s in embed if s.strip()))
+        unknown = [s for s in self.embed if s not in EMBED_MODALITIES]
+        if unknown:
+            raise UsageError(f"--embed takes {', '.join(EMBED_MODALITIES)} (got {', '.join(unknown)})")
         if self.lidar_columns not in (len(LIDAR_FIELDS) - 1, len(LIDAR_FIELDS)):
             raise UsageError(f"--lidar-columns must be {len(LIDAR_FIELDS) - 1} or {len(LIDAR_FIELDS)} "
                              f"(got {self.lidar_columns})")

@@ -73,6 +73,11 @@ class Dataset:
         return self._dataroot if self._dataroot is not None else self.manifest.get("source", {}).get("dataroot")
 
     @property
+    def dataroot_given(self) -> bool:
+        """A dataroot was given when opening (an object-store output reads sensor files only from such a one)."""
+        return self._dataroot is not None
+
+    @property
     def sensors(self):
         """The one reader of this dataset's sensor data (`nuparquet.sensors.reader.SensorReader`)."""
         if self._sensors is None:

@@ -152,10 +152,9 @@ def frame_cloud(dataset, row: dict, modality: str, radar_filters: bool = True) -
             return frame, tuple(_radar_fields(dataset))
         except FramesNotConverted:  # not converted (a sweep): its file
             pass
-    from nuparquet.sources.points import passes_default_filters, read_radar_pcd
+    from nuparquet.sources.points import passes_default_filters, radar_from_bytes
 
-    path = dataset.sensors.file(row["token"], row["filename"], "radar")
-    structured = read_point_file(read_radar_pcd, path)
+    structured = radar_from_bytes(*_file_bytes(dataset, row, "radar")[::-1])
     names = structured.dtype.names
     if len(structured) and any(np.isnan(structured[0][n]) for n in names if structured.dtype[n].kind == "f"):
         return np.zeros((0, len(names))), names  # a NaN first point: the devkit's empty cloud
@@ -166,6 +165,19 @@ def frame_cloud(dataset, row: dict, modality: str, radar_filters: bool = True) -
         if keep is not None:
             values = values[keep]
     return values, names
+
+
+def _file_bytes(dataset, row: dict, modality: str) -> tuple[bytes, str]:
+    """(bytes, where from) of a frame's file through the sensor reader (embedded, else under the dataroot); a file
+    that cannot be read an InputError naming it (a missing one is the reader's MissingSensorData)."""
+    from nuparquet.errors import InputError
+
+    try:
+        return dataset.sensors.file_bytes(row["token"], row["filename"], modality, where=True)
+    except FileNotFoundError:  # the reader's MissingSensorData, which says where it looked
+        raise
+    except OSError as exc:
+        raise InputError(f"unreadable point file: {row['filename']} ({exc.strerror or exc})") from None
 
 
 def read_point_file(reader, path: Path):

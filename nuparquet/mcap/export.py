@@ -75,7 +75,7 @@ def build_streams(dataset, rows, options: McapOptions, dataroot: Path | None) ->
     reader = PointReader(dataset, rows.name)
     for (channel, modality), part in sorted(frames.partition_by("channel", "modality", as_dict=True).items()):
         if modality == "camera":
-            out += streams.camera_streams(part, channel, dataroot, images=options.wants("images"))
+            out += streams.camera_streams(part, channel, dataset.sensors, dataroot, images=options.wants("images"))
         elif modality in ("lidar", "radar") and options.wants("points"):
             out.append(streams.point_stream(part, channel, modality, dataroot, reader))
     if options.wants("boxes"):
@@ -121,9 +121,10 @@ def export_mcap(dataset, scene: str, out, options: McapOptions | None = None, *,
         check_apart(out, dataset.root, what="the converted dataset")
     dataset.check_scenes([scene])
     rows = load_scene(dataset, scene)
-    needs_files = options.wants("images") or options.wants("points")
+    needed = [*(["camera"] if options.wants("images") else []), *(["lidar", "radar"] if options.wants("points") else [])]
+    # the dataroot is needed unless the output embeds every file wanted (`convert --embed`)
     dataroot = dataset.sensors.root("the images and points", otherwise=", or --without images,points") \
-        if needs_files else None
+        if needed and not dataset.sensors.embeds(*needed) else None
     streams = build_streams(dataset, rows, options, dataroot)
     stream_of, row_of = message_order(streams)
 

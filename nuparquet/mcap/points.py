@@ -16,7 +16,7 @@ import numpy as np
 import polars as pl
 
 from nuparquet.frames.points import FRAME_COLUMNS as POINTS_FRAME_COLUMNS
-from nuparquet.sources.points import LIDAR_FIELDS, read_radar_pcd
+from nuparquet.sources.points import LIDAR_FIELDS, radar_from_bytes
 
 LABEL_FIELDS = (("lidarseg_label", "u1"), ("panoptic_label", "<u2"))
 
@@ -64,7 +64,8 @@ class PointReader:
                 frames = self._radar[channel] = self._radar_channel(channel)
             if token in frames:
                 return frames[token]
-        return np.array(read_radar_pcd(self.sensors.file(token, filename, "radar")))  # a copy: read-only buffer
+        data, source = self.sensors.file_bytes(token, filename, "radar", where=True)  # embedded, else the file
+        return radar_from_bytes(source, data)
 
     def _radar_channel(self, channel: str) -> dict[str, np.ndarray]:
         names = self.dataset.scan("radar_points").collect_schema().names()

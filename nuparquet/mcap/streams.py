@@ -67,11 +67,27 @@ class Stream:
         return len(self.times_us)
 
 
-def image_path(dataroot: Path, filename: str) -> Path:
+def image_path(dataroot: Path | None, filename: str) -> Path:
+    """Where a frame's file is named in messages about it (under the dataroot; the filename itself when the output
+    embeds its files and no dataroot is known)."""
+    if dataroot is None:
+        return Path(filename)
     path = inside(dataroot, filename)
     if path is None:
         raise MissingFile(str(dataroot / filename), "outside the dataroot: refused")
     return path
+
+
+def sensor_file(sensors, dataroot: Path | None, token: str, filename: str, modality: str) -> bytes:
+    """The bytes of a frame's file through the dataset's sensor reader (embedded, else under the dataroot);
+    MissingFile when it cannot be read."""
+    path = image_path(dataroot, filename)
+    try:
+        return sensors.file_bytes(token, filename, modality)
+    except MissingSensorData:
+        raise MissingFile(str(path), "no such file") from None
+    except OSError as exc:
+        raise MissingFile(str(path), exc.strerror or type(exc).__name__) from None
 
 
 def transform_stream(frames: pl.DataFrame) -> Stream:
@@ -93,7 +109,8 @@ def transform_stream(frames: pl.DataFrame) -> Stream:
     return Stream(TF_TOPIC, FrameTransforms, times, encode)
 
 
-def camera_streams(frames: pl.DataFrame, channel: str, dataroot: Path, *, images: bool) -> list[Stream]:
+def camera_streams(frames: pl.DataFrame, channel: str, sensors, dataroot: Path | None, *,
+                   images: bool) -> list[Stream]:
     """`/CHANNEL/camera_info` and (with `images`) `/CHANNEL/image_rect_compressed` of one camera's frames."""
     times = frames["timestamp"].to_numpy()
     width, height = frames["width"].to_numpy(), frames["height"].to_numpy()
@@ -105,27 +122,23 @@ def camera_streams(frames: pl.DataFrame, channel: str, dataroot: Path, *, images
 
     streams = [Stream(f"/{channel}/camera_info", CameraCalibration, times, calibration)]
     if images:
+        tokens = frames["token"].to_list()
+
         def image(i: int) -> bytes:
-            path = image_path(dataroot, filenames[i])
-            try:
-                data = path.read_bytes()
-            except OSError as exc:
-                raise MissingFile(str(path), exc.strerror or type(exc).__name__) from None
-            suffix = path.suffix.lower().lstrip(".")
+            data = sensor_file(sensors, dataroot, tokens[i], filenames[i], "camera")
+            suffix = Path(filenames[i]).suffix.lower().lstrip(".")
             image_format = "jpeg" if suffix in ("jpg", "jpeg") else suffix
             return messages.compressed_image(int(times[i]), channel, data, image_format)
 
         def size(i: int) -> int:
-            try:
-                return image_path(dataroot, filenames[i]).stat().st_size
-            except (OSError, MissingFile):
-                return 0
+            return sensors.file_size(tokens[i], filenames[i], "camera")
 
         streams.append(Stream(f"/{channel}/image_rect_compressed", CompressedImage, times, image, size))
     return streams
 
 
-def point_stream(frames: pl.DataFrame, channel: str, modality: str, dataroot: Path, reader: PointReader) -> Stream:
+def point_stream(frames: pl.DataFrame, channel: str, modality: str, dataroot: Path | None,
+                 reader: PointReader) -> Stream:
     """`/CHANNEL`: one foxglove.PointCloud per lidar or radar frame, in the sensor frame."""
     times = frames["timestamp"].to_numpy()
     tokens, filenames = frames["token"].to_list(), frames["filename"].to_list()
@@ -143,10 +156,7 @@ def point_stream(frames: pl.DataFrame, channel: str, modality: str, dataroot: Pa
         return messages.point_cloud(int(times[i]), channel, records)
 
     def size(i: int) -> int:
-        try:
-            return image_path(dataroot, filenames[i]).stat().st_size
-        except (OSError, MissingFile):
-            return 0
+        return reader.sensors.file_size(tokens[i], filenames[i], modality)
 
     return Stream(f"/{channel}", PointCloud, times, encode, size)
 

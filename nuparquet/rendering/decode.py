@@ -35,6 +35,12 @@ def decode_image(path: str, size: tuple[int, int], scale: float,
         data = np.fromfile(path, dtype=np.uint8)
     except OSError:
         return None
+    return decode_image_data(data, path, size, scale, expected_px)
+
+
+def decode_image_data(data: np.ndarray, path: str, size: tuple[int, int], scale: float,
+                      expected_px: tuple[int, int] | None = None) -> np.ndarray | None:
+    """`decode_image` of a file's bytes (`data`, uint8; `path` names it: its suffix says JPEG)."""
     if data.size == 0:
         return None
     if path.lower().endswith((".jpg", ".jpeg")) and not _jpeg_complete(data):
@@ -64,3 +70,26 @@ def write_image(path: Path, image_bgr: np.ndarray) -> None:
     """Write an image file (format from the suffix); OSError if OpenCV cannot."""
     if not cv2.imwrite(str(path), image_bgr):
         raise OSError(f"could not write {path}")
+
+
+def frame_image(sensors, row: dict, size: tuple[int, int], scale: float) -> np.ndarray:
+    """(H, W, 3) BGR: the camera frame `row` (its `frames` row: token, filename, width, height) decoded to `size`
+    as `decode_image` does, its bytes read through the dataset's sensor reader (`sensors`: embedded in the output,
+    else the file under the dataroot). InputError naming the file when it is missing or unreadable."""
+    from nuparquet.errors import InputError
+
+    image, name = decode_frame(sensors, row["token"], row["filename"], size, scale, (row["width"], row["height"]))
+    if image is None:
+        raise InputError(f"missing or unreadable image file: {name}")
+    return image
+
+
+def decode_frame(sensors, token: str, filename: str, size: tuple[int, int], scale: float,
+                 expected_px: tuple[int, int] | None = None) -> tuple[np.ndarray | None, str]:
+    """(`decode_image` of a camera frame's bytes read through the sensor reader, or None when they are missing or
+    unreadable; where they were looked for)."""
+    try:
+        data, name = sensors.file_bytes(token, filename, "camera", where=True)
+    except OSError as exc:  # MissingSensorData (neither embedded nor a file) too
+        return None, getattr(exc, "path", None) or str(exc.filename or filename)
+    return decode_image_data(np.frombuffer(data, np.uint8), name, size, scale, expected_px), name

@@ -52,7 +52,7 @@ class CloudReader:
         if color not in LIDAR_COLORS:
             raise UsageError(f"--lidar-color must be one of {', '.join(LIDAR_COLORS)}, got {color!r}")
         filenames = lidar["filename"].to_list()
-        paths = [str(dataroot / name) for name in filenames]
+        paths = [str(dataroot / name) if dataroot is not None else name for name in filenames]  # None: embedded
         if predictions is not None:
             return cls(paths, lidar["token"].to_list(), filenames, dataset.sensors, color,
                        predicted=predicted_files(Path(predictions), lidar["token"].to_list(), color))

@@ -6,13 +6,19 @@ A frame's points come from the converted datasets (`lidar_points/`, `radar_point
 storage: a local folder or an object store with its `storage_options`) when the frame is there, else from its
 file under the dataroot (`Dataset.dataroot`: the one given when opening, else the one recorded at conversion);
 ground-truth labels from `lidar_points/` or the label file `tables/lidarseg` / `tables/panoptic` names; images
-from their files. When a frame's data is in neither place the error says so once, the same way for every caller
-(`MissingSensorData`, which is also a FileNotFoundError for the renderers that skip such frames).
+from their files. A file the output embeds (`convert --embed camera,lidar,radar`: `sensor_files/<modality>/`,
+`nuparquet.sensors.embedded`) is read from there, through the same storage, before the dataroot is looked at: such
+an output serves its sensors with no dataroot at all, from a folder or an object store. When a frame's data is in
+none of these places the error says so once, the same way for every caller (`MissingSensorData`, which is also a
+FileNotFoundError for the renderers that skip such frames); an object-store output is never read against the local
+dataroot recorded at conversion (UsageError naming what is not embedded and the `--embed` flag), only against one
+given when opening.
 
 ```python
 reader = ds.sensors
 xyzi, labels = reader.lidar(token, filename, labels="lidarseg")     # (P, 4) float32, (P,) int64
 frame = reader.points(token, filename, "radar")                     # a polars DataFrame of the PCD fields
+jpeg = reader.file_bytes(token, filename, "camera")                 # the file's bytes (embedded, else the file)
 ```
 """
 
@@ -24,6 +30,7 @@ import numpy as np
 import polars as pl
 
 from nuparquet.errors import InputError, UsageError
+from nuparquet.sensors.embedded import EmbeddedFiles, embedded_modalities, embedded_name
 from nuparquet.sources.points import LIDAR_FIELDS
 
 POINTS_DATASETS = {"lidar": "lidar_points", "radar": "radar_points"}
@@ -60,12 +67,20 @@ class SensorReader:
         self.dataset = dataset
         self._columns: dict[str, list[str]] = {}
         self._label_files: dict[str, dict[str, str]] = {}
+        self._embedded: dict[str, EmbeddedFiles | None] = {}
 
     # -- where the files are ---------------------------------------------------------------------------------------
 
     def root(self, what: str = "the sensor files", *, otherwise: str = "") -> Path:
         """The local dataroot holding the sensor files: UsageError saying `what` is read from it when it is not
         there (`otherwise`: what else the user may do, e.g. ", or --no-videos")."""
+        if self.dataset.is_remote and not self.dataset.dataroot_given:  # never the recorded local dataroot
+            embedded = embedded_modalities(self.dataset.datasets)
+            raise UsageError(f"{self.dataset.root} is on object storage and does not hold {what} (it embeds "
+                             f"{', '.join(embedded) or 'no sensor files'}): convert with --embed camera,lidar,radar "
+                             "(those needed) to store the sensor files in the output, or give the local dataroot: "
+                             "--dataroot PATH (in Python nuparquet.open(URL, storage_options=..., dataroot=...))"
+                             f"{otherwise}")
         dataroot = self.dataset.dataroot
         root = Path(dataroot) if dataroot else None
         if root is None or not root.is_dir():
@@ -121,17 +136,19 @@ class SensorReader:
         frame = self.converted(token, modality, columns)
         if frame is not None:
             return frame
-        from nuparquet.sources.points import is_pcd, pcd_column, read_lidar_bin, read_lidar_pcd, read_radar_pcd
+        from nuparquet.sources.points import (
+            is_pcd, lidar_from_bytes, lidar_pcd_from_bytes, pcd_column, radar_from_bytes,
+        )
 
-        path = self.file(token, filename, modality)
+        data, source = self.file_bytes(token, filename, modality, where=True)  # embedded, else the file
         if modality == "lidar" and is_pcd(filename):  # TruckScenes: a PCD, named as lidar_points names its fields
-            records = np.array(read_lidar_pcd(path))
+            records = lidar_pcd_from_bytes(source, data)
             frame = pl.DataFrame({pcd_column(name): records[name] for name in records.dtype.names})
         elif modality == "lidar":
-            values = read_lidar_bin(path, len(LIDAR_FIELDS))
+            values = lidar_from_bytes(source, data, len(LIDAR_FIELDS))
             frame = pl.DataFrame({name: values[:, j] for j, name in enumerate(LIDAR_FIELDS)})
         else:
-            records = np.array(read_radar_pcd(path))  # a copy: the file's buffer is read-only
+            records = radar_from_bytes(source, data)
             frame = pl.DataFrame({name: records[name] for name in records.dtype.names})
         return frame if columns is None else frame.select([c for c in columns if c in frame.columns])
 
@@ -193,11 +210,71 @@ class SensorReader:
         return read_point_file(reader, self.path(filename)).astype(np.int64)
 
     def file(self, token: str, filename: str, modality: str) -> Path:
-        """The frame's file, which must exist: MissingSensorData saying where the data was looked for."""
-        path = self.path(filename)
+        """The frame's file under the dataroot, which must exist: MissingSensorData saying where the data was looked
+        for (UsageError for an object-store output given no dataroot: `root`)."""
+        what = f"the {modality} {'images' if modality == 'camera' else 'points'}"
+        kind = "image" if modality == "camera" else "point"
+        embedded = self.embedded(modality)
+        embeds = embedded_modalities(self.dataset.datasets)
+        hint = "" if self.dataset.is_remote else (f"; or convert with --embed {modality} to store them in the output "
+                                                  f"(it embeds {', '.join(embeds) or 'no sensor files'})")
+        try:
+            root = self.root(f"{what} (of sample_data {token})", otherwise=hint)
+        except UsageError:
+            if embedded is None:
+                raise
+            raise MissingSensorData(filename, f"missing {kind} file: {filename} ({what} of sample_data {token}: not "
+                                              f"in {embedded.name}/, its file was missing at conversion; and no "
+                                              "dataroot: --dataroot PATH where the files are)") from None
+        path = self.path(filename, root)
         if not path.is_file():
-            where = (f"not in {POINTS_DATASETS[modality]}/" if self.converted_columns(modality) else
-                     f"not converted: convert --sensors {modality}")
-            raise MissingSensorData(str(path), f"missing point file: {path} (the {modality} points of sample_data "
-                                               f"{token}, {where}; or --dataroot PATH where the files are)")
+            where = []
+            if modality in POINTS_DATASETS:
+                where.append(f"not in {POINTS_DATASETS[modality]}/" if self.converted_columns(modality) else
+                             f"not converted: convert --sensors {modality}")
+            where.append(f"not in {embedded_name(modality)}/" if embedded is not None else
+                         f"not embedded: convert --embed {modality}")
+            raise MissingSensorData(str(path), f"missing {kind} file: {path} ({what} of sample_data {token}, "
+                                               f"{', '.join(where)}; or --dataroot PATH where the files are)")
         return path
+
+    # -- the files' bytes --------------------------------------------------------------------------------------------
+
+    def embedded(self, modality: str) -> EmbeddedFiles | None:
+        """The files of `modality` the output embeds (`sensor_files/<modality>/`), or None when it embeds none."""
+        if modality not in self._embedded:
+            name = embedded_name(modality)
+            self._embedded[modality] = EmbeddedFiles(self.dataset, modality) if name in self.dataset.datasets else None
+        return self._embedded[modality]
+
+    def file_bytes(self, token: str, filename: str, modality: str, *, where: bool = False):
+        """The bytes of sample_data `token`'s file (`modality`: "camera", "lidar" or "radar"): embedded in the
+        output when it is there, else read from `filename` under the dataroot. With `where`: (bytes, where they
+        came from, for error messages).
+
+        Raises:
+            MissingSensorData: neither embedded nor a file under the dataroot.
+            UsageError: an object-store output that does not embed it, opened without a dataroot.
+        """
+        embedded = self.embedded(modality)
+        data = embedded.read(token) if embedded is not None else None
+        if data is not None:
+            return (data, f"{self.dataset.root}/{embedded.name} {filename}") if where else data
+        path = self.file(token, filename, modality)
+        data = path.read_bytes()
+        return (data, str(path)) if where else data
+
+    def file_size(self, token: str, filename: str, modality: str) -> int:
+        """Bytes of the frame's file (embedded, else under the dataroot); 0 when it is in neither place."""
+        embedded = self.embedded(modality)
+        data = embedded.read(token) if embedded is not None else None
+        if data is not None:
+            return len(data)
+        try:
+            return self.path(filename).stat().st_size
+        except (OSError, InputError, UsageError):
+            return 0
+
+    def embeds(self, *modalities: str) -> bool:
+        """The output embeds the files of every one of `modalities`."""
+        return all(self.embedded(m) is not None for m in modalities)

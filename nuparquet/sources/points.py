@@ -65,10 +65,21 @@ def read_lidar_bin(path: str | Path, columns: int = NUSCENES_LIDAR_COLUMNS) -> n
     """
     raw = np.fromfile(path, dtype="<f4")
     if raw.size * 4 != Path(path).stat().st_size or raw.size % columns:
-        size = Path(path).stat().st_size
-        raise PointFileError(path, f"{size} bytes is not a whole number of {columns}-float32 points "
-                                   f"({columns * 4} bytes each): truncated, or not a lidar .pcd.bin file")
+        _not_whole_points(path, Path(path).stat().st_size, columns)
     return raw.reshape(-1, columns)
+
+
+def lidar_from_bytes(name: str | Path, data: bytes, columns: int = NUSCENES_LIDAR_COLUMNS) -> np.ndarray:
+    """`read_lidar_bin` of a file's bytes (an embedded file; `name` says where it came from in errors): (P, columns)
+    float32, a writable copy."""
+    if len(data) % (4 * columns):
+        _not_whole_points(name, len(data), columns)
+    return np.frombuffer(data, dtype="<f4").reshape(-1, columns).copy()
+
+
+def _not_whole_points(path: str | Path, size: int, columns: int):
+    raise PointFileError(path, f"{size} bytes is not a whole number of {columns}-float32 points "
+                               f"({columns * 4} bytes each): truncated, or not a lidar .pcd.bin file")
 
 
 @dataclass(frozen=True)
@@ -153,12 +164,17 @@ def read_lidar_pcd(path: str | Path) -> np.ndarray:
         FileNotFoundError: no such file.
         PointFileError: not a PCD as `read_radar_pcd` needs, or one of those fields missing or not F 4.
     """
-    points = read_radar_pcd(path)
-    for name in LIDAR_PCD_FIELDS:
-        if name not in points.dtype.names:
-            raise PointFileError(path, f"lidar PCD has no field {name!r} (FIELDS {' '.join(points.dtype.names)})")
-        if points.dtype[name] != np.dtype("<f4"):
-            raise PointFileError(path, f"lidar PCD field {name!r} is {points.dtype[name]}, not float32 (TYPE F SIZE 4)")
+    return lidar_pcd_from_bytes(path, Path(path).read_bytes())
+
+
+def lidar_pcd_from_bytes(name: str | Path, data: bytes) -> np.ndarray:
+    """`read_lidar_pcd` of a file's bytes (an embedded file; `name` says where it came from in errors)."""
+    points = radar_from_bytes(name, data)
+    for field in LIDAR_PCD_FIELDS:
+        if field not in points.dtype.names:
+            raise PointFileError(name, f"lidar PCD has no field {field!r} (FIELDS {' '.join(points.dtype.names)})")
+        if points.dtype[field] != np.dtype("<f4"):
+            raise PointFileError(name, f"lidar PCD field {field!r} is {points.dtype[field]}, not float32 (TYPE F SIZE 4)")
     return points
 
 
@@ -169,14 +185,19 @@ def read_radar_pcd(path: str | Path) -> np.ndarray:
         FileNotFoundError: no such file.
         PointFileError: an unexpected header, or fewer data bytes than WIDTH points need.
     """
-    data = Path(path).read_bytes()
-    header = read_pcd_header(path, data[:_MAX_HEADER_BYTES])
+    return radar_from_bytes(path, Path(path).read_bytes())
+
+
+def radar_from_bytes(name: str | Path, data: bytes) -> np.ndarray:
+    """`read_radar_pcd` of a file's bytes (an embedded file; `name` says where it came from in errors), as a
+    writable copy."""
+    header = read_pcd_header(name, data[:_MAX_HEADER_BYTES])
     need = header.points * header.dtype.itemsize
     have = len(data) - header.data_offset
     if have < need:
-        raise PointFileError(path, f"PCD data is {have} bytes but {header.points} points of {header.dtype.itemsize} "
+        raise PointFileError(name, f"PCD data is {have} bytes but {header.points} points of {header.dtype.itemsize} "
                                    f"bytes need {need}: truncated")
-    return np.frombuffer(data, dtype=header.dtype, count=header.points, offset=header.data_offset)
+    return np.frombuffer(data, dtype=header.dtype, count=header.points, offset=header.data_offset).copy()
 
 
 def passes_default_filters(points: np.ndarray) -> np.ndarray | None:

@@ -23,7 +23,7 @@ from nuparquet.index.labels import CLASSES
 from nuparquet.index.options import DEFAULT_CAMERAS, DEFAULT_LIDAR
 from nuparquet.index.splits import assign_splits, converter_version, split_names
 from nuparquet.index.v2_arrays import gather_segments, v2_arrays
-from nuparquet.sensors.reader import XYZI, MissingSensorData
+from nuparquet.sensors.reader import XYZI
 from nuparquet.training.bev_map import BEV_CLASSES, BOUND_M, bev_mask, canvas, lidar2global, sample_locations
 from nuparquet.training.devkit_sweeps import devkit_points, radar_points
 from nuparquet.training.mmdet3d import camera_matrices, gt_bboxes_3d, remove_close
@@ -294,12 +294,8 @@ class Samples:
         sensors = self.dataset.sensors
         images = []
         for token, filename in zip(self._cam_token[s].tolist(), self._cam_file[s].tolist()):
-            token, filename = token.decode(), filename.decode()
-            path = sensors.path(filename)
-            if not path.is_file():
-                raise MissingSensorData(str(path), f"missing image file: {path} (camera sample_data {token}; "
-                                                   "or --dataroot PATH where the files are)")
-            image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            data = sensors.file_bytes(token.decode(), filename.decode(), "camera")  # embedded, else the file
+            image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)  # = cv2.imread of the file
             images.append(cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if self.rgb else image)
         same = len({im.shape for im in images}) == 1
         return {"img": np.stack(images) if same else images, **camera_matrices(self._cam2img[s], self._lidar2cam[s])}

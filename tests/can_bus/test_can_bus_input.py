@@ -141,7 +141,9 @@ def test_a_dataroot_without_can_bus_converts_as_before(root, tmp_path):
     assert manifest["skipped"] == {"can_bus": "no can_bus/ folder in the dataroot",
                                    "sample_can_bus": "needs can_bus, not built",
                                    "lidar_points": "not requested (--sensors lidar)",
-                                   "radar_points": "not requested (--sensors radar)"}
+                                   "radar_points": "not requested (--sensors radar)",
+                                   **{f"sensor_files/{m}": f"not requested (--embed {m})"
+                                      for m in ("camera", "lidar", "radar")}}
     assert not any(name.startswith(("can_bus", "sample_can_bus")) for name in manifest["datasets"])
     assert not (tmp_path / "out" / "sample_can_bus").exists()
 

@@ -16,7 +16,8 @@ from nuparquet.conversion import convert, registry
 from nuparquet.conversion.builder import Builder
 
 # The opt-in sensor datasets, skipped unless --sensors asks for them.
-NOT_REQUESTED = {"lidar_points": "not requested (--sensors lidar)", "radar_points": "not requested (--sensors radar)"}
+NOT_REQUESTED = {"lidar_points": "not requested (--sensors lidar)", "radar_points": "not requested (--sensors radar)",
+                 **{f"sensor_files/{m}": f"not requested (--embed {m})" for m in ("camera", "lidar", "radar")}}
 
 
 def _per_scene_counts(ctx, batch):

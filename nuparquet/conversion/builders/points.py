@@ -153,18 +153,24 @@ def build_radar(ctx: BuildContext) -> dict[str, WrittenParts]:
     return build_points(ctx, "radar", "radar_points")
 
 
+def scenes_with_frames(ctx: BuildContext, modality: str, *, keyframes_only: bool) -> int:
+    """The scenes with frames of `modality` (keyframes only, or every frame), counted from the source tables before
+    any dataset is written: the per-scene units a builder of sensor files reports (`Builder.units`)."""
+    sensors = ctx.tables["sensor"].filter(pl.col("modality") == modality)["token"]
+    calibrations = ctx.tables["calibrated_sensor"].filter(pl.col("sensor_token").is_in(sensors.implode()))["token"]
+    frames = ctx.tables["sample_data"].filter(pl.col("calibrated_sensor_token").is_in(calibrations.implode()))
+    if keyframes_only:
+        frames = frames.filter(pl.col("is_key_frame"))
+    scenes = frames.select("sample_token").join(samples(ctx).select("sample_token", "scene_name"),
+                                                on="sample_token", how="left")["scene_name"]
+    return scenes.drop_nulls().n_unique()
+
+
 def _scene_tasks(modality: str) -> Callable[[BuildContext], int]:
     """`Builder.units`: the scene tasks `build_points` will run (one per scene with frames of `modality`, keyframes
-    unless --sweeps), counted from the source tables before any dataset is written."""
+    unless --sweeps)."""
     def units(ctx: BuildContext) -> int:
-        sensors = ctx.tables["sensor"].filter(pl.col("modality") == modality)["token"]
-        calibrations = ctx.tables["calibrated_sensor"].filter(pl.col("sensor_token").is_in(sensors.implode()))["token"]
-        frames = ctx.tables["sample_data"].filter(pl.col("calibrated_sensor_token").is_in(calibrations.implode()))
-        if not ctx.options.sweeps:
-            frames = frames.filter(pl.col("is_key_frame"))
-        scenes = frames.select("sample_token").join(samples(ctx).select("sample_token", "scene_name"),
-                                                    on="sample_token", how="left")["scene_name"]
-        return scenes.drop_nulls().n_unique()
+        return scenes_with_frames(ctx, modality, keyframes_only=not ctx.options.sweeps)
     return units
 
 

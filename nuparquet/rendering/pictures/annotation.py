@@ -62,7 +62,7 @@ def camera_seeing(dataset, sample_token: str, annotation_token: str, visibility:
                      "try box_vis_level='any'")
 
 
-def lidar_panel(dataset, ref_rows: pl.DataFrame, annotation_token: str, root, *, margin: float, view: np.ndarray,
+def lidar_panel(dataset, ref_rows: pl.DataFrame, annotation_token: str, *, margin: float, view: np.ndarray,
                 height_px: int) -> np.ndarray:
     """(height_px, W, 3) BGR: the reference lidar keyframe's points in its frame through `view`, coloured by z, on
     the box's corners (through `view`) +- margin (the devkit's render_height and limits)."""
@@ -90,16 +90,15 @@ def render_annotation(dataset_or_path, anntoken: str, margin: float = 10, view=N
     """Annotation `anntoken`: its lidar view beside the camera that sees it (the module docstring); `scale` sizes
     the camera image (the lidar panel takes its height)."""
     dataset = as_dataset(dataset_or_path)
-    root = dataset.sensors.root()
     view = np.eye(4) if view is None else np.asarray(view, np.float64)
     annotation = annotation_row(dataset, anntoken)
     sample_token = annotation["sample_token"]
     camera_token = camera_seeing(dataset, sample_token, anntoken, visibility_name(box_vis_level))
-    camera = camera_image(dataset, frame_frame(dataset, camera_token), root, visibility="any", labels=labels,
+    camera = camera_image(dataset, frame_frame(dataset, camera_token), visibility="any", labels=labels,
                           scale=scale, annotation_tokens=[anntoken])
     legend.draw_caption(camera, str(frame_frame(dataset, camera_token)["channel"][0]))
     ref_rows = reference_keyframe(dataset, sample_token)
-    lidar = lidar_panel(dataset, ref_rows, anntoken, root, margin=margin, view=view, height_px=camera.shape[0])
+    lidar = lidar_panel(dataset, ref_rows, anntoken, margin=margin, view=view, height_px=camera.shape[0])
     picture = np.concatenate([lidar, np.zeros((camera.shape[0], 6, 3), np.uint8), camera], axis=1)
     if extra_info:
         picture = np.concatenate([picture, _info_panel(annotation, ref_rows, picture.shape[1])], axis=0)

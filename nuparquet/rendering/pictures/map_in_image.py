@@ -18,13 +18,13 @@ import shapely
 
 from nuparquet import geometry
 from nuparquet.dataset import as_dataset
-from nuparquet.errors import InputError, UsageError
+from nuparquet.errors import UsageError
 from nuparquet.frames.poses import sensor_poses
 from nuparquet.frames.sweeps import keyframe_rows
 from nuparquet.map.layers import POLYGON_LAYERS
 from nuparquet.rendering import legend
 from nuparquet.rendering.pictures.clouds import frame_frame
-from nuparquet.rendering.decode import decode_image
+from nuparquet.rendering.decode import frame_image
 from nuparquet.rendering.map_canvas import clip_ring, fill_polygons, layer_geometries
 from nuparquet.rendering.palette import MAP_LAYER_RGB
 
@@ -93,7 +93,6 @@ def render_map_in_image(dataset_or_path, sample_token: str, camera_channel: str 
     """The sample's `camera_channel` keyframe with the map's `layer_names` over it (the module docstring); `scale`
     resizes the picture (the polygons are selected on the full-size image, as the devkit does)."""
     dataset = as_dataset(dataset_or_path)
-    root = dataset.sensors.root()
     layer_names = list(layer_names or DEFAULT_LAYERS)
     bad = [layer for layer in layer_names if layer not in POLYGON_LAYERS]
     if bad:
@@ -109,9 +108,7 @@ def render_map_in_image(dataset_or_path, sample_token: str, camera_channel: str 
     intrinsic = np.reshape(camera["camera_intrinsic"], (3, 3))
     full = (int(camera["width"]), int(camera["height"]))
     size = (max(2, round(full[0] * scale)), max(2, round(full[1] * scale)))
-    image = decode_image(str(root / camera["filename"]), size, scale, full)
-    if image is None:
-        raise InputError(f"missing or unreadable image file: {root / camera['filename']}")
+    image = frame_image(dataset.sensors, camera, size, scale)
     ego_x, ego_y = global_from_ego[0][:2, 3]
     patch = shapely.box(ego_x - patch_radius, ego_y - patch_radius, ego_x + patch_radius, ego_y + patch_radius)
     resize = geometry.scale_pixels  # full-size pixels -> the picture's

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from nuparquet.dataset import as_dataset
-from nuparquet.errors import InputError, UsageError
+from nuparquet.errors import UsageError
 from nuparquet.frames.points_in_image import POINT_MIN_DEPTH_M, points_in_image
 from nuparquet.frames.poses import cameras_from_frames, sensor_poses
 from nuparquet.frames.sweeps import frame_cloud, keyframe_rows
@@ -22,7 +22,7 @@ from nuparquet.rendering import draw, legend
 from nuparquet.rendering import colorings
 from nuparquet.rendering.colorings import PointColor
 from nuparquet.rendering.pictures.clouds import category_names, frame_frame, lidar_cloud
-from nuparquet.rendering.decode import decode_image
+from nuparquet.rendering.decode import frame_image
 from nuparquet.rendering.palette import category_rgb
 from nuparquet.rendering.point_colors import class_filter, intensity_levels, label_rgb, legend_classes, scalar_rgb
 
@@ -32,7 +32,7 @@ def dot_px(dot_size: float, scale: float) -> int:
     return max(1, round(0.6 * dot_size * scale))
 
 
-def points_on_image(dataset, camera_rows, point_rows, root: Path, *, scale: float = 1.0, dot_size: float = 5,
+def points_on_image(dataset, camera_rows, point_rows, *, scale: float = 1.0, dot_size: float = 5,
                     point_color: PointColor = "depth", keep_classes: Sequence[int] | None = None, legend_on: bool = False, preds_path=None,
                     min_dist: float = POINT_MIN_DEPTH_M, radar_filters: bool = True) -> np.ndarray:
     """(H, W, 3) BGR: the point frame `point_rows` (one row) drawn on the camera frame `camera_rows` (one row)."""
@@ -47,10 +47,7 @@ def points_on_image(dataset, camera_rows, point_rows, root: Path, *, scale: floa
     if label_mode and not sensor["is_key_frame"]:
         raise UsageError(f"{label_mode} labels exist for lidar keyframes only")
     size = (max(2, round(camera["width"] * scale)), max(2, round(camera["height"] * scale)))
-    path = str(root / camera["filename"])
-    image = decode_image(path, size, scale, (camera["width"], camera["height"]))
-    if image is None:
-        raise InputError(f"missing or unreadable image file: {path}")
+    image = frame_image(dataset.sensors, camera, size, scale)
     labels = None
     if sensor["modality"] == "lidar":
         cloud = lidar_cloud(dataset, sensor, labels=label_mode, preds_path=preds_path)
@@ -88,7 +85,6 @@ def render_pointcloud_in_image(dataset_or_path, sample_token: str, dot_size: flo
     `scale` (the image's) and `radar_filters`. The
     files are read through the dataset's sensor reader (its `dataroot`). See the module docstring."""
     dataset = as_dataset(dataset_or_path)
-    root = dataset.sensors.root()
     from nuparquet.channels import default_camera
 
     facts = dataset.channels
@@ -97,7 +93,7 @@ def render_pointcloud_in_image(dataset_or_path, sample_token: str, dot_size: flo
     keyframes = keyframe_rows(dataset, sample_token, [pointsensor_channel, camera_channel])
     token_of = dict(zip(keyframes["channel"].to_list(), keyframes["token"].to_list()))
     image = points_on_image(dataset, frame_frame(dataset, token_of[camera_channel]),
-                            frame_frame(dataset, token_of[pointsensor_channel]), root, scale=scale, dot_size=dot_size,
+                            frame_frame(dataset, token_of[pointsensor_channel]), scale=scale, dot_size=dot_size,
                             point_color=point_color,
                             keep_classes=filter_lidarseg_labels, legend_on=show_lidarseg_legend,
                             preds_path=lidarseg_preds_bin_path, min_dist=min_dist, radar_filters=radar_filters)

@@ -23,7 +23,7 @@ import polars as pl
 
 from nuparquet import columns, geometry
 from nuparquet.dataset import as_dataset
-from nuparquet.errors import InputError, UsageError
+from nuparquet.errors import UsageError
 from nuparquet.frames.boxes import frame_boxes
 from nuparquet.frames.poses import cameras_from_frames, sensor_poses
 from nuparquet.frames.sweeps import keyframe_rows, multisweep
@@ -31,7 +31,7 @@ from nuparquet.rendering import legend
 from nuparquet.rendering import colorings
 from nuparquet.rendering.colorings import PointColor
 from nuparquet.rendering.pictures.clouds import category_names, frame_frame, lidar_cloud
-from nuparquet.rendering.decode import decode_image
+from nuparquet.rendering.decode import frame_image
 from nuparquet.rendering.overlay import DrawStyle, build_overlay, category_colors
 from nuparquet.rendering.palette import category_rgb
 from nuparquet.rendering.point_colors import (
@@ -73,9 +73,8 @@ def render_sample_data(dataset_or_path, sample_data_token: str, with_anns: bool 
     dataset = as_dataset(dataset_or_path)
     rows = frame_frame(dataset, sample_data_token)
     row = rows.row(0, named=True)
-    root = dataset.sensors.root()
     if row["modality"] == "camera":
-        image = camera_image(dataset, rows, root, with_anns=with_anns, visibility=visibility_name(box_vis_level),
+        image = camera_image(dataset, rows, with_anns=with_anns, visibility=visibility_name(box_vis_level),
                              labels=labels, scale=scale)
         legend.draw_caption(image, row["channel"])
         return to_rgb(image)
@@ -85,23 +84,20 @@ def render_sample_data(dataset_or_path, sample_data_token: str, with_anns: bool 
                    flat=use_flat_vehicle_coordinates, point_color=point_color,
                    legend_on=show_lidarseg_legend, keep_classes=filter_lidarseg_labels,
                    radar_filters=radar_filters, size_px=size_px)
-    image = top_view(dataset, [row], root, preds_path=lidarseg_preds_bin_path, **options)
+    image = top_view(dataset, [row], preds_path=lidarseg_preds_bin_path, **options)
     if truth_beside_preds and lidarseg_preds_bin_path is not None:
-        truth = top_view(dataset, [row], root, preds_path=None, **options)
+        truth = top_view(dataset, [row], preds_path=None, **options)
         image = np.concatenate([truth, np.zeros((image.shape[0], 4, 3), np.uint8), image], axis=1)
     return to_rgb(image)
 
 
-def camera_image(dataset, rows: pl.DataFrame, root: Path, *, with_anns: bool = True, visibility: str = "any",
+def camera_image(dataset, rows: pl.DataFrame, *, with_anns: bool = True, visibility: str = "any",
                  labels: str = "none", scale: float = 1.0, annotation_tokens: Sequence[str] | None = None) -> np.ndarray:
     """(H, W, 3) BGR: the camera frame `rows` (one row) at `scale` with its boxes (`get_sample_data` at `visibility`;
     only `annotation_tokens` when given, the devkit's `selected_anntokens`). InputError for a missing image."""
     row = rows.row(0, named=True)
     size = (max(2, round(row["width"] * scale)), max(2, round(row["height"] * scale)))
-    path = str(root / row["filename"])
-    image = decode_image(path, size, scale, (row["width"], row["height"]))
-    if image is None:
-        raise InputError(f"missing or unreadable image file: {path}")
+    image = frame_image(dataset.sensors, row, size, scale)
     if not with_anns:
         return image
     cameras = cameras_from_frames(rows).resized_to(size)
@@ -154,7 +150,7 @@ def flat_boxes(dataset, ref_rows: pl.DataFrame, *, flat: bool = True,
     return corners, found["category_name"].to_numpy()
 
 
-def top_view(dataset, rows: Sequence[dict], root: Path, *, with_anns: bool, axes_limit: float, nsweeps: int,
+def top_view(dataset, rows: Sequence[dict], *, with_anns: bool, axes_limit: float, nsweeps: int,
              underlay_map: bool, flat: bool, point_color: PointColor, legend_on: bool, keep_classes, radar_filters: bool, size_px: int, preds_path, caption: str | None = None) -> np.ndarray:
     """(size_px, size_px, 3) BGR: the view from above of the lidar or radar frames `rows` of one sample (several:
     the devkit's "Fused RADARs" of `render_sample`, each coloured on its own), as the module docstring says."""

@@ -41,7 +41,6 @@ def render_sample(dataset_or_path, token: str, box_vis_level="any", nsweeps: int
     reference lidar's view and its points on every camera by their labels (the devkit's `show_lidarseg`,
     `show_panoptic`), "depth" (default) draws the cameras with their boxes."""
     dataset = as_dataset(dataset_or_path)
-    root = dataset.sensors.root()
     visibility = visibility_name(box_vis_level)
     keyframes = (dataset.scan("frames").filter((pl.col("sample_token") == token) & pl.col("is_key_frame"))
                  .with_columns(pl.col("channel").cast(pl.String), pl.col("modality").cast(pl.String))
@@ -65,12 +64,12 @@ def render_sample(dataset_or_path, token: str, box_vis_level="any", nsweeps: int
         if modality == "lidar":
             for row in rows:
                 labelled = label_mode is not None and row["channel"] == reference
-                top_tiles.append(top_view(dataset, [row], root,
+                top_tiles.append(top_view(dataset, [row],
                                           preds_path=lidarseg_preds_bin_path if labelled else None,
                                           **(views | {"point_color": point_color if labelled else "depth",
                                                       "nsweeps": 1 if labelled else nsweeps})))
         elif rows:
-            top_tiles.append(top_view(dataset, rows, root, preds_path=None, **views))
+            top_tiles.append(top_view(dataset, rows, preds_path=None, **views))
     layout: list[list[np.ndarray]] = [[_square_in_tile(t, size) for t in top_tiles]] if top_tiles else []
     for channels in dataset.channels.get("camera_layout", []):
         row_tiles = []
@@ -82,10 +81,10 @@ def render_sample(dataset_or_path, token: str, box_vis_level="any", nsweeps: int
             try:
                 if label_mode and reference in by_channel:
                     tile = points_on_image(dataset, camera_rows, frame_frame(dataset, by_channel[reference]["token"]),
-                                           root, scale=scale, point_color=point_color,
+                                           scale=scale, point_color=point_color,
                                            keep_classes=filter_lidarseg_labels, preds_path=lidarseg_preds_bin_path)
                 else:
-                    tile = camera_image(dataset, camera_rows, root, visibility=visibility, scale=scale)
+                    tile = camera_image(dataset, camera_rows, visibility=visibility, scale=scale)
                     from nuparquet.rendering.legend import draw_caption
 
                     draw_caption(tile, channel)

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from nuparquet.rendering import draw, legend
-from nuparquet.rendering.decode import decode_image
+from nuparquet.rendering.decode import decode_frame, decode_image
 from nuparquet.rendering.overlay import LIDAR_MAX_DEPTH_M, DrawStyle, Overlay
 from nuparquet.rendering.plan import RowTile, TileLoad
 
@@ -23,7 +23,7 @@ class CameraTile(RowTile):
     """One camera channel's tiles.
 
     label: the channel. rows: (T,) camera row shown at each output (-1: none). paths: (F,) image file of each
-    camera row; decode_scale: (F,) tile size / image size of each row (picks the cheapest JPEG decode).
+    camera row (its filename when `sensors` reads the images the output embeds); decode_scale: (F,) tile size / image size of each row (picks the cheapest JPEG decode).
     """
 
     label: str
@@ -40,13 +40,18 @@ class CameraTile(RowTile):
     tokens: tuple[str, ...] = ()  # (F,) sample_data token of each camera row (the frame index)
     timestamps_us: np.ndarray | None = None  # (F,)
     prediction_legend: tuple = ()  # (name, RGB) entries: what the predictions' colours mean
+    sensors: object = None  # the dataset's SensorReader when the output embeds its images (else `paths` are read)
 
     def load(self, t: int) -> TileLoad:
         row = self.key(t)
         if row is None:
             return TileLoad()
         expected = None if self.image_size_px is None else tuple(int(v) for v in self.image_size_px[row])
-        image = decode_image(self.paths[row], self.tile_size, float(self.decode_scale[row]), expected)
+        if self.sensors is not None:
+            image, _ = decode_frame(self.sensors, self.tokens[row], self.paths[row], self.tile_size,
+                                    float(self.decode_scale[row]), expected)
+        else:
+            image = decode_image(self.paths[row], self.tile_size, float(self.decode_scale[row]), expected)
         if image is None:
             return TileLoad(None, (self.paths[row],))
         points, missing = self.lidar.load(row) if self.lidar is not None else (None, None)

@@ -68,14 +68,16 @@ class RenderResult:
                 "missing": self.missing[:5]}
 
 
-def _image_path(dataroot: Path, filename: str) -> str:
+def _image_path(dataroot: Path | None, filename: str) -> str:
     """The image file of a frame; a filename that leaves the dataroot is refused (`sensors.reader.inside`): it is
-    reported as unreadable under a name that says why."""
+    reported as unreadable under a name that says why. No dataroot (the output embeds its images): the filename."""
+    if dataroot is None:
+        return filename
     path = inside(dataroot, filename)
     return str(path) if path is not None else f"{dataroot / filename} (outside the dataroot: refused)"
 
 
-def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic: bool, all_frames: bool,
+def camera_plan(rows: SceneRows, layout, dataroot: Path | None, *, scale: float, mosaic: bool, all_frames: bool,
                 fps: float, clip: bool = False, labels: str = "category", dataset=None,
                 lidar_color: str = "depth", predictions=None, lidar_predictions=None) -> TilePlan:
     """The tile plan of a camera render: the cameras built and every box projected once, one `CameraTile` per
@@ -110,9 +112,10 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
         predicted_style = prediction_style(style)
         predicted_legend = tuple(predictions.legend())
     tokens, stamps = tuple(cameras["token"].to_list()), cameras["timestamp"].to_numpy()
+    sensors = dataset.sensors if dataroot is None else None  # no dataroot: the images the output embeds
     tiles = iter(CameraTile(channel, plan_rows[:, column], paths, decode_scale, size, overlay, style, lidar,
                             image_size_px, predicted, predicted_style, tokens, stamps,
-                            prediction_legend=predicted_legend)
+                            prediction_legend=predicted_legend, sensors=sensors)
                  for column, channel in enumerate(channels))
     return TilePlan(times_us, tuple(tuple(next(tiles) for _ in row) for row in layout), size)
 
@@ -171,7 +174,8 @@ def render(dataset, scene: str, out=None, options: RenderOptions | None = None, 
         for target in (out, frames_dir):
             if target is not None:
                 check_apart(target, dataset.root, what="the converted dataset")
-    dataroot = dataset.sensors.root("the camera images")
+    # no dataroot needed when the output embeds its images (`convert --embed camera`): they are read from it
+    dataroot = None if dataset.sensors.embeds("camera") else dataset.sensors.root("the camera images")
     if options.labels == "none":
         plan, channel, fps = _plan(dataset, scene, options, dataroot)
     else:  # the query and projections run beside the start of OpenCV's text engine on this (the drawing) thread
@@ -202,7 +206,7 @@ def render(dataset, scene: str, out=None, options: RenderOptions | None = None, 
                         out=out, frames_dir=frames_dir, missing=result.missing)
 
 
-def _plan(dataset, scene: str, options: RenderOptions, dataroot: Path) -> tuple[TilePlan, str, float]:
+def _plan(dataset, scene: str, options: RenderOptions, dataroot: Path | None) -> tuple[TilePlan, str, float]:
     """The scene's query and every tile's plan: (plan, the channel as reported, the video's frame rate)."""
     dataset.check_scenes([scene])
     fps = options.frame_rate
