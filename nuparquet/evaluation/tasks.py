@@ -9,6 +9,7 @@ import importlib
 TASKS = {
     "tracking": "nuparquet.evaluation.tracking.run:evaluate_tracking",
     "lidarseg": "nuparquet.evaluation.segmentation.run:evaluate_lidarseg",
+    "prediction": "nuparquet.evaluation.prediction.run:evaluate_prediction",
 }
 
 
