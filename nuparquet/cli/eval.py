@@ -16,6 +16,7 @@ examples:
   nuparquet eval OUT --results results_nusc.json --split val --out eval/
   nuparquet eval OUT --results results_nusc.json --split mini_val --by distance,night --out eval/
   nuparquet eval OUT --results results_nusc.json --by num_lidar_pts --bins 0,1,5,20,100,100000
+  nuparquet eval OUT --task prediction --results predictions.json --split val --out eval/
 
 Writes DIR/metrics_summary.json and DIR/metrics_details.json (the devkit's files: keys, structure and values),
 DIR/plots/*.png (the devkit's PR and TP curves), DIR/predictions/ (one row per predicted box: sample, scene,
@@ -37,7 +38,8 @@ arguments (unknown split, configuration or slice; an --out that holds files with
 def register(sub) -> None:
     p = sub.add_parser(
         "eval",
-        help="evaluate a submission (detection: mAP, NDS; tracking: AMOTA; lidarseg: mIoU) exactly as "
+        help="evaluate a submission (detection: mAP, NDS; tracking: AMOTA; lidarseg: mIoU; prediction: "
+        "MinADE_k, OffRoadRate) exactly as "
         "nuscenes-devkit, per slice too",
         description="Compute the nuScenes detection metrics of a submission (results.json) from the converted "
         "dataset, exactly as nuscenes-devkit's DetectionEval does (class ranges, bike-rack filter, greedy "
@@ -49,7 +51,8 @@ def register(sub) -> None:
     p.add_argument("dataset", metavar="OUT", help="a directory written by `nuparquet convert`")
     p.add_argument("--results", metavar="RESULTS.json", required=True, help="the submission, nuScenes format: "
                    "detection/tracking {\"meta\": {...}, \"results\": {sample_token: [box, ...]}}; lidarseg a folder "
-                   "of lidarseg/<split>/<token>_lidarseg.bin and <split>/submission.json")
+                   "of lidarseg/<split>/<token>_lidarseg.bin and <split>/submission.json; prediction a JSON list of "
+                   "{instance, sample, prediction, probabilities}")
     p.add_argument("--out", metavar="DIR", help="write metrics_summary.json, metrics_details.json, plots/, "
                    "predictions/, ground_truth/ (and slices/ with --by) here; without it the metrics are only printed")
     add_options(p, EvalOptions)
@@ -90,6 +93,13 @@ def print_lidarseg(metrics: dict) -> None:
         print(f"{name:<20}\t{_number(iou)}")
 
 
+def print_prediction(metrics: dict) -> None:
+    """The devkit's metrics dict, one line per metric and aggregator."""
+    for name, aggregations in metrics.items():
+        for aggregator, values in aggregations.items():
+            print(f"{name} ({aggregator}): {', '.join(_number(v) for v in values)}")
+
+
 def run(args) -> int:
     from nuparquet.cli.output import print_frame
     from nuparquet.evaluation.run import evaluate
@@ -102,6 +112,8 @@ def run(args) -> int:
         print(format_summary(result.summary))
     elif options.task == "lidarseg":
         print_lidarseg(result.metrics)
+    elif options.task == "prediction":
+        print_prediction(result.metrics)
     else:
         print_summary(result.summary)
     if result.slices is not None:

@@ -2,11 +2,13 @@
 through its distinct points, sampled at 200 points; the points themselves when there are 3 or fewer) falls outside
 the map canvas or on a pixel of no drivable area, at 10 pixels per metre of the whole map's `get_map_mask`.
 
-The mask is `map.mask` over the devkit's own canvas of the map (its `get_map_mask` hard-codes the four nuScenes
-maps' sizes) pixel for pixel; the spline is scipy's `splprep`/`splev`, called with the devkit's arguments (the
+The mask is `map.mask`'s over the devkit's own canvas of the map (its `get_map_mask` hard-codes the four nuScenes
+maps' sizes) pixel for pixel, painted only in the tiles holding a point looked up; the spline is scipy's `splprep`/`splev`, called with the devkit's arguments (the
 numbers are FITPACK's, as in the devkit); the pixel look-ups are done for every point of every mode at once."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,14 +21,33 @@ DEVKIT_MAP_DIMS_M = {"singapore-onenorth": (1585.6, 2025.0), "singapore-hollandv
                      "singapore-queenstown": (3228.6, 3687.1), "boston-seaport": (2979.5, 2118.1)}
 
 
-def drivable_area_mask(dataset, location: str) -> np.ndarray:
-    """(H, W) uint8 the devkit's `get_map_mask(None, 0, ['drivable_area'], None)[0]` of `location`'s map."""
+@dataclass
+class DrivableArea:
+    """The devkit's `get_map_mask(None, 0, ['drivable_area'], None)[0]` of a map, as the pixel rings it paints
+    (`map.mask.polygon_rings`) and its (H, W) canvas: painted only where looked up (`at`)."""
+
+    rings: list
+    canvas_size: tuple[int, int]
+
+    def at(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """(N,) uint8 the mask's pixels at (rows, cols), all inside the canvas."""
+        from nuparquet.map.mask import polygon_mask_at
+
+        return polygon_mask_at(self.rings, self.canvas_size, rows, cols)
+
+
+def drivable_area(dataset, location: str) -> DrivableArea:
+    """The drivable-area mask of `location`'s map on the devkit's canvas of it (10 pixels per metre)."""
+    from nuparquet.map.mask import polygon_rings
+
     if location not in DEVKIT_MAP_DIMS_M:
         raise InputError(f"location {location!r} is not one of the devkit's maps ({', '.join(DEVKIT_MAP_DIMS_M)}): "
                          "its OffRoadRate has no canvas for it")
     width_m, height_m = DEVKIT_MAP_DIMS_M[location]
     patch_box = (width_m / 2, height_m / 2, height_m, width_m)
-    return dataset.map(location).map_mask(patch_box, 0, ["drivable_area"], None)[0]
+    canvas_size = tuple(int(v) for v in np.round(np.array((patch_box[2], patch_box[3])) * 10).astype(np.int32))
+    rings = polygon_rings(dataset.map(location), "drivable_area", patch_box, 0, canvas_size)
+    return DrivableArea(rings, canvas_size)
 
 
 def interpolate_path(mode: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -48,9 +69,9 @@ def interpolate_path(mode: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x, y
 
 
-def off_road_modes(predictions: list[np.ndarray], masks: list[np.ndarray]) -> list[np.ndarray]:
-    """Per agent, (M,) bool: whether each mode of its (M, T, 2) prediction leaves the drivable area of its map's
-    (H, W) mask (the mask objects are shared by the agents of one map)."""
+def off_road_modes(predictions: list[np.ndarray], masks: list[DrivableArea]) -> list[np.ndarray]:
+    """Per agent, (M,) bool: whether each mode of its (M, T, 2) prediction leaves the drivable area of its map
+    (the mask objects are shared by the agents of one map)."""
     by_mask: dict[int, list[int]] = {}
     for i, mask in enumerate(masks):
         by_mask.setdefault(id(mask), []).append(i)
@@ -68,10 +89,10 @@ def off_road_modes(predictions: list[np.ndarray], masks: list[np.ndarray]) -> li
         # x -> column, y -> row (the mask is already flipped); truncation towards zero, as the devkit's astype
         row = (y * PIXELS_PER_METRE).astype("int")
         col = (x * PIXELS_PER_METRE).astype("int")
-        max_row, max_col = mask.shape
+        max_row, max_col = mask.canvas_size
         outside = (row < 0) | (row >= max_row) | (col < 0) | (col >= max_col)
         on_road = np.zeros(len(row), bool)
-        on_road[~outside] = mask[row[~outside], col[~outside]] != 0
+        on_road[~outside] = mask.at(row[~outside], col[~outside]) != 0
         starts = np.r_[0, np.cumsum(counts)[:-1]]
         violation = np.logical_or.reduceat(~on_road, starts)
         modes = np.cumsum([0] + [len(predictions[i]) for i in members])

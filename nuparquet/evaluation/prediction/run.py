@@ -139,7 +139,7 @@ def score(ds, submission, futures: list[np.ndarray], agents: pl.DataFrame, confi
           ) -> tuple[dict, pl.DataFrame, pl.DataFrame]:
     """The devkit's metrics dict, and the agents and modes tables (see PredictionResult)."""
     from nuparquet.evaluation.prediction.metrics import mode_errors, ranked_order, top_k
-    from nuparquet.evaluation.prediction.offroad import drivable_area_mask, off_road_modes
+    from nuparquet.evaluation.prediction.offroad import drivable_area, off_road_modes
 
     n = len(submission)
     errors = mode_errors(submission.prediction, futures)
@@ -147,7 +147,7 @@ def score(ds, submission, futures: list[np.ndarray], agents: pl.DataFrame, confi
     off_road = None
     if any(m.kind == "OffRoadRate" for m in config.metrics):
         locations = agents["location"].to_list()
-        masks = {location: drivable_area_mask(ds, location) for location in dict.fromkeys(locations)}
+        masks = {location: drivable_area(ds, location) for location in dict.fromkeys(locations)}
         off_road = off_road_modes(submission.prediction, [masks[location] for location in locations])
     containers, columns = {}, {}
     for metric in config.metrics:
