@@ -202,12 +202,21 @@ def test_a_configuration_file_keeps_the_devkits_names_and_k_beyond_the_modes(pre
         future = helper.get_future_for_agent(instance, sample, 3, in_agent_frame=False)
         records.append({"instance": instance, "sample": sample, "prediction": (future[None] + 1.5).tolist(),
                         "probabilities": [1.0]})
+    # a second miss rate whose tolerance is exactly one mode's largest displacement: a miss there (>=)
+    from nuscenes.eval.prediction import metrics as their_metrics
+
+    truth = helper.get_future_for_agent(records[0]["instance"], records[0]["sample"], 3, in_agent_frame=False)
+    exact = float(their_metrics.max_distances(np.array(records[0]["prediction"]),
+                                              their_metrics.stack_ground_truth(truth, 1))[0, 0])
+    content["metrics"].append({"k_to_report": [1], "name": "MissRateTopK", "aggregators": [{"name": "RowMean"}],
+                               "tolerance": exact})
     path = tmp_path / "config.json"
     path.write_text(json.dumps(content))
     theirs = compute_metrics(records, helper, PredictionConfig.deserialize(content, helper))
     ours = evaluate_prediction(pred_out, write(tmp_path, records), config_file=path, split=SPLIT)
     assert json.dumps(ours.metrics) == json.dumps(theirs)
-    assert list(ours.metrics) == ["MissRateTopK_2.0", "MinADEK"]
+    assert list(ours.metrics) == ["MissRateTopK_2.0", "MinADEK", f"MissRateTopK_{exact}"]
+    assert ours.agents[f"MissRateTopK_{exact}_1"][0] == 1.0
 
 
 def test_the_cli_writes_the_devkits_dict_and_the_tables(pred_out, devkit, tmp_path, capsys):
@@ -289,3 +298,27 @@ def test_an_agent_without_future_and_a_sample_outside_the_split_are_refused(pred
         "instance_token"]
     with pytest.raises(InputError, match="record 1 .*scene scene-0003, not a scene of split train"):
         evaluate_prediction(pred_out, write(tmp_path, [_record(devkit), outside]), split=SPLIT)
+
+
+def test_modes_on_and_beside_the_drivable_areas_edge_pixel(pred_out, devkit, tmp_path):
+    """Standing modes (one distinct point: no spline) at the left edge x of a drivable pixel, half a pixel inside,
+    half a pixel outside, one ulp short of the edge, and half a pixel below zero (truncated to pixel 0, on the
+    canvas): each flag is the devkit's OffRoadRate of that mode alone."""
+    from nuscenes.eval.prediction.data_classes import Prediction
+
+    from nuparquet.evaluation.prediction import evaluate_prediction
+
+    nusc, helper, config = devkit
+    instance, sample, future = next(a for a in agents(nusc, helper) if len(a[2]) == 12)
+    row, col = edge_pixel(devkit, helper.get_map_name_from_sample_token(sample))
+    y = (row + 0.5) / 10
+    xs = [col / 10, (col + 0.5) / 10, (col - 0.5) / 10, np.nextafter(col / 10, 0), -0.05]
+    prediction = np.array([[[x, y]] * 12 for x in xs])
+    record = {"instance": instance, "sample": sample, "prediction": prediction.tolist(),
+              "probabilities": [0.2] * len(xs)}
+    ours = evaluate_prediction(pred_out, write(tmp_path, [record]), split=SPLIT)
+    off_road = config.metrics[-1]
+    theirs = [bool(off_road(future, Prediction(instance, sample, prediction[i:i + 1], np.ones(1)))[0])
+              for i in range(len(xs))]
+    assert ours.modes["off_road"].to_list() == theirs
+    assert theirs[1:3] == [False, True]
