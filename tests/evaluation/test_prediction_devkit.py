@@ -322,3 +322,37 @@ def test_modes_on_and_beside_the_drivable_areas_edge_pixel(pred_out, devkit, tmp
               for i in range(len(xs))]
     assert ours.modes["off_road"].to_list() == theirs
     assert theirs[1:3] == [False, True]
+
+
+def test_a_slice_is_the_devkits_metrics_of_the_records_it_holds(pred_out, devkit, tmp_path):
+    """--by scene and --by distance: each slice's figures equal compute_metrics run on the submission's records of
+    that slice alone (the same rows, in the same order, averaged)."""
+    from nuscenes.eval.prediction.compute_metrics import compute_metrics
+
+    from nuparquet.evaluation.prediction import evaluate_prediction
+
+    records = perturbed(devkit, 5, count=60)
+    ours = evaluate_prediction(pred_out, write(tmp_path, records), tmp_path / "eval", split=SPLIT,
+                               by=("scene", "distance"), bins=("0", "15", "30"))
+    assert ours.slices["by"].unique().sort().to_list() == ["distance", "scene"]
+    assert (tmp_path / "eval" / "slices.parquet").is_file()
+    nusc = devkit[0]
+    for by in ("scene", "distance"):
+        table = ours.slices.filter(ours.slices["by"] == by)
+        assert table["agents"].sum() == len(records)
+        for row in table.iter_rows(named=True):
+            if by == "scene":
+                members = [r for r in records
+                           if nusc.get("scene", nusc.get("sample", r["sample"])["scene_token"])["name"] == row["slice"]]
+            else:
+                low, high = {"0-15m": (0, 15), "15-30m": (15, 30), "30m+": (30, np.inf)}[row["slice"]]
+                distance = ours.agents.join(
+                    __import__("nuparquet").open(pred_out).scan("annotations").select(
+                        "sample_token", "instance_token", "distance_to_ego_m").collect(),
+                    on=["sample_token", "instance_token"], how="left", maintain_order="left")["distance_to_ego_m"]
+                members = [r for r, d in zip(records, distance.to_list()) if low <= d < high]
+            theirs = compute_metrics(members, devkit[1], devkit[2])
+            assert row["agents"] == len(members)
+            assert row["MinADEK_5"] == theirs["MinADEK"]["RowMean"][1]
+            assert row["MissRateTopK_2_10"] == theirs["MissRateTopK_2"]["RowMean"][2]
+            assert row["OffRoadRate"] == theirs["OffRoadRate"]["RowMean"][0]

@@ -37,14 +37,15 @@ class PredictionResult:
     submission record (its tokens, scene, location, steps, and each metric per agent under the devkit's flattened
     names: MinADEK_5, MissRateTopK_2_1, OffRoadRate...); modes: one row per (agent, mode) (probability, rank: 0 the
     most probable, ade_m, fde_m, max_distance_m, off_road); out: the directory written (None: nothing written);
-    notes: what a user should know."""
+    notes: what a user should know; slices: with `by`, one row per (by, slice): its agents and each metric's RowMean
+    over them under the flattened names (None without `by`)."""
 
     metrics: dict
     agents: pl.DataFrame
     modes: pl.DataFrame
     out: Path | None = None
     notes: list[str] = field(default_factory=list)
-    slices: None = None  # no slices for this task (the CLI asks every result)
+    slices: pl.DataFrame | None = None
 
     @property
     def summary(self) -> dict:
@@ -71,13 +72,14 @@ def evaluate_prediction(dataset, results, out=None, options: EvalOptions | None 
     from nuparquet.evaluation.run import _check_out
 
     options = resolve(EvalOptions, options, {"task": "prediction", **fields})
-    if options.by:
-        raise UsageError("--by does not apply to --task prediction")
     config = resolve_prediction_config(options.config, options.config_file)
     ds = as_dataset(dataset)
     out = Path(out) if out is not None else None
     if out is not None:
         _check_out(out, ds, options.overwrite)
+    by = tuple(dict.fromkeys(options.by))
+    if not by and options.bins:
+        raise UsageError("--bins needs --by")
     with Reporter(on_progress, "eval prediction", total=4, unit="step") as rep:
         rep.note("read the submission")
         submission = read_submission(results)
@@ -86,7 +88,8 @@ def evaluate_prediction(dataset, results, out=None, options: EvalOptions | None 
         rep.advance()
         metrics, agents, modes = score(ds, submission, futures, agents, config)
         rep.advance()
-        result = PredictionResult(metrics=metrics, agents=agents, modes=modes, out=out)
+        slices = agent_slices(ds, agents, by, options.bins) if by else None
+        result = PredictionResult(metrics=metrics, agents=agents, modes=modes, out=out, slices=slices)
         if out is not None:
             write(out, result)
         rep.advance()
@@ -197,3 +200,54 @@ def write(out: Path, result: PredictionResult) -> None:
         (partial / RESULTS_NAME).write_text(json.dumps(result.metrics, indent=2))
         result.agents.write_parquet(partial / "agents.parquet")
         result.modes.write_parquet(partial / "modes.parquet")
+        if result.slices is not None:
+            result.slices.write_parquet(partial / "slices.parquet")
+
+
+def agent_slices(ds, agents: pl.DataFrame, by: tuple[str, ...], bins) -> pl.DataFrame:
+    """The metrics per slice of the agents (`evaluation.slices`: an agent is the ground-truth annotation it is
+    predicted from, placed by its own value; there is no prediction to place): the RowMean of each per-agent
+    figure over the slice's agents, as the devkit's mean over the records of a submission holding only those."""
+    from nuparquet.evaluation.slices import dimension, needed_columns, parse_bins
+
+    bins = parse_bins(bins) if bins else None
+    annotation_names = ds.scan("annotations").collect_schema().names()
+    scene_names = ds.scan("scenes").collect_schema().names()
+    annotation_columns, scene_columns = needed_columns(by, annotation_names, scene_names)
+    wanted = list(dict.fromkeys(["sample_token", "instance_token", "scene_token", "scene_name", "timestamp",
+                                 "attribute_names", "distance_to_ego_m", *annotation_columns]))
+    rows = (agents.select("sample_token", "instance_token")
+            .join(ds.scan("annotations").select(wanted).collect().unique(["sample_token", "instance_token"],
+                                                                         keep="last"),
+                  on=["sample_token", "instance_token"], how="left", maintain_order="left"))
+    scenes = ds.scan("scenes").select(list(dict.fromkeys(["token", "name", "description", "log_location",
+                                                          *scene_columns]))).collect()
+    per_agent = rows.select("sample_token", "scene_token", "scene_name", "timestamp").join(
+        scenes, left_on="scene_token", right_on="token", how="left", maintain_order="left")
+    attribute = np.array([names[0] if names else "" for names in rows["attribute_names"].to_list()], dtype=object)
+    n = agents.height
+    # per metric its (n, k) C-ordered container, as the devkit's: numpy's mean over axis 0 sums an (n, 1) column
+    # pairwise and the rows of a wider one in order, so the shape decides the last bit
+    metrics = {}
+    for column in agents.columns:
+        for prefix in ("MinADEK", "MinFDEK", "MissRateTopK", "OffRoadRate"):
+            if column.startswith(prefix):
+                key = column if prefix == "OffRoadRate" else column.rsplit("_", 1)[0]
+                metrics.setdefault(key, []).append(column)
+    containers = {key: np.ascontiguousarray(agents.select(columns).to_numpy().reshape(n, len(columns)))
+                  for key, columns in metrics.items()}
+    out = []
+    for name in by:
+        dim = dimension(name, gt_ego_distance_m=rows["distance_to_ego_m"].cast(pl.Float64).fill_null(np.nan).to_numpy(),
+                        pred_ego_distance_m=np.zeros(0), gt_annotations=rows, gt_attribute=attribute,
+                        pred_attribute=np.zeros(0, dtype=object), gt_sample=np.arange(n), pred_sample=np.zeros(0, int),
+                        sample_scene=per_agent, pred_matched_gt=np.zeros(0, int), bins=bins)
+        for label in dim.labels:
+            members = dim.gt_label == label
+            row = {"by": name, "slice": label, "agents": int(members.sum())}
+            for key, columns in metrics.items():
+                row |= dict(zip(columns, containers[key][members].mean(axis=0).tolist()))
+            out.append(row)
+    figures = [c for columns in metrics.values() for c in columns]
+    return pl.DataFrame(out, schema={"by": pl.String, "slice": pl.String, "agents": pl.Int64,
+                                     **{f: pl.Float64 for f in figures}})
