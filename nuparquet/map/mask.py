@@ -88,30 +88,13 @@ def polygon_rings(layers: MapLayers, layer: str, patch_box: tuple[float, float, 
     return rings
 
 
-def paint_polygons(mask: np.ndarray, rings: list[tuple[list, list]], offset: tuple[int, int] = (0, 0)) -> None:
-    """Paint `polygon_rings` into `mask` per geometry (its holes cleared before the next, so overlaps paint as the
-    devkit's do), the canvas pixel (x, y) landing at mask[y + offset[1], x + offset[0]]: with integer vertices
-    OpenCV's fill is the same under an integer shift, so a tile of the canvas paints as its part of the whole."""
+def paint_polygons(mask: np.ndarray, rings: list[tuple[list, list]]) -> None:
+    """Paint `polygon_rings` into the canvas `mask` per geometry (its holes cleared before the next, so overlaps
+    paint as the devkit's do). Only on the whole canvas: OpenCV draws each ring's outline with its line clipped to
+    the image, so a tile of the canvas (an offset, a smaller image) paints some edge pixels differently."""
     for exteriors, interiors in rings:
-        cv2.fillPoly(mask, exteriors, 1, offset=offset)
-        cv2.fillPoly(mask, interiors, 0, offset=offset)
-
-
-def polygon_mask_at(rings: list[tuple[list, list]], canvas_size: tuple[int, int], rows: np.ndarray,
-                    cols: np.ndarray, tile: int = 2048) -> np.ndarray:
-    """(N,) uint8 the mask `paint_polygons` would paint on the whole (H, W) canvas, at pixels (rows, cols) inside
-    it; painted one `tile` x `tile` piece at a time, only the pieces holding a pixel asked for (a map's whole canvas
-    is some 10^9 pixels)."""
-    h, w = canvas_size
-    values = np.zeros(len(rows), np.uint8)
-    piece = (rows // tile) * ((w + tile - 1) // tile) + cols // tile
-    for key in np.unique(piece):
-        at = np.flatnonzero(piece == key)
-        r0, c0 = int(rows[at[0]] // tile) * tile, int(cols[at[0]] // tile) * tile
-        mask = np.zeros((min(tile, h - r0), min(tile, w - c0)), np.uint8)
-        paint_polygons(mask, rings, offset=(-c0, -r0))
-        values[at] = mask[rows[at] - r0, cols[at] - c0]
-    return values
+        cv2.fillPoly(mask, exteriors, 1)
+        cv2.fillPoly(mask, interiors, 0)
 
 
 def _patch(patch_box, patch_angle_deg: float):

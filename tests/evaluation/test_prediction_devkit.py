@@ -356,3 +356,19 @@ def test_a_slice_is_the_devkits_metrics_of_the_records_it_holds(pred_out, devkit
             assert row["MinADEK_5"] == theirs["MinADEK"]["RowMean"][1]
             assert row["MissRateTopK_2_10"] == theirs["MissRateTopK_2"]["RowMean"][2]
             assert row["OffRoadRate"] == theirs["OffRoadRate"]["RowMean"][0]
+
+
+def test_the_drivable_area_is_the_devkits_mask_at_every_pixel_of_sampled_rows(pred_out, devkit):
+    """Every pixel of 300 rows through each map's drivable area (its edges included: OpenCV's outlines are where a
+    painting of a part of the canvas would differ) against the devkit's OffRoadRate mask."""
+    import nuparquet
+    from nuparquet.evaluation.prediction.offroad import drivable_area
+
+    ds = nuparquet.open(pred_out)
+    for location, theirs in devkit[2].metrics[-1].drivable_area_polygons.items():
+        area = drivable_area(ds, location)
+        assert area.canvas_size == theirs.shape
+        rows = np.flatnonzero(theirs.any(axis=1))
+        rows = rows[np.linspace(0, len(rows) - 1, 300).astype(int)]
+        grid_rows, grid_cols = np.repeat(rows, theirs.shape[1]), np.tile(np.arange(theirs.shape[1]), len(rows))
+        assert np.array_equal(area.at(grid_rows, grid_cols), theirs[grid_rows, grid_cols]), location

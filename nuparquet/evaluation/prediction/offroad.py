@@ -3,7 +3,8 @@ through its distinct points, sampled at 200 points; the points themselves when t
 the map canvas or on a pixel of no drivable area, at 10 pixels per metre of the whole map's `get_map_mask`.
 
 The mask is `map.mask`'s over the devkit's own canvas of the map (its `get_map_mask` hard-codes the four nuScenes
-maps' sizes) pixel for pixel, painted only in the tiles holding a point looked up; the spline is scipy's `splprep`/`splev`, called with the devkit's arguments (the
+maps' sizes) pixel for pixel, painted once per map evaluated and dropped after its look-ups (the devkit keeps
+all four); the spline is scipy's `splprep`/`splev`, called with the devkit's arguments (the
 numbers are FITPACK's, as in the devkit); the pixel look-ups are done for every point of every mode at once."""
 
 from __future__ import annotations
@@ -24,16 +25,19 @@ DEVKIT_MAP_DIMS_M = {"singapore-onenorth": (1585.6, 2025.0), "singapore-hollandv
 @dataclass
 class DrivableArea:
     """The devkit's `get_map_mask(None, 0, ['drivable_area'], None)[0]` of a map, as the pixel rings it paints
-    (`map.mask.polygon_rings`) and its (H, W) canvas: painted only where looked up (`at`)."""
+    (`map.mask.polygon_rings`) and its (H, W) canvas: painted when looked up (`at`), not kept."""
 
     rings: list
     canvas_size: tuple[int, int]
 
     def at(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """(N,) uint8 the mask's pixels at (rows, cols), all inside the canvas."""
-        from nuparquet.map.mask import polygon_mask_at
+        """(N,) uint8 the mask's pixels at (rows, cols), all inside the canvas (the whole canvas painted: its
+        pixels are OpenCV's on that image only, `map.mask.paint_polygons`)."""
+        from nuparquet.map.mask import paint_polygons
 
-        return polygon_mask_at(self.rings, self.canvas_size, rows, cols)
+        mask = np.zeros(self.canvas_size, np.uint8)
+        paint_polygons(mask, self.rings)
+        return mask[rows, cols]
 
 
 def drivable_area(dataset, location: str) -> DrivableArea:
