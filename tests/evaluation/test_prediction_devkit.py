@@ -372,3 +372,37 @@ def test_the_drivable_area_is_the_devkits_mask_at_every_pixel_of_sampled_rows(pr
         rows = rows[np.linspace(0, len(rows) - 1, 300).astype(int)]
         grid_rows, grid_cols = np.repeat(rows, theirs.shape[1]), np.tile(np.arange(theirs.shape[1]), len(rows))
         assert np.array_equal(area.at(grid_rows, grid_cols), theirs[grid_rows, grid_cols]), location
+
+
+def test_the_named_configuration_serializes_as_the_devkits(devkit):
+    from nuparquet.evaluation.config import named_config
+    from nuparquet.evaluation.prediction.config import PredictionConfig
+
+    ours = named_config("predict_2020_icra", PredictionConfig)
+    assert json.dumps(ours.serialize()) == json.dumps(devkit[2].serialize())
+    assert PredictionConfig.from_dict(ours.serialize()) == ours
+
+
+_ROW = {"name": "RowMean"}
+
+
+@pytest.mark.parametrize("content, message", [
+    ([], "an object with \"metrics\" and \"seconds\""),
+    ({"metrics": [], "seconds": 6}, "metrics must be a non-empty list"),
+    ({"metrics": [{"name": "OffRoadRate", "aggregators": [_ROW]}], "seconds": 0}, "seconds must be a positive"),
+    ({"metrics": [{"name": "MinADE", "aggregators": [_ROW]}], "seconds": 6}, r"metrics\[0\]: name must be one of"),
+    ({"metrics": [{"name": "OffRoadRate", "aggregators": [{"name": "Max"}]}], "seconds": 6},
+     r"metrics\[0\] \(OffRoadRate\): aggregators"),
+    ({"metrics": [{"name": "MinFDEK", "aggregators": [_ROW], "k_to_report": [1, 0]}], "seconds": 6},
+     r"metrics\[0\] \(MinFDEK\): k_to_report must be a list of positive integers"),
+    ({"metrics": [{"name": "MinFDEK", "aggregators": [_ROW], "k_to_report": [1.0]}], "seconds": 6}, "k_to_report"),
+    ({"metrics": [{"name": "MissRateTopK", "aggregators": [_ROW], "k_to_report": [1]}], "seconds": 6},
+     r"\(MissRateTopK\): tolerance must be a number"),
+    ({"metrics": [{"name": "OffRoadRate", "aggregators": [_ROW]}] * 2, "seconds": 6}, "metric names repeat"),
+])
+def test_a_configuration_the_devkit_would_refuse_or_misread_is_refused(content, message):
+    from nuparquet.errors import UsageError
+    from nuparquet.evaluation.prediction.config import PredictionConfig
+
+    with pytest.raises(UsageError, match=message):
+        PredictionConfig.from_dict(content, where="my.json")
