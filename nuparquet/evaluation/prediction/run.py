@@ -119,7 +119,10 @@ def ground_truth(ds, submission, config: PredictionConfig, split: str) -> tuple[
     known_sample = set(samples["token"].to_list())
     in_split = set(split_scene_names(split, dataroot=ds.dataroot, version=ds.version))
     scene_names = agents["scene_name"].to_list()
-    record = lambda i: where(i, {"instance": submission.instances[i], "sample": submission.samples[i]})  # noqa: E731
+
+    def record(i: int) -> str:
+        return where(i, {"instance": submission.instances[i], "sample": submission.samples[i]})
+
     for i in np.flatnonzero(rows < 0):
         what = ("no such sample" if submission.samples[i] not in known_sample
                 else "the instance has no annotation at that sample")
