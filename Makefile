@@ -13,9 +13,11 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[test,ray]'
 	touch $@
 
-# nuscenes-devkit pins numpy<2; we install it without its pins (test-only reference implementation).
+# nuscenes-devkit pins numpy<2; we install it without its pins (test-only reference implementation), and
+# truckscenes-devkit the same way (its pypcd4 is in the test extra).
 $(DEVKIT_STAMP): $(STAMP)
 	$(BIN)/pip install --quiet --no-deps nuscenes-devkit==1.2.0
+	$(BIN)/pip install --quiet --no-deps truckscenes-devkit==1.2.0
 	touch $@
 
 venv: $(DEVKIT_STAMP)

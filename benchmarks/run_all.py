@@ -36,6 +36,7 @@ import bench_render  # noqa: E402
 import map_floor  # noqa: E402
 import bench_scale_out  # noqa: E402
 import bench_startup  # noqa: E402
+import bench_training_loader  # noqa: E402
 from harness import REPO, load_average, log, machine, markdown_table, write_results  # noqa: E402
 
 BENCHMARKS = {
@@ -56,6 +57,7 @@ BENCHMARKS = {
     "devkit_compat": lambda a: bench_devkit_compat.run(850, a.repeats, min(a.devkit_repeats, 1), samples=2000),
     "eval": lambda a: bench_eval.run(a.repeats, min(a.devkit_repeats, 1)),
     "startup": lambda a: bench_startup.run(max(a.repeats, 20)),
+    "training_loader": lambda a: bench_training_loader.run(repeats=a.repeats),
 }
 
 

@@ -94,6 +94,7 @@ GROUPS: dict[str, Group] = {
         ("tests/parity/test_geometry_math.py", "tests/test_geometry_contract.py", "tests/test_camera.py",
          "tests/test_box_projection_kernel.py",
          "tests/parity/test_points_queries_devkit.py::test_points_in_boxes_equal_devkit_and_num_lidar_pts_on_synthetic_data",
+         "tests/conversion/test_truckscenes.py::test_closest_pose_is_the_devkits_getclosest_with_its_ties",
          *_box_projection_small_tests()),
         not_mutated=("nuparquet/geometry/compiled.py",)),
     "projection": Group(
@@ -194,7 +195,8 @@ GROUPS: dict[str, Group] = {
         ("nuparquet/rendering/*.py", "nuparquet/rendering/video/*.py", "!nuparquet/rendering/plan.py",
          "!nuparquet/rendering/mosaic.py", "!nuparquet/rendering/video/video.py", "!nuparquet/rendering/map_canvas.py"),
         ("tests/rendering/test_render.py", "tests/rendering/test_bev.py", "tests/rendering/test_frame_index.py",
-         "tests/rendering/test_lidar_colors.py", "tests/rendering/test_predictions.py",
+         "tests/rendering/test_lidar_colors.py", "tests/rendering/test_lidar_predictions.py",
+         "tests/rendering/test_predictions.py",
          "tests/rendering/test_pipeline.py", "tests/rendering/test_rigs.py", "tests/rendering/test_video.py",
          "tests/rendering/test_decode.py", "tests/rendering/test_legend.py", "tests/rendering/test_loop.py",
          "tests/rendering/test_colorings.py",
@@ -215,12 +217,23 @@ GROUPS: dict[str, Group] = {
         ("tests/index/",),
         keyword="not extract", cache_conversions=True),
     "devkit": Group(
-        ("nuparquet/devkit/**/*.py",),
+        ("nuparquet/devkit/**/*.py", "!nuparquet/devkit/map_expansion/*.py",
+         "!nuparquet/devkit/prediction/input_representation/*.py"),
         ("tests/devkit/", "tests/parity/test_devkit_tables.py", "tests/parity/test_devkit_boxes.py",
          "tests/parity/test_devkit_utils.py", "tests/parity/test_devkit_printers.py",
          "tests/parity/test_devkit_clients.py", "tests/rendering/test_colorings.py",
-         "tests/parity/test_predict_helper_devkit.py"),
+         "tests/parity/test_predict_helper_devkit.py", "tests/parity/test_devkit_can_bus.py"),
         keyword="not extract", cache_conversions=True),
+    "devkit_map": Group(  # the devkit's map expansion face, and the map files' records it and export-json rebuild
+        ("nuparquet/devkit/map_expansion/*.py", "nuparquet/sources/map_records.py"),
+        ("tests/parity/test_devkit_map_api.py", "tests/parity/test_devkit_map_renders.py",
+         "tests/parity/test_devkit_arcline_path_utils.py", "tests/parity/test_devkit_map_edges.py",
+         "tests/map/test_map_datasets.py::test_export_json_writes_every_map_file_back_exactly"),
+        keyword="not extract", cache_conversions=True),
+    "rasters": Group(  # the prediction models' input rasters (issue 37)
+        ("nuparquet/devkit/prediction/input_representation/*.py",),
+        ("tests/parity/test_input_representation_devkit.py",),
+        cache_conversions=True),
     "evaluation": Group(
         ("nuparquet/evaluation/*.py",),
         ("tests/evaluation/",),
@@ -255,6 +268,10 @@ GROUPS: dict[str, Group] = {
          "nuparquet/rendering/pictures/nuimages.py"),
         ("tests/parity/test_nuimages_devkit.py", "tests/conversion/test_nuimages_convert.py", "tests/test_rle.py"),
         keyword="not extract"),
+    "truckscenes": Group(  # MAN TruckScenes: its reader and checks, and its generator (issue 40)
+        ("nuparquet/sources/truckscenes.py", "nuparquet/synth/truckscenes.py", "nuparquet/conversion/builders/ego_motion.py"),
+        ("tests/conversion/test_truckscenes.py",),
+        keyword="not extract"),
     "tracking": Group(  # the tracking benchmark: motmetrics' accumulator replayed, the devkit's metrics
         ("nuparquet/evaluation/tracking/*.py",),
         ("tests/evaluation/test_tracking_devkit.py", "tests/evaluation/test_tracking_matching.py",
@@ -262,7 +279,7 @@ GROUPS: dict[str, Group] = {
         keyword="not extract", cache_conversions=True),
     "segmentation": Group(  # the lidarseg benchmark: the devkit's class mapper and confusion-matrix arithmetic
         ("nuparquet/evaluation/segmentation/*.py",),
-        ("tests/evaluation/test_lidarseg_devkit.py",),
+        ("tests/evaluation/test_lidarseg_devkit.py", "tests/evaluation/test_lidarseg_slices.py"),
         keyword="not extract", cache_conversions=True),
     "prediction": Group(  # the prediction benchmark: the devkit's futures, ranking, min-k and off-road test
         ("nuparquet/evaluation/prediction/*.py", "nuparquet/frames/annotation_chains.py"),
@@ -273,7 +290,7 @@ GROUPS: dict[str, Group] = {
         ("tests/training/",),
         keyword="not extract", cache_conversions=True),
     "synth": Group(  # the generator makes every fixture: its own mutants must make theirs
-        ("nuparquet/synth/*.py",),
+        ("nuparquet/synth/*.py", "!nuparquet/synth/truckscenes.py"),
         ("tests/synth/", "tests/parity/test_synth_devkit.py"),
         keyword="not extract", cache_data=False),
 }

@@ -91,7 +91,11 @@ class Schema:
 
     def allowing_dangling(self) -> "Schema":
         """This schema as `convert --allow-dangling` writes it: the `null_if_dangling` columns nullable."""
-        return replace(self, fields=tuple(replace(f, nullable=True) if f.null_if_dangling else f for f in self.fields))
+        return self.allowing_null([f.name for f in self.fields if f.null_if_dangling])
+
+    def allowing_null(self, names) -> "Schema":
+        """This schema with the fields `names` nullable (the columns a source format cannot fill: TruckScenes' log)."""
+        return replace(self, fields=tuple(replace(f, nullable=True) if f.name in names else f for f in self.fields))
 
     def arrow_schema(self) -> pa.Schema:
         metadata = {k: v if isinstance(v, str) else json.dumps(v, sort_keys=True) for k, v in self.metadata.items()}
@@ -207,9 +211,8 @@ def table_schemas() -> dict[str, Schema]:
     return {s.name: s for s in sorted(schemas, key=lambda s: (s.optional, s.name))}
 
 
-# Source tables of other dataset families, by family: `schemas/<family>/tables/*.json` (the formats of
-# `nuparquet.conversion.formats` that are not nuScenes-shaped: nuImages).
-FAMILIES = ("nuimages",)
+# Other families' source tables, `schemas/<family>/tables/*.json` (TruckScenes': `sources.truckscenes.schemas`).
+FAMILIES = ("nuimages", "truckscenes")
 
 
 @functools.cache

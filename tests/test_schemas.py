@@ -29,7 +29,7 @@ def test_every_nuscenes_table_and_derived_dataset_has_a_schema():
                                     "lidarseg", "panoptic"}
     assert set(dataset_schemas()) == {"frames", "annotations", "scenes", "instances", "lidar_points", "radar_points",
                                       "sample_can_bus", "map/<layer>", "map/<lane layer>", "map/lane_centerlines",
-                                      "findings", "objects", "surfaces"}
+                                      "findings", "objects", "surfaces", "sample_ego_motion"}
 
 
 def test_every_nuimages_table_has_a_schema_and_its_references_name_one():

@@ -19,12 +19,13 @@ import polars as pl
 
 from nuparquet.channels import channel_facts
 from nuparquet.conversion.builder import Builder
+from nuparquet.conversion.builders import ego_motion
 from nuparquet.conversion.builders import nuimages as nuimages_builders
 from nuparquet.conversion.registry import BUILDERS
 from nuparquet.errors import UsageError
 from nuparquet.problems import Problem
 from nuparquet.schemas import table_schemas
-from nuparquet.sources import nuimages
+from nuparquet.sources import nuimages, truckscenes
 from nuparquet.sources.integrity import check_integrity
 from nuparquet.sources.tables import ReadResult, read_tables, version_dir
 
@@ -41,6 +42,8 @@ class SourceFormat:
     builders: tuple[Builder, ...]
     channels: Callable[[dict[str, pl.DataFrame]], dict]  # the manifest's "channels"
     steps: int  # progress units of reading (one per table it knows)
+    # Columns of the derived datasets this format cannot fill (TruckScenes has no log): written as nullable.
+    nullable_fields: tuple[str, ...] = ()
 
 
 def nuscenes_channels(tables: dict[str, pl.DataFrame]) -> dict:
@@ -67,7 +70,13 @@ NUIMAGES = SourceFormat(
     nuimages.looks_like, nuimages.read_nuimages_tables, nuimages.check_nuimages, nuimages_builders.BUILDERS,
     _camera_channels, len(nuimages.schemas()))
 
-FORMATS: tuple[SourceFormat, ...] = (NUIMAGES, NUSCENES)  # detection order: nuScenes, which takes anything, last
+TRUCKSCENES = SourceFormat(
+    "truckscenes", "MAN TruckScenes: nuScenes' layout without log and map, with ego motion of cabin and chassis, "
+    "weather, 4 cameras, 6 lidars and 6 radars as .pcd (truckscenes-devkit)", truckscenes.looks_like,
+    truckscenes.read_truckscenes_tables, truckscenes.check_truckscenes, (*BUILDERS, ego_motion.BUILDER), nuscenes_channels,
+    len(truckscenes.schemas()) + 1, nullable_fields=truckscenes.LOG_COLUMNS)
+
+FORMATS: tuple[SourceFormat, ...] = (NUIMAGES, TRUCKSCENES, NUSCENES)  # detection order: nuScenes, which takes anything, last
 FORMAT_NAMES = (AUTO, *(f.name for f in FORMATS))
 
 

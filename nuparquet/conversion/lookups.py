@@ -24,11 +24,18 @@ def sample_lookup(tables: dict[str, pl.DataFrame]) -> pl.DataFrame:
                                                 pl.col("timestamp").alias("sample_timestamp"))
         .join(tables["scene"].select(pl.col("token").alias("scene_token"), pl.col("name").alias("scene_name"), "log_token"),
               on="scene_token", how="left")
-        .join(tables["log"].select(pl.col("token").alias("log_token"),
-                                   pl.col("location").cast(pl.Categorical).alias("log_location")),
+        .join(log_table(tables).select(pl.col("token").alias("log_token"),
+                                       pl.col("location").cast(pl.Categorical).alias("log_location")),
               on="log_token", how="left")
         .select("sample_token", "scene_token", "scene_name", "log_location", "sample_timestamp")
     )
+
+
+def log_table(tables: dict[str, pl.DataFrame]) -> pl.DataFrame:
+    """The `log` table, or an empty one for a format without logs (TruckScenes: every log column joins null)."""
+    if "log" in tables:
+        return tables["log"]
+    return pl.DataFrame(schema={name: pl.String for name in ("token", "logfile", "vehicle", "date_captured", "location")})
 
 
 def scene_batches(tables: dict[str, pl.DataFrame], samples: pl.DataFrame, scenes_per_batch: int) -> pl.DataFrame:

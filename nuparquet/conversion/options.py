@@ -36,9 +36,9 @@ class ConvertOptions:
     strict: bool = option(False, help="with --sensors: a missing sensor file is an error (default: the files "
                                       "are listed in manifest.json and counted in one warning)")
     source_format: str = option(
-        "auto", metavar="NAME", choices=("auto", "nuscenes", "nuimages"),
+        "auto", metavar="NAME", choices=("auto", "nuscenes", "nuimages", "truckscenes"),
         help="the dataset family of the version folder: auto (default: detected from its tables; "
-             "nuparquet.conversion.formats), nuscenes (also Lyft Level 5, TIER IV T4) or nuimages")
+             "nuparquet.conversion.formats), nuscenes (also Lyft Level 5, TIER IV T4), nuimages or truckscenes")
     lidar_columns: int = option(
         NUSCENES_LIDAR_COLUMNS, metavar="N",
         help=f"float32 values per lidar point in the .pcd.bin files (default {NUSCENES_LIDAR_COLUMNS}, nuScenes: "

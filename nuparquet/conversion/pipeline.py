@@ -130,7 +130,8 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
         problems, warnings = split_warnings(result.problems + fmt.check(tables, references=not opts.allow_dangling))
         if problems:
             raise ProblemsFound(problems)
-        ctx = BuildContext(Path(dataroot), version, opts, engine, tables, tmp, reporter)
+        ctx = BuildContext(Path(dataroot), version, opts, engine, tables, tmp, reporter,
+                           nullable_fields=fmt.nullable_fields)
         # every builder's units and the manifest (each table was written by the thread that read it)
         # nuScenes' builders are the registry's, read here at each run (a test may replace them)
         builders = BUILDERS if fmt.name == NUSCENES.name else fmt.builders

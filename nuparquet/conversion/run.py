@@ -165,6 +165,8 @@ class _Writers:
         schema = dataset_schemas()[builder.schema] if builder.schema else None
         if schema and self.ctx.options.allow_dangling:  # nulls where a join has no partner (nuparquet.sources.dangling)
             schema = schema.allowing_dangling()
+        if schema and self.ctx.nullable_fields:  # a format without those facts (TruckScenes: no log)
+            schema = schema.allowing_null(self.ctx.nullable_fields)
         table = to_schema(frame, schema) if schema else _to_arrow(frame)
         part = batch if builder.parts == "per_batch" else 0
         key = (name, part)

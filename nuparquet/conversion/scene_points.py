@@ -107,7 +107,11 @@ def convert_scene(task: SceneTask) -> SceneSummary:
         frame = {key: frames[key][i] for key in ("token", "channel", "timestamp", "is_key_frame")}
         frame["scene_name"] = task.scene_name
         try:
-            if task.modality == "lidar":
+            if task.modality == "lidar" and source.is_pcd(filename):  # TruckScenes: a PCD, its fields by name
+                frame["points"] = source.read_lidar_pcd(root / filename)
+                frame["labels"] = {}
+                _same_layout(summary, frame["points"], root, filename)
+            elif task.modality == "lidar":
                 frame["points"] = _read_lidar(root, filename, task.lidar_columns)
                 labels = {}
                 for table, column, reader in LABELS:
@@ -118,12 +122,7 @@ def convert_scene(task: SceneTask) -> SceneSummary:
                     summary.labelled[table] = summary.labelled.get(table, 0) + (column in labels)
             else:
                 frame["points"] = source.read_radar_pcd(root / filename)
-                layout = tuple((n, frame["points"].dtype[n].str) for n in frame["points"].dtype.names)
-                if summary.pcd_layout is None:
-                    summary.pcd_layout, summary.pcd_file = layout, filename
-                elif layout != summary.pcd_layout:
-                    raise source.PointFileError(root / filename, f"PCD fields {layout_text(layout)} differ from "
-                                                f"{summary.pcd_file}'s {layout_text(summary.pcd_layout)}")
+                _same_layout(summary, frame["points"], root, filename)
         except FileNotFoundError:
             summary.missing.append(filename)
             continue
@@ -141,6 +140,16 @@ def convert_scene(task: SceneTask) -> SceneSummary:
         summary.written = True
         summary.bytes = path.stat().st_size
     return summary
+
+
+def _same_layout(summary: SceneSummary, points: np.ndarray, root: Path, filename: str) -> None:
+    """Every PCD of a scene has the first one's fields (one dataset, one schema)."""
+    layout = tuple((n, points.dtype[n].str) for n in points.dtype.names)
+    if summary.pcd_layout is None:
+        summary.pcd_layout, summary.pcd_file = layout, filename
+    elif layout != summary.pcd_layout:
+        raise source.PointFileError(root / filename, f"PCD fields {layout_text(layout)} differ from "
+                                    f"{summary.pcd_file}'s {layout_text(summary.pcd_layout)}")
 
 
 def _encodings(schema: pa.Schema) -> dict[str, str]:
@@ -214,10 +223,17 @@ def _frame_columns(group: list[dict]) -> tuple[dict[str, pa.Array], np.ndarray]:
 def _lidar_table(group: list[dict]) -> pa.Table:
     columns, counts = _frame_columns(group)
     points = np.concatenate([f["points"] for f in group])
-    for j, name in enumerate(source.LIDAR_FIELDS[:4]):
-        columns[name] = pa.array(points[:, j])
-    columns["ring"] = (pa.array(points[:, 4].astype(np.uint8)) if points.shape[1] >= 5
-                       else pa.nulls(len(points), pa.uint8()))
+    layout = None
+    if points.dtype.names:  # a lidar PCD: x, y, z, intensity by name, no ring, its other fields after the labels
+        for name in source.LIDAR_PCD_FIELDS:
+            columns[name] = pa.array(np.ascontiguousarray(points[name]))
+        columns["ring"] = pa.nulls(len(points), pa.uint8())
+        layout = tuple((n, points.dtype[n].str) for n in points.dtype.names)
+    else:
+        for j, name in enumerate(source.LIDAR_FIELDS[:4]):
+            columns[name] = pa.array(points[:, j])
+        columns["ring"] = (pa.array(points[:, 4].astype(np.uint8)) if points.shape[1] >= 5
+                           else pa.nulls(len(points), pa.uint8()))
     for _table, column, _reader in LABELS:
         dtype = np.uint8 if column == "lidarseg_label" else np.uint16
         if not any(column in f["labels"] for f in group):  # sweeps, unlabelled datasets: all null, nothing to build
@@ -226,7 +242,10 @@ def _lidar_table(group: list[dict]) -> pa.Table:
         has = np.repeat(np.array([column in f["labels"] for f in group]), counts)
         values = np.concatenate([f["labels"].get(column, np.zeros(len(f["points"]), dtype)) for f in group]).astype(dtype)
         columns[column] = pa.array(values, mask=~has) if not has.all() else pa.array(values)
-    return pa.table(columns, schema=lidar_schema())
+    for name in (points.dtype.names or ()):
+        if name not in source.LIDAR_PCD_FIELDS:
+            columns[source.pcd_column(name)] = pa.array(np.ascontiguousarray(points[name]))
+    return pa.table(columns, schema=lidar_schema(layout))
 
 
 def _radar_table(group: list[dict]) -> pa.Table:
@@ -241,8 +260,13 @@ def _radar_table(group: list[dict]) -> pa.Table:
 
 
 @functools.cache
-def lidar_schema() -> pa.Schema:
-    return dataset_schemas()["lidar_points"].arrow_schema()
+def lidar_schema(layout: tuple[tuple[str, str], ...] | None = None) -> pa.Schema:
+    """schemas/lidar_points.json; for lidar PCD files (`layout`: their fields and numpy types), then the fields
+    beyond x, y, z, intensity in header order (`sources.points.pcd_column` names)."""
+    fixed = dataset_schemas()["lidar_points"].arrow_schema()
+    more = [pa.field(source.pcd_column(name), pa.from_numpy_dtype(np.dtype(kind)), nullable=False)
+            for name, kind in layout or () if name not in source.LIDAR_PCD_FIELDS]
+    return pa.schema(list(fixed) + more, metadata=fixed.metadata)
 
 
 @functools.cache

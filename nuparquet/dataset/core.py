@@ -299,7 +299,8 @@ class Dataset:
 
     @property
     def source_format(self) -> str:
-        """The dataset family converted: "nuscenes" (also Lyft, T4) or "nuimages" (`nuparquet.conversion.formats`)."""
+        """The dataset family converted: "nuscenes" (also Lyft, T4), "nuimages" or "truckscenes"
+        (`nuparquet.conversion.formats`)."""
         return self.manifest.get("source", {}).get("format", "nuscenes")
 
     def masks(self, tokens: str | Sequence[str]):

@@ -36,7 +36,8 @@ class EvalOptions:
     bins: tuple[str, ...] = option(
         (), metavar="EDGES", help="bin edges for --by distance (metres, default 0,10,20,30,40,50) and numeric "
         "columns, e.g. 0,20,40")
-    plots: bool = option(True, help="write the devkit's PR and TP curves as PNG into DIR/plots (--no-plots: skip)")
+    plots: bool = option(True, help="write the task's plots as PNG into DIR/plots: the devkit's PR and TP curves "
+                         "(detection, tracking), IoU per class and the confusion matrix (lidarseg); --no-plots: skip")
     overwrite: bool = option(False, help="replace DIR if it already holds files")
 
     def __post_init__(self) -> None:

@@ -90,7 +90,9 @@ def needed_columns(by: Sequence[str], annotation_columns: Sequence[str], scene_c
     return list(dict.fromkeys(annotations)), list(dict.fromkeys(scenes))
 
 
-def _bin_labels(values: np.ndarray, edges: tuple[float, ...], unit: str) -> tuple[np.ndarray, list[str]]:
+def bin_labels(values: np.ndarray, edges: tuple[float, ...], unit: str) -> tuple[np.ndarray, list[str]]:
+    """(N,) object label of each value in the half-open bins [low, high) of `edges` ("<last>unit+" beyond the last
+    edge, None below the first or for NaN), and the labels in order."""
     names = [f"{a:g}-{b:g}{unit}" for a, b in zip(edges, edges[1:])] + [f"{edges[-1]:g}{unit}+"]
     index = np.searchsorted(np.asarray(edges), values, side="right") - 1  # [low, high)
     labels = np.full(len(values), None, dtype=object)
@@ -103,12 +105,31 @@ def _value_labels(values: pl.Series, name: str, bins: tuple[float, ...] | None) 
     """Labels of a column's values: by bins for numbers given --bins, else by value (numbers with few values)."""
     if values.dtype.is_numeric() and not values.dtype == pl.Boolean:
         if bins is not None:
-            return _bin_labels(values.cast(pl.Float64).fill_null(np.nan).to_numpy(), bins, "")
+            return bin_labels(values.cast(pl.Float64).fill_null(np.nan).to_numpy(), bins, "")
         distinct = values.drop_nulls().n_unique()
         if distinct > MAX_VALUES:
             raise UsageError(f"--by {name}: {distinct} distinct values; give --bins edges to group them")
     text = values.cast(pl.String).fill_null("none")
     return text.to_numpy().astype(object), None
+
+
+SCENE_NAMED = ("location", "night", "rain", "scene")  # the named slices a scene decides
+
+
+def scene_labels(name: str, scenes: pl.DataFrame, bins: tuple[float, ...] | None
+                 ) -> tuple[np.ndarray, list[str] | None]:
+    """(R,) object label of each row of `scenes` (one row per sample or frame, with its scene's `name`,
+    `description`, `log_location` and the columns asked for) in the scene-decided dimension `name`, and the
+    labels' order where it is not alphabetical (None)."""
+    if name == "location":
+        return scenes["log_location"].fill_null("none").to_numpy().astype(object), None
+    if name in ("night", "rain"):
+        pattern, yes, no = (_NIGHT, "night", "day") if name == "night" else (_RAIN, "rain", "dry")
+        found = np.array([bool(pattern.search(d or "")) for d in scenes["description"].to_list()], bool)
+        return np.where(found, yes, no).astype(object), [no, yes]
+    if name == "scene":
+        return scenes["name"].to_numpy().astype(object), None
+    return _value_labels(scenes[name], name, bins)
 
 
 def dimension(name: str, *, gt_ego_distance_m: np.ndarray, pred_ego_distance_m: np.ndarray,
@@ -125,20 +146,10 @@ def dimension(name: str, *, gt_ego_distance_m: np.ndarray, pred_ego_distance_m: 
     order = None
     if name == "distance":
         edges = bins or DEFAULT_DISTANCE_BINS_M
-        gt_label, order = _bin_labels(gt_ego_distance_m, edges, "m")
-        pred_label, _ = _bin_labels(pred_ego_distance_m, edges, "m")
-    elif name in ("location", "night", "rain", "scene") or name in sample_scene.columns:
-        if name == "location":
-            per_sample = sample_scene["log_location"].fill_null("none").to_numpy().astype(object)
-        elif name in ("night", "rain"):
-            pattern, yes, no = (_NIGHT, "night", "day") if name == "night" else (_RAIN, "rain", "dry")
-            found = np.array([bool(pattern.search(d or "")) for d in sample_scene["description"].to_list()], bool)
-            per_sample = np.where(found, yes, no).astype(object)
-            order = [no, yes]
-        elif name == "scene":
-            per_sample = sample_scene["name"].to_numpy().astype(object)
-        else:
-            per_sample, order = _value_labels(sample_scene[name], name, bins)
+        gt_label, order = bin_labels(gt_ego_distance_m, edges, "m")
+        pred_label, _ = bin_labels(pred_ego_distance_m, edges, "m")
+    elif name in SCENE_NAMED or name in sample_scene.columns:
+        per_sample, order = scene_labels(name, sample_scene, bins)
         gt_label, pred_label = per_sample[gt_sample], per_sample[pred_sample]
     else:
         if name == "visibility":

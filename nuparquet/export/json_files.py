@@ -23,6 +23,7 @@ from nuparquet.format import MANIFEST
 from nuparquet.progress import OnProgress, Reporter
 from nuparquet.sources import json_layout, table_layouts
 from nuparquet.sources.json_records import to_records
+from nuparquet.sources.map_records import map_file
 from nuparquet.schemas import table_schemas
 
 BATCH_ROWS = 65536  # records converted to Python at a time: keeps memory flat on trainval
@@ -109,35 +110,9 @@ def _write_inferred_table(dataset, manifest: dict, entry: dict, target: Path) ->
     target.write_text(json.dumps(records, indent=0))
 
 
-def _map_layer_rows(dataset, manifest: dict, layer: str, location: str) -> list[dict]:
-    """The rows of one map's layer, in file order, without the columns nuparquet added (Arrow to Python: nested
-    structs keep their field order)."""
-    import pyarrow.compute as pc
-
-    table = _arrow_table(dataset, f"map/{layer}")
-    table = table.filter(pc.equal(table.column("location"), location))
-    return table.drop_columns([c for c in ("location", "geometry", "bbox") if c in table.column_names]).to_pylist()
-
-
 def _write_map_expansion(dataset, manifest: dict, entry: dict, target: Path) -> None:
-    """A map expansion file: every layer in the file's key order, each record as it was (`json_records` facts)."""
-    out = {}
-    for key in entry["top_keys"]:
-        if key in entry["scalars"]:
-            out[key] = entry["scalars"][key]
-            continue
-        facts = entry["layers"][key]
-        rows = _map_layer_rows(dataset, manifest, key, entry["location"])
-        lanes = [row.pop("lane_token") for row in rows] if key in ("arcline_path_3", "connectivity") else None
-        records = to_records(rows, facts["keys"], facts.get("json_fields", []), facts.get("int_values", {}),
-                             facts.get("key_orders", {}))
-        if key == "arcline_path_3":
-            out[key] = {lane: record["paths"] for lane, record in zip(lanes, records)}
-        elif lanes is not None:
-            out[key] = dict(zip(lanes, records))
-        else:
-            out[key] = records
-    target.write_text(json.dumps(out))
+    """A map expansion file: every layer in the file's key order, each record as it was (`sources.map_records`)."""
+    target.write_text(json.dumps(map_file(dataset, entry)))
 
 
 # How each kind of converted JSON file is written back (the manifest's "files" name the kind of each).

@@ -13,6 +13,7 @@ import polars as pl
 
 from nuparquet import columns, geometry
 from nuparquet.geometry import Cameras
+from nuparquet.geometry.interpolation import closest_rows
 
 MATRIX_COLUMNS = ("global_from_ego", "ego_from_sensor")
 POSE_COLUMNS = ("ego_translation", "ego_rotation", "sensor_translation", "sensor_rotation")
@@ -51,3 +52,15 @@ def cameras_from_frames(frames: pl.DataFrame) -> Cameras:
     size_px = np.stack([frames["width"].to_numpy(), frames["height"].to_numpy()], axis=1).astype(np.float64)
     return Cameras.from_poses(global_from_ego, ego_from_camera, columns.to_numpy(frames["camera_intrinsic"], (3, 3)),
                               size_px.reshape(-1, 2))
+
+
+def with_sample_poses(frames: pl.DataFrame, ego_pose: pl.DataFrame, samples: pl.DataFrame) -> pl.DataFrame:
+    """`frames` rows with `ego_translation` / `ego_rotation` replaced by the pose nearest each frame's *sample*
+    time (`geometry.interpolation.closest_rows`) and the stored matrices dropped: what TruckScenes' devkit `get_sample_data` moves
+    the boxes of a frame with (nuScenes' uses the frame's own pose). `ego_pose`: the table (token, timestamp,
+    translation, rotation) in file order; `samples`: token, timestamp."""
+    sample_time = frames.select("sample_token").join(samples.select(pl.col("token").alias("sample_token"), "timestamp"),
+                                                     on="sample_token", how="left", maintain_order="left")["timestamp"]
+    rows = closest_rows(ego_pose["timestamp"].to_numpy(), sample_time.to_numpy())
+    return frames.drop(*MATRIX_COLUMNS, strict=False).with_columns(
+        ego_translation=ego_pose["translation"].gather(rows), ego_rotation=ego_pose["rotation"].gather(rows))

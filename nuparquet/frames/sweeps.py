@@ -6,7 +6,9 @@ of a scene). Each cloud drops the points within `min_distance_m` of its sensor o
 moves sensor -> ego at its own time -> global -> ego at the reference keyframe's time -> reference sensor with one
 composed matrix (the devkit's `reduce(np.dot, [ref_from_car, car_from_global, global_from_car, car_from_current])`);
 lidar points are rounded back to float32 after the move, as the devkit stores them. `times_s` is the reference time
-minus the sweep's, per point.
+minus the sweep's, per point. A TruckScenes dataset follows truckscenes-devkit: lidar points stay float64 and each
+one's time is its own (the `.pcd`'s `timestamp` field); radar velocities (`vrel_x`, `vrel_y`, `vrel_z`) turn with the
+points.
 
 Points come from `lidar_points/` / `radar_points/` where the frame was converted (keyframes, or every frame with
 `convert --sweeps`), else from the sensor files under the dataroot; radar keeps the devkit's default filters unless
@@ -85,21 +87,34 @@ def multisweep(dataset, sample_token: str, channel: str, ref_channel: str | None
     global_from_car, car_from_current = sensor_poses(chain)
     ref_time_s = 1e-6 * int(ref["timestamp"][0])
     modality = start["modality"][0]
+    truck = dataset.source_format == "truckscenes"
     clouds, times, sweep_of = [], [], []
     fields: tuple[str, ...] = ()
     for k, row in enumerate(chain.iter_rows(named=True)):
-        cloud, fields = frame_cloud(dataset, row, modality, radar_filters)
+        point_times = None
+        if truck and modality == "lidar":  # truckscenes-devkit: float64 points, each with its own timestamp
+            frame = dataset.sensors.points(row["token"], row["filename"], "lidar", [*LIDAR_COLUMNS, "point_timestamp"])
+            cloud, fields = frame.select(LIDAR_COLUMNS).to_numpy().astype(np.float64), LIDAR_COLUMNS
+            point_times = frame["point_timestamp"].to_numpy()
+        else:
+            cloud, fields = frame_cloud(dataset, row, modality, radar_filters)
         close = (np.abs(cloud[:, 0]) < min_distance_m) & (np.abs(cloud[:, 1]) < min_distance_m)
         cloud = cloud[~close]
         ref_from_current = reduce(np.dot, [ref_from_car, car_from_global, global_from_car[k], car_from_current[k]])
         # the devkit's `transform`: the 4x4 matrix times homogeneous points, one product
         moved = ref_from_current.dot(np.vstack((cloud[:, :3].T, np.ones(len(cloud)))))[:3].T
         cloud = cloud.copy()
+        if truck and modality == "radar":  # truckscenes-devkit's radar `transform` also turns vrel_x, vrel_y, vrel_z
+            cloud[:, 3:6] = np.dot(np.hstack((ref_from_current[:, :3], np.identity(4)[:, 3][:, None])),
+                                   np.vstack((cloud[:, 3:6].T, np.ones(len(cloud)))))[:3].T
         cloud[:, :3] = moved  # float32 clouds round back to float32, as the devkit's points array does
         clouds.append(cloud)
-        times.append(np.full(len(cloud), ref_time_s - 1e-6 * int(row["timestamp"])))
+        if point_times is not None:
+            times.append(ref_time_s - 1e-6 * point_times[~close])
+        else:
+            times.append(np.full(len(cloud), ref_time_s - 1e-6 * int(row["timestamp"])))
         sweep_of.append(np.full(len(cloud), k, dtype=np.int64))
-    dtype = np.float32 if modality == "lidar" else np.float64
+    dtype = np.float32 if modality == "lidar" and not truck else np.float64
     points = np.concatenate(clouds).astype(dtype, copy=False) if clouds else np.zeros((0, len(fields)), dtype)
     return Sweeps(points, np.concatenate(times), np.concatenate(sweep_of), tuple(chain["token"].to_list()), fields)
 

@@ -1,5 +1,6 @@
 """Between two samples: centres interpolated as `np.interp` and the slerp amount, as the devkit's `get_boxes`
-computes them (numpy only; the slerp itself is `quaternions.quaternion_slerp`)."""
+computes them (numpy only; the slerp itself is `quaternions.quaternion_slerp`); and the record nearest a time, as
+truckscenes-devkit's `getclosest` finds it."""
 
 from __future__ import annotations
 
@@ -34,3 +35,21 @@ def slerp_amount(t, t0, t1) -> np.ndarray:
     t, t0, t1 = (np.asarray(a, dtype=np.int64) for a in (t, t0, t1))
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(t1 != t0, (t - t0).astype(np.float64) / (t1 - t0).astype(np.float64), 1.0)
+
+
+def closest_rows(timestamps_us: np.ndarray, query_timestamps_us: np.ndarray) -> np.ndarray:
+    """(Q,) the row of the record nearest each query time, as truckscenes-devkit's `getclosest(table, t)` picks it
+    (ego_pose, ego_motion_*): a tie between an earlier and a later record goes to the earlier; among records
+    sharing one timestamp, the last in file order (the devkit keys a dict by timestamp: the last one written wins).
+    `timestamps_us`: (P,) the table's timestamps in file order (P >= 1)."""
+    order = np.argsort(timestamps_us, kind="stable")
+    times = timestamps_us[order]
+    distinct, last = np.unique(times[::-1], return_index=True)  # each timestamp's last row in sorted order
+    last_row = order[len(times) - 1 - last]
+    pos = np.searchsorted(distinct, query_timestamps_us, side="left")  # bisect_left
+    before = np.clip(pos - 1, 0, len(distinct) - 1)
+    after = np.clip(pos, 0, len(distinct) - 1)
+    take_after = (pos == 0) | ((pos < len(distinct))
+                               & (distinct[after] - query_timestamps_us < query_timestamps_us - distinct[before]))
+    return last_row[np.where(take_after, after, before)]
+

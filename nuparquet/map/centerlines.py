@@ -24,14 +24,15 @@ def _principal(angle: np.ndarray) -> np.ndarray:
     return (angle - (-np.pi)) % TWO_PI + (-np.pi)
 
 
-def _step(curvature: np.ndarray, step: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """get_transformation_at_step for Lie algebra poses (1.0, 0.0, curvature)."""
+def _step(curvature: np.ndarray, step: np.ndarray, pose_x=1.0, pose_y=0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """get_transformation_at_step for poses (pose_x, pose_y, curvature): an arcline path's Lie algebra poses are
+    (1.0, 0.0, curvature)."""
     theta = curvature * step
     c, s = np.cos(theta), np.sin(theta)
     straight = np.abs(curvature) < 1e-6
     safe = np.where(straight, 1.0, curvature)
-    x = np.where(straight, 1.0 * step, (0.0 * (c - 1.0) + 1.0 * s) / safe)
-    y = np.where(straight, 0.0 * step, (1.0 * (1.0 - c) + 0.0 * s) / safe)
+    x = np.where(straight, pose_x * step, (pose_y * (c - 1.0) + pose_x * s) / safe)
+    y = np.where(straight, pose_y * step, (pose_x * (1.0 - c) + pose_y * s) / safe)
     return x, y, theta
 
 

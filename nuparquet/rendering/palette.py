@@ -45,6 +45,16 @@ CATEGORY_RGB: dict[str, tuple[int, int, int]] = {
     "vehicle.ego": (255, 240, 245),
 }
 
+# RGB of the 16 lidarseg challenge classes and the ignore class, exactly as nuscenes-devkit 1.2.0's
+# `LidarsegClassMapper.get_coarse2color()` (the classes a lidarseg or panoptic submission predicts).
+CHALLENGE_CLASS_RGB: dict[str, tuple[int, int, int]] = {
+    "ignore": (0, 0, 0), "barrier": (112, 128, 144), "bicycle": (220, 20, 60), "bus": (255, 127, 80),
+    "car": (255, 158, 0), "construction_vehicle": (233, 150, 70), "motorcycle": (255, 61, 99),
+    "pedestrian": (0, 0, 230), "traffic_cone": (47, 79, 79), "trailer": (255, 140, 0), "truck": (255, 99, 71),
+    "driveable_surface": (0, 207, 191), "other_flat": (175, 0, 75), "sidewalk": (75, 0, 75),
+    "terrain": (112, 180, 60), "manmade": (222, 184, 135), "vegetation": (0, 175, 0),
+}
+
 
 def category_rgb(name: str) -> tuple[int, int, int]:
     """RGB colour of a category; names outside the devkit palette (Lyft, T4, ... taxonomies) get a colour

@@ -14,7 +14,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
-from nuparquet.rendering.palette import category_rgb
+from nuparquet.rendering.palette import CHALLENGE_CLASS_RGB, category_rgb
 
 PANOPTIC_DIVISOR = 1000  # panoptic label = class index * 1000 + instance id
 # The devkit's first "stuff" class index (panoptic_utils.STUFF_START_CLASS_ID): Panoptic nuScenes' class order puts
@@ -84,6 +84,29 @@ def label_rgb(labels: np.ndarray, mode: str, names_by_index: Mapping[int, str]) 
         else:  # beyond the devkit's table (it would index out of range): the class colour
             colours[k] = category_rgb(names_by_index.get(index, f"class {index}"))
     return colours[inverse.reshape(-1)]
+
+
+# The challenge classes in index order (0: ignore; 1-10 things, 11-16 stuff: the panoptic challenge's split).
+_CHALLENGE_RGB = np.array(list(CHALLENGE_CLASS_RGB.values()), dtype=np.uint8)
+CHALLENGE_STUFF_START = 11
+
+
+def challenge_label_rgb(labels: np.ndarray, mode: str) -> np.ndarray:
+    """(P, 3) uint8 RGB of predicted labels in the challenge classes (a lidarseg or panoptic submission): a lidarseg
+    class, or a panoptic label of a stuff class (11-16) or of the ignore class, in the devkit's coarse colour; a
+    panoptic label of a thing class (1-10) in its colour of `generate_panoptic_colors`' table (one per instance,
+    as the ground truth's instances); a class outside 0..16 in a hashed colour."""
+    labels = np.asarray(labels, dtype=np.int64).reshape(-1)
+    classes = class_of(labels, mode)
+    known = (classes >= 0) & (classes < len(_CHALLENGE_RGB))
+    colours = np.zeros((len(labels), 3), dtype=np.uint8)
+    colours[known] = _CHALLENGE_RGB[classes[known]]
+    for label in np.unique(classes[~known]).tolist():
+        colours[classes == label] = category_rgb(f"class {label}")
+    if mode == "panoptic":
+        thing = (classes > 0) & (classes < CHALLENGE_STUFF_START) & (labels < PANOPTIC_COLOURS)
+        colours[thing] = np.rint(_panoptic_table()[labels[thing]] * 255.0).astype(np.uint8)
+    return colours
 
 
 def class_filter(labels: np.ndarray, mode: str, keep_classes: Sequence[int] | None, n_classes: int) -> np.ndarray:

@@ -107,8 +107,9 @@ class SensorReader:
 
     def points(self, token: str, filename: str, modality: str, columns=None) -> pl.DataFrame:
         """One frame's points as a polars DataFrame: from the converted dataset when the frame is there (`columns`,
-        default every sensor field the dataset has), else from its file (lidar: x, y, z, intensity, ring; radar:
-        the PCD fields; `columns` that a file does not hold, such as labels, left out).
+        default every sensor field the dataset has), else from its file (lidar: x, y, z, intensity, ring, or a
+        lidar `.pcd`'s fields as lidar_points names them (TruckScenes: x, y, z, intensity, point_timestamp);
+        radar: the PCD fields; `columns` that a file does not hold, such as labels, left out).
 
         Raises:
             MissingSensorData: neither converted nor a file under the dataroot.
@@ -119,10 +120,13 @@ class SensorReader:
         frame = self.converted(token, modality, columns)
         if frame is not None:
             return frame
-        from nuparquet.sources.points import read_lidar_bin, read_radar_pcd
+        from nuparquet.sources.points import is_pcd, pcd_column, read_lidar_bin, read_lidar_pcd, read_radar_pcd
 
         path = self.file(token, filename, modality)
-        if modality == "lidar":
+        if modality == "lidar" and is_pcd(filename):  # TruckScenes: a PCD, named as lidar_points names its fields
+            records = np.array(read_lidar_pcd(path))
+            frame = pl.DataFrame({pcd_column(name): records[name] for name in records.dtype.names})
+        elif modality == "lidar":
             values = read_lidar_bin(path, len(LIDAR_FIELDS))
             frame = pl.DataFrame({name: values[:, j] for j, name in enumerate(LIDAR_FIELDS)})
         else:

@@ -66,7 +66,7 @@ def read_nuimages_tables(dataroot: Path | str, version: str, *, on_table: Callab
             continue
         files[schema.source] = {"bytes": path.stat().st_size, "mtime": path.stat().st_mtime}
         table, found = read_extra_table(path)
-        found = found or (_type_problems(table, schema) if table is not None else [])
+        found = found or (type_problems(table, schema) if table is not None else [])
         problems += found
         if table is not None and not found:
             if finish is not None:
@@ -85,9 +85,9 @@ def read_nuimages_tables(dataroot: Path | str, version: str, *, on_table: Callab
     return ReadResult(tables, problems, files)
 
 
-def _type_problems(source: SourceTable, schema: Schema) -> list[Problem]:
-    """The declared fields of one table that its columns do not hold as declared: each named with the first record
-    at fault."""
+def type_problems(source: SourceTable, schema: Schema) -> list[Problem]:
+    """The declared fields of one table typed by inference that its columns do not hold as declared: each named
+    with the first record at fault (also TruckScenes' ego-motion tables, `sources.truckscenes`)."""
     table, file = source.table, schema.source
     json_fields = set(source.inferred["json_fields"]) if source.inferred else set()
     problems = []

@@ -1,4 +1,5 @@
-"""Sensor point files: lidar `.pcd.bin`, radar PCD v0.7 binary, lidarseg `.bin` and panoptic `.npz` labels.
+"""Sensor point files: lidar `.pcd.bin` (or PCD, TruckScenes), radar PCD v0.7 binary, lidarseg `.bin` and panoptic
+`.npz` labels.
 
 Every reader takes a path and returns numpy arrays; a file that cannot be read as its format says raises
 `PointFileError` naming the file (the converter turns it into a problem, the renderer into a skipped frame).
@@ -125,6 +126,40 @@ def read_pcd_header(path: str | Path, head: bytes) -> PcdHeader:
                                    "(HEIGHT 1, POINTS = WIDTH) are supported, as the devkit")
     dtype = np.dtype({"names": fields, "formats": formats})  # packed: offsets follow SIZE
     return PcdHeader(tuple(fields), dtype, points, offset)
+
+
+# A lidar `.pcd` (TruckScenes) holds x, y, z, intensity as float32 and further fields (its per-point `timestamp`): in
+# lidar_points and through the sensor reader those keep their names, but a name the points datasets give the frame
+# (`timestamp`) takes a `point_` prefix.
+LIDAR_PCD_FIELDS = ("x", "y", "z", "intensity")
+FRAME_NAMES = ("sample_data_token", "scene_name", "channel", "timestamp", "is_key_frame", "point_index")
+
+
+def is_pcd(path: str | Path) -> bool:
+    """A PCD file (`.pcd`), not nuScenes' raw float32 `.pcd.bin`."""
+    return str(path).endswith(".pcd")
+
+
+def pcd_column(name: str) -> str:
+    """The column of a lidar `.pcd` field (see LIDAR_PCD_FIELDS)."""
+    return f"point_{name}" if name in FRAME_NAMES else name
+
+
+def read_lidar_pcd(path: str | Path) -> np.ndarray:
+    """A lidar PCD v0.7 binary file (TruckScenes): (P,) structured array as `read_radar_pcd`, whose x, y, z and
+    intensity must be float32 (the devkit's `LidarPointCloud` reads them by name).
+
+    Raises:
+        FileNotFoundError: no such file.
+        PointFileError: not a PCD as `read_radar_pcd` needs, or one of those fields missing or not F 4.
+    """
+    points = read_radar_pcd(path)
+    for name in LIDAR_PCD_FIELDS:
+        if name not in points.dtype.names:
+            raise PointFileError(path, f"lidar PCD has no field {name!r} (FIELDS {' '.join(points.dtype.names)})")
+        if points.dtype[name] != np.dtype("<f4"):
+            raise PointFileError(path, f"lidar PCD field {name!r} is {points.dtype[name]}, not float32 (TYPE F SIZE 4)")
+    return points
 
 
 def read_radar_pcd(path: str | Path) -> np.ndarray:

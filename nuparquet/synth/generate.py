@@ -50,7 +50,8 @@ def synthesize(out, options: SynthOptions | None = None, *, on_progress: OnProgr
     just in front of a camera, clock ties, a late first camera frame, and a `<version>-test` folder with empty
     annotation tables; `synth.irregular`).
     family: "nuscenes", or "nuimages" for a nuImages dataroot (`synth.nuimages`: `scenes` logs of
-    `samples_per_scene` annotated images; images always written, the nuScenes-only options ignored).
+    `samples_per_scene` annotated images; images always written, the nuScenes-only options ignored), or
+    "truckscenes" for a MAN TruckScenes dataroot (`synth.truckscenes`: images and point files always written).
     on_progress receives a `nuparquet.progress.Progress` event per scene written (None: silent).
 
     The tables are written to a hidden partial beside `out/<version>` and renamed into place when complete
@@ -64,6 +65,10 @@ def synthesize(out, options: SynthOptions | None = None, *, on_progress: OnProgr
         from nuparquet.synth.nuimages import synthesize_nuimages
 
         return synthesize_nuimages(dataroot, scenes, samples_per_scene, seed, version)
+    if options.family == "truckscenes":  # MAN TruckScenes (synth.truckscenes)
+        from nuparquet.synth.truckscenes import synthesize_truckscenes
+
+        return synthesize_truckscenes(dataroot, scenes, samples_per_scene, seed, version)
     scene_duration_s = (samples_per_scene - 1) * KEYFRAME_INTERVAL_US / 1e6
     logs = plan_logs(seed, scenes, scene_duration_s, RIGS[options.rig])
     roads: dict[str, list] = {}  # location -> the roads of its scenes (for the map expansion)

@@ -11,6 +11,7 @@ from nuparquet.errors import UsageError
 from nuparquet.options import option
 
 PROFILES = ("regular", "irregular")  # `irregular`: the cases regular data lacks
+FAMILIES = ("nuscenes", "nuimages", "truckscenes")
 
 
 @dataclass
@@ -35,10 +36,12 @@ class SynthOptions:
     rig: Literal["nuscenes", "lyft"] = option(  # the names of `taxonomy.RIGS`
         "nuscenes", help="the sensor set: nuscenes (6 cameras, LIDAR_TOP, 5 radars; default) or lyft (7 cameras with "
         "a zoomed front camera, 3 lidars, no radar)")
-    family: Literal["nuscenes", "nuimages"] = option(
+    family: Literal["nuscenes", "nuimages", "truckscenes"] = option(
         "nuscenes", flag="--format", help="the dataset family written: nuscenes (default; --rig picks the sensor "
-        "set) or nuimages (the ten nuImages tables that nuimages.NuImages loads, with JPEGs and RLE masks: --scenes "
-        "logs of --samples-per-scene annotated keyframes, each with 6 images before and 6 after)")
+        "set), nuimages (the ten nuImages tables that nuimages.NuImages loads, with JPEGs and RLE masks: --scenes "
+        "logs of --samples-per-scene annotated keyframes, each with 6 images before and 6 after) or truckscenes "
+        "(the fourteen MAN TruckScenes tables that truckscenes.TruckScenes loads, with JPEGs of its 4 cameras and "
+        ".pcd files of its 6 lidars and 6 radars)")
     profile: Literal["regular", "irregular"] = option(
         "regular", help="regular (default), or irregular: the cases regular data lacks, for tests (tracks with 1-3 s "
         "gaps, hills, boxes and lidar points just in front of CAM_FRONT, frames on the 10 Hz clock, a late first "
@@ -58,7 +61,7 @@ class SynthOptions:
 
         if self.rig not in RIGS:
             raise UsageError(f"--rig must be one of {', '.join(RIGS)}, got {self.rig!r}")
-        if self.family not in ("nuscenes", "nuimages"):
-            raise UsageError(f"--format must be nuscenes or nuimages, got {self.family!r}")
+        if self.family not in FAMILIES:
+            raise UsageError(f"--format must be one of {', '.join(FAMILIES)}, got {self.family!r}")
         if self.profile not in PROFILES:
             raise UsageError(f"--profile must be one of {', '.join(PROFILES)}, got {self.profile!r}")

@@ -16,6 +16,7 @@ import numpy as np
 
 from nuparquet.dataset import Dataset, as_dataset
 from nuparquet.errors import UsageError
+from nuparquet.index.bevformer import CAN_BUS_DATASET, can_bus_vectors
 from nuparquet.index.compute import compute, offsets
 from nuparquet.index.inputs import read_inputs
 from nuparquet.index.labels import CLASSES
@@ -23,15 +24,13 @@ from nuparquet.index.options import DEFAULT_CAMERAS, DEFAULT_LIDAR
 from nuparquet.index.splits import assign_splits, converter_version, split_names
 from nuparquet.index.v2_arrays import gather_segments, v2_arrays
 from nuparquet.sensors.reader import XYZI, MissingSensorData
+from nuparquet.training.bev_map import BEV_CLASSES, BOUND_M, bev_mask, canvas, lidar2global, sample_locations
+from nuparquet.training.devkit_sweeps import devkit_points, radar_points
+from nuparquet.training.mmdet3d import camera_matrices, gt_bboxes_3d, remove_close
+from nuparquet.training.temporal import patched_can_bus, queue_rows, union2one
 
 BOX_FILTERS = ("valid_flag", "num_lidar_pts", None)
-
-
-def remove_close(points: np.ndarray, radius: float = 1.0) -> np.ndarray:
-    """(P', D) the points of `points` (P, D) outside the square |x| < radius and |y| < radius (mmdetection3d's
-    `LoadPointsFromMultiSweeps._remove_close`)."""
-    close = (np.abs(points[:, 0]) < radius) & (np.abs(points[:, 1]) < radius)
-    return points[~close]
+SWEEPS_AS = ("mmdet3d", "devkit")
 
 
 class Samples:
@@ -59,15 +58,52 @@ class Samples:
       float32 (the 3x3 intrinsic padded), `lidar2cam` (C, 4, 4) float64 (the infos'), `cam2lidar` (C, 4, 4)
       float64 (its inverse from the float32 rotation and translation), `lidar2img` (C, 4, 4) float32 = cam2img @
       lidar2cam in float32; cameras in `cameras` order (the infos' order)
+
+    Optional parts (off by default):
+
+    - `sweeps_as="devkit"`: `points` (P, 5) float32 as the devkit's `LidarPointCloud.from_file_multisweep(nusc,
+      sample, lidar_channel, lidar_channel, nsweeps=sweeps + 1, min_distance=close_radius_m)` gives them (every
+      cloud, the keyframe's too, without its close points; x, y, z [m] in the keyframe lidar frame, intensity,
+      and its `times` [s] as the fifth column); `lidar_sweeps`: how many previous sweeps it found
+    - `radars` (channel names or "all": the rig's, sorted): `radar_points` (R, 19) float32 for nuScenes radars
+      (the PCD's 18 fields, then the time lag [s]), each radar as the devkit's `RadarPointCloud.
+      from_file_multisweep(nusc, sample, radar, lidar_channel, nsweeps=radar_sweeps + 1, min_distance=
+      close_radius_m)` gives it (x, y, z [m] in the keyframe lidar frame; vx, vy, vx_comp, vy_comp [m/s] left in
+      the radar's frame, as the devkit leaves them; its default filters unless `radar_filters=False`), in
+      `radars` order, concatenated
+    - `can_bus=True`: `can_bus` (18,) float64, BEVFormer's vector as its `CustomNuScenesDataset.get_data_info`
+      hands it to the pipeline: the converter's `_get_can_bus_info` (the `sample_can_bus` dataset), then x, y, z
+      [m] of the lidar keyframe's ego pose (global frame), its rotation's w in values 3..6 (BEVFormer's quirk:
+      `temporal.patched_can_bus`), and its yaw [rad] and [deg] in [0, 360) as the last two; zeros 7..15 for a scene
+      without CAN bus
+    - `bev_map=True`: `gt_masks_bev` (K, H, W) uint8 0/1 of `bev_classes` (bevfusion's six by default; "divider":
+      road and lane dividers, "drivable_area*": road segments and lanes), a `bev_xbound` x `bev_ybound` patch
+      ([min, max, cell] m, default +-50 m at 0.5 m) centred on the lidar and turned with its yaw, indexed [class,
+      x cell, y cell] of that frame (its transpose of the map mask), as bevfusion's
+      `LoadBEVSegmentation` makes it through `Dataset.map(location).map_mask` (the map held per worker, once per
+      location)
+    - `queue_length=Q` > 1: BEVFormer's temporal queue: the sample's own fields plus `queue` (the Q - 1 previous
+      rows' fields, oldest first: rows i - Q + 1 .. i - 1 of the split's order, clamped at 0, so at a scene start
+      the queue reaches into the previous scene as BEVFormer's does), `queue_index` (Q,) int64 those rows then i,
+      and in every frame `prev_bev_exists` (False where the scene differs from the previous frame's, and in the
+      first) with `can_bus` position and angle made relative to the previous frame as its `union2one` does
     """
 
     def __init__(self, dataset: str | Dataset, split: str = "train", *, lidar: bool = True, sweeps: int = 10,
                  cameras: tuple[str, ...] | None = DEFAULT_CAMERAS, boxes: bool = True,
                  classes: tuple[str, ...] = CLASSES, velocity: bool = True, box_filter: str | None = "valid_flag",
                  close_radius_m: float = 1.0, pad_empty_sweeps: bool = True, version: str | None = None,
-                 lidar_channel: str = DEFAULT_LIDAR, rgb: bool = False) -> None:
-        if box_filter not in BOX_FILTERS:
-            raise UsageError(f"box_filter must be one of {BOX_FILTERS}, not {box_filter!r}")
+                 lidar_channel: str = DEFAULT_LIDAR, rgb: bool = False, sweeps_as: str = "mmdet3d",
+                 radars: tuple[str, ...] | str = (), radar_sweeps: int = 0, radar_filters: bool = True,
+                 can_bus: bool = False, bev_map: bool = False, bev_classes: tuple[str, ...] = BEV_CLASSES,
+                 bev_xbound: tuple[float, float, float] = BOUND_M, bev_ybound: tuple[float, float, float] = BOUND_M,
+                 queue_length: int = 1) -> None:
+        for name, value, allowed in (("box_filter", box_filter, BOX_FILTERS), ("sweeps_as", sweeps_as, SWEEPS_AS)):
+            if value not in allowed:
+                raise UsageError(f"{name} must be one of {allowed}, not {value!r}")
+        if queue_length < 1 or radar_sweeps < 0 or sweeps < 0:
+            raise UsageError(f"queue_length must be at least 1 and sweeps, radar_sweeps at least 0 (got "
+                             f"{queue_length}, {sweeps}, {radar_sweeps})")
         ds = as_dataset(dataset)
         version = converter_version(ds.version, version)
         if split not in split_names(version):
@@ -76,6 +112,17 @@ class Samples:
         self.cameras = tuple(cameras or ())
         self.classes, self.velocity, self.box_filter = tuple(classes), velocity, box_filter
         self.close_radius_m, self.pad_empty_sweeps, self.rgb = close_radius_m, pad_empty_sweeps, rgb
+        self.sweeps_as, self.lidar_channel, self.queue_length = sweeps_as, lidar_channel, queue_length
+        self.radars = tuple(ds.channels["radars"]) if radars == "all" else tuple(radars)
+        if unknown := [r for r in self.radars if r not in ds.channels["radars"]]:
+            raise UsageError(f"{', '.join(unknown)}: not a radar of {ds.root} (it has "
+                             f"{', '.join(ds.channels['radars']) or 'none'})")
+        self.radar_sweeps, self.radar_filters = radar_sweeps, radar_filters
+        if can_bus and CAN_BUS_DATASET not in ds.datasets:
+            raise UsageError(f"{ds.root} has no {CAN_BUS_DATASET} dataset, which can_bus=True reads: convert the "
+                             "dataset again with its CAN bus expansion (DATAROOT/can_bus)")
+        self.bev_classes = tuple(bev_classes) if bev_map else ()
+        self.bev_patch_m, self.bev_canvas = canvas(bev_xbound, bev_ybound)
         self._reference = ds.reference
         self._ds: Dataset | None = ds
 
@@ -116,6 +163,13 @@ class Samples:
         self._ann_box = gt_bboxes_3d(arrays.ann_box, arrays.ann_velocity)  # (A, 9) float32
         self._ann_valid = arrays.ann_valid  # (A,) bool
         self._ann_num_lidar_pts = arrays.ann_num_lidar_pts.astype(np.int32)  # (A,)
+        lidar_rows = computed.lidar_row[picked]
+        # the keyframe lidar's poses, for the CAN bus patch and the map patch
+        self._lidar_t, self._lidar_q = d.sensor_t[lidar_rows], d.sensor_q[lidar_rows]  # (S, 3), (S, 4)
+        self._ego_t, self._ego_q = d.ego_t[lidar_rows], d.ego_q[lidar_rows]  # (S, 3), (S, 4)
+        self._can_bus = (patched_can_bus(can_bus_vectors(ds, inputs.sample_token[picked]), self._ego_t, self._ego_q)
+                         if can_bus else None)  # (S, 18) float64
+        self._location = _bytes(sample_locations(ds, inputs.sample_scene[picked])) if bev_map else None  # (S,)
         self.indices = np.arange(len(picked))  # the rows this object serves (a shard serves fewer)
 
     # -- pickling: small, and the dataset reopened where it is used ----------------------------------------------
@@ -156,14 +210,42 @@ class Samples:
         if not -len(self.indices) <= i < len(self.indices):
             raise IndexError(f"sample {i} of {len(self.indices)}")
         s = int(self.indices[i])
+        if self.queue_length == 1:
+            return self._frame(s)
+        # BEVFormer's queue: the frames before this one (rows of the whole split, whatever the shard), then union2one
+        rows = queue_rows(s, self.queue_length)
+        frames = [self._frame(r) for r in rows]
+        exists, can_bus = union2one([f["scene_token"] for f in frames], [f.get("can_bus") for f in frames])
+        for frame, flag, vector in zip(frames, exists, can_bus):
+            frame["prev_bev_exists"] = flag
+            if vector is not None:
+                frame["can_bus"] = vector
+        out = frames[-1]
+        out["queue"] = frames[:-1]
+        out["queue_index"] = np.array(rows, dtype=np.int64)
+        return out
+
+    def _frame(self, s: int) -> dict:
+        """The fields of sample row `s` on their own (no queue)."""
         out = {"sample_token": str(self.sample_token[s]), "timestamp_us": int(self.timestamp_us[s]),
                "scene_token": str(self.scene_token[s])}
         if self.lidar:
-            out["points"], out["lidar_sweeps"] = self._points(s)
+            out["points"], out["lidar_sweeps"] = (self._points(s) if self.sweeps_as == "mmdet3d" else devkit_points(
+                self.dataset, out["sample_token"], self.lidar_channel, self.lidar_channel, self.sweeps,
+                self.close_radius_m))
+        if self.radars:
+            out["radar_points"] = radar_points(self.dataset, out["sample_token"], self.radars, self.lidar_channel,
+                                               self.radar_sweeps, self.close_radius_m, self.radar_filters)
         if self.boxes:
             out.update(self._boxes(s))
         if self.cameras:
             out.update(self._images(s))
+        if self._can_bus is not None:
+            out["can_bus"] = self._can_bus[s].copy()
+        if self.bev_classes:
+            from_lidar = lidar2global(self._lidar_t[s], self._lidar_q[s], self._ego_t[s], self._ego_q[s])
+            out["gt_masks_bev"] = bev_mask(self.dataset.map(self._location[s].decode()), from_lidar,
+                                           self.bev_classes, self.bev_patch_m, self.bev_canvas)
         return out
 
     def _read_lidar(self, token: str, filename: str) -> np.ndarray:
@@ -221,37 +303,6 @@ class Samples:
             images.append(cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if self.rgb else image)
         same = len({im.shape for im in images}) == 1
         return {"img": np.stack(images) if same else images, **camera_matrices(self._cam2img[s], self._lidar2cam[s])}
-
-
-def camera_matrices(cam2img: np.ndarray, lidar2cam: np.ndarray) -> dict:
-    """cam2img, lidar2cam, cam2lidar, lidar2img (each (C, 4, 4)) from the infos' `cam2img` (C, 3, 3) and
-    `lidar2cam` (C, 4, 4), one camera at a time as BEVFusion's `BEVLoadMultiViewImageFromFiles` computes them (its
-    2-D float32 products, so the BLAS path is the same)."""
-    out: dict = {"cam2img": [], "lidar2cam": [], "cam2lidar": [], "lidar2img": []}
-    for intrinsic, from_lidar in zip(cam2img.tolist(), lidar2cam.tolist()):  # the infos' lists
-        lidar2cam_array = np.array(from_lidar).astype(np.float32)
-        rot, trans = lidar2cam_array[:3, :3], lidar2cam_array[:3, 3:4]
-        cam2lidar = np.eye(4)
-        cam2lidar[:3, :3] = rot.T
-        cam2lidar[:3, 3:4] = -1 * np.matmul(rot.T, trans.reshape(3, 1))
-        cam2img_array = np.eye(4).astype(np.float32)
-        cam2img_array[:3, :3] = np.array(intrinsic).astype(np.float32)
-        out["cam2img"].append(cam2img_array)
-        out["lidar2cam"].append(from_lidar)
-        out["cam2lidar"].append(cam2lidar)
-        out["lidar2img"].append(cam2img_array @ lidar2cam_array)
-    return {key: np.stack(values) if values else np.zeros((0, 4, 4)) for key, values in out.items()}
-
-
-def gt_bboxes_3d(box: np.ndarray, velocity: np.ndarray) -> np.ndarray:
-    """(A, 9) float32 from the infos' `bbox_3d` (A, 7) (gravity centre) and `velocity` (A, 2), as mmdetection3d's
-    `NuScenesDataset.parse_ann_info` makes them: NaN velocity set to 0, concatenated, then
-    `LiDARInstance3DBoxes(origin=(0.5, 0.5, 0.5))` in float32 moves the centre to the bottom."""
-    velocity = velocity.copy()
-    velocity[np.isnan(velocity[:, 0])] = 0.0
-    boxes = np.concatenate([box, velocity], axis=-1).astype(np.float32).reshape(-1, 9)
-    boxes[:, 2] += boxes[:, 5] * np.float32(-0.5)
-    return boxes
 
 
 def _text(values: np.ndarray) -> np.ndarray:

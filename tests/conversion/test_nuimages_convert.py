@@ -188,3 +188,52 @@ def test_every_refusal_names_its_record_by_index_and_token(root, tmp_path):
     found = {(p.file, p.index, p.token) for p in validate(edited, VERSION).problems}
     assert ("calibrated_sensor.json", 0, records["calibrated_sensor"][0]["token"]) in found
     assert ("object_ann.json", 1, records["object_ann"][1]["token"]) in found
+
+
+def test_the_manifest_records_each_source_file_by_size_and_mtime(root, out):
+    """What a later `convert` compares to see the source changed: every nuImages JSON file by its size and mtime
+    under the same keys the nuScenes reader writes (`sources.tables`)."""
+    files = json.loads((out / "manifest.json").read_text())["source"]["files"]
+    names = sorted(p.name for p in (root / VERSION).iterdir())
+    assert sorted(files) == names
+    for name in names:
+        stat = (root / VERSION / name).stat()
+        assert files[name] == {"bytes": stat.st_size, "mtime": stat.st_mtime}, name
+
+
+def test_an_annotation_whose_image_dangles_keeps_its_row_under_allow_dangling(root, tmp_path):
+    """--allow-dangling loses no annotation: an object_ann pointing at a sample_data that is not there is a row of
+    objects/ with its own fields and nulls where the image's would be."""
+    def edit(records):
+        records[-1]["sample_data_token"] = "f" * 32
+
+    edited = _edited(root, tmp_path, "object_ann", edit)
+    with pytest.raises(ProblemsFound, match="sample_data_token"):
+        convert(edited, VERSION, tmp_path / "refused")
+    convert(edited, VERSION, tmp_path / "out", allow_dangling=True)
+    records = _load(edited, "object_ann")
+    rows = pl.read_parquet(tmp_path / "out" / "objects")
+    assert rows.height == len(records)
+    lost = rows.filter(pl.col("token") == records[-1]["token"]).to_dicts()
+    assert len(lost) == 1
+    assert lost[0]["bbox"] == records[-1]["bbox"] and lost[0]["category_name"] is not None
+    assert lost[0]["filename"] is None and lost[0]["channel"] is None
+
+
+def test_a_mask_table_without_any_mask_keeps_the_string_type_of_mask_counts(root, tmp_path):
+    """A surface_ann whose every mask is null (a nuImages subset with no surfaces drawn) still writes mask_counts
+    as the schema's string, not polars' null type, so scans of several outputs line up."""
+    def edit(records):
+        for record in records:
+            record["mask"] = None
+
+    convert(_edited(root, tmp_path, "surface_ann", edit), VERSION, tmp_path / "out")
+    schema = pl.read_parquet_schema(tmp_path / "out" / "surfaces")
+    assert schema["mask_counts"] == pl.String
+    assert pl.read_parquet(tmp_path / "out" / "surfaces")["mask_counts"].null_count() == len(_load(root, "surface_ann"))
+    from nuparquet.sources.nuimages import mask_facts
+
+    # the facts themselves, before the writer's cast: the builders join and stack them with other tables' facts
+    facts, problems = mask_facts(pl.DataFrame({"token": ["a", "b"], "mask": [None, None]},
+                                              schema={"token": pl.String, "mask": pl.String}), "surface_ann.json")
+    assert not problems and facts.schema["mask_counts"] == pl.String and facts["mask_area"].null_count() == 2

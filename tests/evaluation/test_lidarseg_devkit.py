@@ -219,8 +219,10 @@ def test_settings_of_other_tasks_a_file_and_an_empty_split_are_refused(labelled_
     from nuparquet.errors import InputError, UsageError
     from nuparquet.evaluation.segmentation import evaluate_lidarseg
 
-    with pytest.raises(UsageError, match="--by, --config and --config-file do not apply to --task lidarseg"):
-        evaluate_lidarseg(labelled_out, submission, split="train", by=("scene",))
+    with pytest.raises(UsageError, match="--config and --config-file do not apply to --task lidarseg"):
+        evaluate_lidarseg(labelled_out, submission, split="train", config="detection_cvpr_2019")
+    with pytest.raises(UsageError, match="--by visibility: --task lidarseg slices by distance, location, night"):
+        evaluate_lidarseg(labelled_out, submission, split="train", by=("visibility",))
     with pytest.raises(UsageError, match="a lidarseg submission is a folder"):
         evaluate_lidarseg(labelled_out, submission / "train" / "submission.json", split="train")
     (submission / "mini_val").mkdir()

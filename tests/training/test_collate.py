@@ -64,3 +64,46 @@ def test_the_package_names_the_verbs():
     assert training.collate is collate and callable(training.collate)
     assert training.SampleStream is shards.SampleStream and training.worker_init_fn is shards.worker_init_fn
     assert training.Samples.__name__ == "Samples"
+
+
+def test_radar_points_queue_and_the_new_fields():
+    rng = np.random.default_rng(3)
+
+    def frame(n_radar: int, seed: int, exists: bool) -> dict:
+        return {"sample_token": f"s{seed}", "radar_points": rng.normal(size=(n_radar, 19)).astype(np.float32),
+                "can_bus": rng.normal(size=18), "gt_masks_bev": rng.integers(0, 2, (6, 4, 4), dtype=np.uint8),
+                "prev_bev_exists": exists, "cam2lidar": rng.normal(size=(2, 4, 4))}
+
+    items = []
+    for b, (n, exists) in enumerate(((4, True), (0, False), (2, True))):
+        item = frame(n, b, exists)
+        item["queue"] = [frame(3 - k, 10 * b + k, k > 0) for k in range(2)]
+        item["queue_index"] = np.array([b, b + 1, b + 2])
+        items.append(item)
+    batch = collate(items)
+    assert batch["radar_points_lengths"].tolist() == [4, 0, 2] and batch["radar_points"].shape == (6, 19)
+    np.testing.assert_array_equal(batch["radar_points"][4:], items[2]["radar_points"])
+    assert batch["can_bus"].shape == (3, 18) and batch["gt_masks_bev"].shape == (3, 6, 4, 4)
+    np.testing.assert_array_equal(batch["cam2lidar"][1], items[1]["cam2lidar"])
+    assert batch["prev_bev_exists"].dtype == bool and batch["prev_bev_exists"].tolist() == [True, False, True]
+    assert batch["queue_index"].tolist() == [[0, 1, 2], [1, 2, 3], [2, 3, 4]]
+    assert len(batch["queue"]) == 2  # position by position, oldest first
+    first = batch["queue"][0]
+    assert first["sample_token"] == ["s0", "s10", "s20"] and first["radar_points_lengths"].tolist() == [3, 3, 3]
+    assert batch["queue"][1]["prev_bev_exists"].tolist() == [True, True, True]
+    padded = collate(items, pad_points=True)
+    assert padded["radar_points"].shape == (3, 4, 19) and not padded["radar_points"][1].any()
+    assert padded["queue"][1]["radar_points"].shape == (3, 2, 19)
+
+
+def test_a_batch_of_real_samples_with_radar_can_bus_and_a_queue(synth_out):
+    from nuparquet.training.samples import Samples
+
+    samples = Samples(synth_out, "train", lidar=False, cameras=(), radars="all", can_bus=True, queue_length=2,
+                      version="v1.0-trainval")
+    items = [samples[i] for i in (5, 6)]  # the first scene's last sample, the second's first
+    batch = collate(items)
+    assert batch["radar_points"].shape == (sum(len(i["radar_points"]) for i in items), 19)
+    assert batch["can_bus"].shape == (2, 18) and batch["prev_bev_exists"].tolist() == [True, False]
+    assert batch["queue"][0]["sample_token"] == [items[0]["queue"][0]["sample_token"],
+                                                 items[1]["queue"][0]["sample_token"]]

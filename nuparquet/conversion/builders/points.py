@@ -115,7 +115,8 @@ def build_points(ctx: BuildContext, modality: str, name: str) -> dict[str, Writt
         problems += [Problem(m, "sensor file missing (--strict)") for m in missing]
     if problems:
         raise ProblemsFound(problems)
-    schema = lidar_schema() if modality == "lidar" else radar_schema(next(iter(layouts), None))
+    layout = next(iter(layouts), None)
+    schema = lidar_schema(layout) if modality == "lidar" else radar_schema(layout)
     written = [s for s in summaries if s.written]
     if not written:  # every file missing (or no frames): an empty, scannable dataset
         pq.write_table(schema.empty_table(), directory / parquet_part_name(0))

@@ -7,6 +7,7 @@ import polars as pl
 
 from nuparquet.columns import to_numpy
 from nuparquet.conversion.builders.common import declared_fields, reference_poses
+from nuparquet.conversion import lookups
 from nuparquet.conversion.lookups import as_int
 from nuparquet.splits import known_split
 from nuparquet.conversion.builder import BuildContext, Builder
@@ -32,7 +33,7 @@ def build_scenes(tables: dict[str, pl.DataFrame], references: pl.DataFrame, coun
         {"_step": "ego_distance_m"})
     scenes = (
         declared_fields(tables["scene"], "scene")
-        .join(tables["log"].select(pl.col("token").alias("log_token"), "logfile", "vehicle", "date_captured",
+        .join(lookups.log_table(tables).select(pl.col("token").alias("log_token"), "logfile", "vehicle", "date_captured",
                               pl.col("location").alias("log_location")), on="log_token", how="left")
         .join(sample_ts.rename({"token": "first_sample_token", "timestamp": "first_timestamp"}),
               on="first_sample_token", how="left")

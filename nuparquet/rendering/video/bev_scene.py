@@ -25,11 +25,12 @@ def _map_layers(dataset, location: str | None):
 
 
 def bev_source(dataset, rows: SceneRows, dataroot: Path, view: View, *, times_us: np.ndarray | None = None,
-               lidar_color: str = "depth", predictions=None) -> tuple[BevTile, np.ndarray]:
+               lidar_color: str = "depth", predictions=None, lidar_predictions=None) -> tuple[BevTile, np.ndarray]:
     """The BEV tile of a scene's rows (`load_scene` with `bev_channel`) and its output times: the lidar frames'
     own times, or `times_us` (each output then shows the lidar frame nearest in time). Points are coloured by
     height, or as `lidar_color` says (lidarseg, panoptic, intensity; labels need `lidar_points/` with them).
-    `predictions` (`rendering.predictions.Predictions`) are drawn on the keyframes."""
+    `predictions` (`rendering.predictions.Predictions`) are drawn on the keyframes; `lidar_predictions`: a
+    lidarseg/panoptic submission folder whose labels colour the points (`CloudReader.build`)."""
     lidar = rows.bev_lidar
     stamps = lidar["timestamp"].to_numpy()
     if times_us is None:
@@ -49,7 +50,8 @@ def bev_source(dataset, rows: SceneRows, dataroot: Path, view: View, *, times_us
         predicted, predicted_rows = prediction_boxes(lidar, predictions)
         predicted_rgb = predictions.colors_rgb(predicted_rows)
     tile = BevTile(frame_rows.astype(np.int64), view, raster, global_from_ego, ego_from_sensor,
-                   CloudReader.build(lidar, dataroot, dataset=dataset, color=lidar_color), boxes,
+                   CloudReader.build(lidar, dataroot, dataset=dataset, color=lidar_color,
+                                     predictions=lidar_predictions), boxes,
                    predictions=predicted, prediction_colors_rgb=predicted_rgb,
                    prediction_legend=tuple(predictions.legend()) if predictions is not None else (),
                    tokens=tuple(lidar["token"].to_list()), timestamps_us=stamps)

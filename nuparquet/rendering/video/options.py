@@ -67,6 +67,11 @@ class RenderOptions:
         "from lidar_points/ when converted, else from the .pcd.bin files; a colour other than depth implies --lidar. "
         "In the bird's-eye view (--channel bev, --bev) depth means height; in a picture of a lidar or radar frame from "
         "above (--sample-data) the devkit's distance from the sensor")
+    lidar_predictions: str | Path | None = option(
+        None, metavar="SUBMISSION", help="with --lidar-color lidarseg or panoptic: colour the points by a submission's "
+        "predicted labels instead of the ground truth (a folder holding <lidar sample_data token>_lidarseg.bin or "
+        "_panoptic.npz files at any depth, as `eval --task lidarseg|panoptic` reads; the 16 challenge classes in the "
+        "devkit's colours, thing instances in the ground truth's instance colours); keyframes only")
     labels: Literal["category", "track", "none"] = option(
         "category", help="box labels: category name, track (short instance token) or none (default category)")
     clip: bool = option(
@@ -122,6 +127,11 @@ class RenderOptions:
             raise UsageError(f"--score-threshold must be a number, got {self.score_threshold}")
         if not 0 <= self.crf <= 51:
             raise UsageError(f"--crf must be in 0..51, got {self.crf}")
+        if self.lidar_predictions is not None and self.lidar_color not in ("lidarseg", "panoptic"):
+            raise UsageError("--lidar-predictions colours points by predicted labels: give --lidar-color lidarseg or "
+                             "panoptic")
+        if self.lidar_predictions is not None and self.all_frames:
+            raise UsageError("--lidar-predictions holds keyframe labels only: leave out --all-frames")
         check_choices(self)
 
 

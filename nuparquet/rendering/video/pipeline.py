@@ -77,7 +77,7 @@ def _image_path(dataroot: Path, filename: str) -> str:
 
 def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic: bool, all_frames: bool,
                 fps: float, clip: bool = False, labels: str = "category", dataset=None,
-                lidar_color: str = "depth", predictions=None) -> TilePlan:
+                lidar_color: str = "depth", predictions=None, lidar_predictions=None) -> TilePlan:
     """The tile plan of a camera render: the cameras built and every box projected once, one `CameraTile` per
     camera of `layout` (rows of channel names). `scale`: output size / image size; the other arguments as in
     `RenderOptions`; `dataset` (a Dataset) lets lidar points come from its lidar_points/; `predictions`
@@ -91,7 +91,8 @@ def camera_plan(rows: SceneRows, layout, dataroot: Path, *, scale: float, mosaic
     if rows.lidar.height:
         from nuparquet.rendering.points import LidarPoints  # the point cloud path loads only when points are drawn
 
-        lidar = LidarPoints.build(tile_cameras, cameras, rows.lidar, dataroot, dataset=dataset, color=lidar_color)
+        lidar = LidarPoints.build(tile_cameras, cameras, rows.lidar, dataroot, dataset=dataset, color=lidar_color,
+                                  predictions=lidar_predictions)
     channels = [channel for row in layout for channel in row]
     times_us, plan_rows = camera_rows_per_output(cameras, rows.samples, channels, mosaic=mosaic,
                                                  all_frames=all_frames, fps=fps)
@@ -130,7 +131,7 @@ def bev_plan(dataset, rows: SceneRows, options: RenderOptions, dataroot: Path,
 
     size = (options.bev_size, options.bev_size)
     tile, times_us = bev_source(dataset, rows, dataroot, _bev_view(options, size), lidar_color=options.lidar_color,
-                                predictions=predictions)
+                                predictions=predictions, lidar_predictions=options.lidar_predictions)
     fps = options.frame_rate
     if options.fps is None and options.all_frames and len(times_us) > 1:
         fps = float(round(1e6 / float(np.median(np.diff(times_us)))))
@@ -143,7 +144,8 @@ def with_bev_tile(plan: TilePlan, dataset, rows: SceneRows, options: RenderOptio
     from nuparquet.rendering.video.bev_scene import bev_source
 
     tile, _ = bev_source(dataset, rows, dataroot, _bev_view(options, plan.tile_size), times_us=plan.times_us,
-                         lidar_color=options.lidar_color, predictions=predictions)
+                         lidar_color=options.lidar_color, predictions=predictions,
+                         lidar_predictions=options.lidar_predictions)
     layout = (plan.layout[0] + (tile,),) + plan.layout[1:]
     return TilePlan(plan.times_us, layout, plan.tile_size)
 
@@ -223,7 +225,7 @@ def _plan(dataset, scene: str, options: RenderOptions, dataroot: Path) -> tuple[
         plan = camera_plan(rows, layout, dataroot, scale=options.scale, mosaic=options.mosaic,
                            all_frames=options.all_frames, fps=fps, clip=options.clip,
                            labels=options.labels, dataset=dataset, lidar_color=options.lidar_color,
-                           predictions=predictions)
+                           predictions=predictions, lidar_predictions=options.lidar_predictions)
         if options.bev:
             _check_bev_rows(rows, scene, bev_channel)
             plan = with_bev_tile(plan, dataset, rows, options, dataroot, predictions)

@@ -1,0 +1,50 @@
+"""The lidarseg evaluation's pictures (the devkit draws none for this task), written as PNG into `DIR/plots/`:
+`iou_per_class.png` (the IoU of each challenge class as a bar, the mIoU as a line) and `confusion.png` (the
+confusion matrix, each ground-truth row as fractions of its points, the ignore class left out)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from nuparquet.evaluation.plots import DPI, _save, plt
+from nuparquet.evaluation.segmentation.classes import COARSE_NAMES
+
+
+def row_fractions(confusion: np.ndarray) -> np.ndarray:
+    """(C-1, C-1) float64: each ground-truth class's points (row) as fractions predicted as each class, the
+    ignore class (index 0) left out; NaN rows for classes without ground-truth points."""
+    scored = confusion[1:, 1:].astype(np.float64)
+    totals = scored.sum(axis=1, keepdims=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(totals > 0, scored / totals, np.nan)
+
+
+def write_plots(plot_dir: Path, metrics: dict, confusion: np.ndarray) -> list[Path]:
+    plot_dir.mkdir(parents=True, exist_ok=True)
+    classes = COARSE_NAMES[1:]
+    iou = np.array([metrics["iou_per_class"][c] for c in classes], dtype=np.float64)
+
+    fig, ax = plt.subplots(figsize=(9, 4.5), dpi=DPI)
+    ax.bar(range(len(classes)), np.nan_to_num(iou), color="tab:blue")
+    ax.axhline(metrics["miou"], color="tab:red", linestyle="--", label=f"mIoU {metrics['miou']:.3f}")
+    ax.set_xticks(range(len(classes)), classes, rotation=60, ha="right", fontsize=8)
+    ax.set_ylim(0, 1)
+    ax.set_ylabel("IoU")
+    ax.set_title("IoU per class (no bar: neither in the ground truth nor predicted)", fontsize=10)
+    ax.legend(loc="upper right")
+    fig.tight_layout()  # the rotated class names inside the picture
+    paths = [_save(fig, plot_dir / "iou_per_class.png")]
+
+    fig, ax = plt.subplots(figsize=(7.5, 7), dpi=DPI)
+    shown = ax.imshow(row_fractions(confusion), vmin=0, vmax=1, cmap="viridis")
+    ax.set_xticks(range(len(classes)), classes, rotation=90, fontsize=7)
+    ax.set_yticks(range(len(classes)), classes, fontsize=7)
+    ax.set_xlabel("predicted class")
+    ax.set_ylabel("ground-truth class")
+    ax.set_title("Confusion: fraction of each class's points (blank: no points)", fontsize=10)
+    fig.colorbar(shown, ax=ax, fraction=0.046)
+    fig.tight_layout()
+    paths.append(_save(fig, plot_dir / "confusion.png"))
+    return paths
