@@ -290,6 +290,10 @@ GROUPS: dict[str, Group] = {
         ("nuparquet/evaluation/panoptic/*.py",),
         ("tests/evaluation/test_panoptic_devkit.py",),
         keyword="not extract", cache_conversions=True),
+    "prediction": Group(  # the prediction benchmark: the devkit's futures, ranking, min-k and off-road test
+        ("nuparquet/evaluation/prediction/*.py", "nuparquet/frames/annotation_chains.py"),
+        ("tests/evaluation/test_prediction_devkit.py", "tests/parity/test_predict_helper_devkit.py"),
+        keyword="not extract", cache_conversions=True),
     "training": Group(  # samples for training: the index's arrays read as mmdetection3d's loading pipeline
         ("nuparquet/training/*.py",),
         ("tests/training/",),

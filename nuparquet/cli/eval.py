@@ -17,6 +17,7 @@ examples:
   nuparquet eval OUT --results results_nusc.json --split mini_val --by distance,night --out eval/
   nuparquet eval OUT --results results_nusc.json --by num_lidar_pts --bins 0,1,5,20,100,100000
   nuparquet eval OUT --task panoptic-tracking --results panoptic_results/ --split val --out eval/
+  nuparquet eval OUT --task prediction --results predictions.json --split val --out eval/
 
 Writes DIR/metrics_summary.json and DIR/metrics_details.json (the devkit's files: keys, structure and values),
 DIR/plots/*.png (the devkit's PR and TP curves), DIR/predictions/ (one row per predicted box: sample, scene,
@@ -39,7 +40,7 @@ def register(sub) -> None:
     p = sub.add_parser(
         "eval",
         help="evaluate a submission (detection: mAP, NDS; tracking: AMOTA; lidarseg: mIoU; panoptic: PQ; "
-        "panoptic-tracking: PAT, LSTQ) exactly as "
+        "panoptic-tracking: PAT, LSTQ; prediction: MinADE_k, OffRoadRate) exactly as "
         "nuscenes-devkit, per slice too",
         description="Compute the nuScenes detection metrics of a submission (results.json) from the converted "
         "dataset, exactly as nuscenes-devkit's DetectionEval does (class ranges, bike-rack filter, greedy "
@@ -52,7 +53,8 @@ def register(sub) -> None:
     p.add_argument("--results", metavar="RESULTS.json", required=True, help="the submission, nuScenes format: "
                    "detection/tracking {\"meta\": {...}, \"results\": {sample_token: [box, ...]}}; lidarseg a folder "
                    "of lidarseg/<split>/<token>_lidarseg.bin and <split>/submission.json; panoptic and "
-                   "panoptic-tracking a folder of panoptic/<split>/<token>_panoptic.npz and <split>/submission.json")
+                   "panoptic-tracking a folder of panoptic/<split>/<token>_panoptic.npz and <split>/submission.json"
+                   "; prediction a JSON list of {instance, sample, prediction, probabilities}")
     p.add_argument("--out", metavar="DIR", help="write metrics_summary.json, metrics_details.json, plots/, "
                    "predictions/, ground_truth/ (and slices/ with --by) here (panoptic: <segmentation|tracking>-"
                    "result.json, classes.parquet, instances.parquet); without it the metrics are only printed")
@@ -106,6 +108,13 @@ def print_panoptic(metrics: dict) -> None:
                 print(f"{name:<20}\t" + "\t".join(_number(values[key]) for key in keys))
 
 
+def print_prediction(metrics: dict) -> None:
+    """The devkit's metrics dict, one line per metric and aggregator."""
+    for name, aggregations in metrics.items():
+        for aggregator, values in aggregations.items():
+            print(f"{name} ({aggregator}): {', '.join(_number(v) for v in values)}")
+
+
 def run(args) -> int:
     from nuparquet.cli.output import print_frame
     from nuparquet.evaluation.run import evaluate
@@ -120,6 +129,8 @@ def run(args) -> int:
         print_lidarseg(result.metrics)
     elif options.task in ("panoptic", "panoptic-tracking"):
         print_panoptic(result.metrics)
+    elif options.task == "prediction":
+        print_prediction(result.metrics)
     else:
         print_summary(result.summary)
     if result.slices is not None:

@@ -19,16 +19,17 @@ class EvalOptions:
     """How to evaluate a submission: which benchmark, which split, which settings, which slices (the submission and
     where the metrics go are the verb's arguments: `evaluate(ds, results, out, ...)`)."""
 
-    task: Literal["detection", "tracking", "lidarseg", "panoptic", "panoptic-tracking"] = option(
+    task: Literal["detection", "tracking", "lidarseg", "panoptic", "panoptic-tracking", "prediction"] = option(
         "detection", help="the benchmark: detection (DetectionEval: mAP, TP errors, NDS; default), tracking "
         "(TrackingEval: AMOTA, AMOTP, MOTA, IDS...), lidarseg (LidarSegEval: mIoU, frequency-weighted IoU; "
         "--results is the submission folder), panoptic (NuScenesPanopticEval segmentation: PQ, SQ, RQ, mIoU, "
-        "PQ-dagger), panoptic-tracking (its tracking too: PAT, LSTQ, PTQ, sPTQ, MOTSA...; --results the folder)")
+        "PQ-dagger), panoptic-tracking (its tracking too: PAT, LSTQ, PTQ, sPTQ, MOTSA...; --results the folder), "
+        "prediction (compute_metrics: MinADEK, MinFDEK, MissRateTopK, OffRoadRate)")
     split: str = option("val", help="the split evaluated: train, val, test, mini_train, mini_val, train_detect, "
                         "train_track, or a custom split of <dataroot>/<version>/splits.json (default val)")
     config: str | None = option(None, metavar="NAME",
                                 help="the devkit configuration by name (default: the task's: detection_cvpr_2019, "
-                                "tracking_nips_2019)")
+                                "tracking_nips_2019, predict_2020_icra)")
     config_file: str | Path | None = option(
         None, metavar="CONFIG.json", help="a configuration in the devkit's JSON format instead of --config")
     by: tuple[str, ...] = option((), metavar="DIM,...", help=f"also evaluate per slice of {_BY_HELP} "

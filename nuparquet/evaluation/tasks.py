@@ -11,6 +11,7 @@ TASKS = {
     "lidarseg": "nuparquet.evaluation.segmentation.run:evaluate_lidarseg",
     "panoptic": "nuparquet.evaluation.panoptic.run:evaluate_panoptic",
     "panoptic-tracking": "nuparquet.evaluation.panoptic.run:evaluate_panoptic",
+    "prediction": "nuparquet.evaluation.prediction.run:evaluate_prediction",
 }
 
 

@@ -38,22 +38,7 @@ def map_mask(layers: MapLayers, patch_box: tuple[float, float, float, float], pa
             continue
         mask = np.zeros(canvas_size, np.uint8)
         if layer in POLYGON_LAYERS:
-            parts = layers.parts[layer]
-            geoms = parts.geometry
-            candidates = np.sort(parts.tree.query(patch, predicate="intersects"))
-            if layer != "drivable_area":  # the devkit skips invalid polygons of the other layers
-                candidates = candidates[shapely.is_valid(geoms[candidates])]
-            clipped = _to_local(shapely.intersection(geoms[candidates], patch), patch_angle_deg, px, py)
-            clipped = shapely.intersection(clipped[~shapely.is_empty(clipped)], local)
-            clipped = clipped[~shapely.is_empty(clipped)]
-            clipped = _affine(_affine(clipped, 1.0, 0.0, 0.0, 1.0, trans_x, trans_y),
-                              scale_x, 0.0, 0.0, scale_y, 0.0 - 0.0 * scale_x, 0.0 - 0.0 * scale_y)
-            for geom in clipped:  # per geometry, as the devkit paints: its holes are cleared before the next
-                polygons = shapely.get_parts(geom)
-                exteriors = [np.asarray(p.exterior.coords).round().astype(np.int32) for p in polygons]
-                interiors = [np.asarray(r.coords).round().astype(np.int32) for p in polygons for r in p.interiors]
-                cv2.fillPoly(mask, exteriors, 1)
-                cv2.fillPoly(mask, interiors, 0)
+            paint_polygons(mask, polygon_rings(layers, layer, patch_box, patch_angle_deg, canvas_size))
         elif layer in LINE_LAYERS:
             records = layers.layers[layer]
             geoms = records.geometry
@@ -73,6 +58,43 @@ def map_mask(layers: MapLayers, patch_box: tuple[float, float, float, float], pa
             raise ValueError(f"{layer} is not a valid layer")
         masks.append(mask)
     return np.array(masks)
+
+
+def polygon_rings(layers: MapLayers, layer: str, patch_box: tuple[float, float, float, float],
+                  patch_angle_deg: float, canvas_size: tuple[int, int]) -> list[tuple[list, list]]:
+    """Per clipped geometry of a polygon layer, in the devkit's paint order: its (exterior rings, hole rings) as
+    (K, 2) int32 pixel x, y of the canvas, as `map_mask` paints them."""
+    px, py, ph, pw = patch_box
+    patch = _patch(patch_box, patch_angle_deg)
+    local = _patch((0.0, 0.0, ph, pw), 0.0)
+    h, w = canvas_size
+    scale_x, scale_y = w / pw, h / ph
+    trans_x, trans_y = -0.0 + pw / 2.0, -0.0 + ph / 2.0
+    parts = layers.parts[layer]
+    geoms = parts.geometry
+    candidates = np.sort(parts.tree.query(patch, predicate="intersects"))
+    if layer != "drivable_area":  # the devkit skips invalid polygons of the other layers
+        candidates = candidates[shapely.is_valid(geoms[candidates])]
+    clipped = _to_local(shapely.intersection(geoms[candidates], patch), patch_angle_deg, px, py)
+    clipped = shapely.intersection(clipped[~shapely.is_empty(clipped)], local)
+    clipped = clipped[~shapely.is_empty(clipped)]
+    clipped = _affine(_affine(clipped, 1.0, 0.0, 0.0, 1.0, trans_x, trans_y),
+                      scale_x, 0.0, 0.0, scale_y, 0.0 - 0.0 * scale_x, 0.0 - 0.0 * scale_y)
+    rings = []
+    for geom in clipped:
+        polygons = shapely.get_parts(geom)
+        rings.append(([np.asarray(p.exterior.coords).round().astype(np.int32) for p in polygons],
+                      [np.asarray(r.coords).round().astype(np.int32) for p in polygons for r in p.interiors]))
+    return rings
+
+
+def paint_polygons(mask: np.ndarray, rings: list[tuple[list, list]]) -> None:
+    """Paint `polygon_rings` into the canvas `mask` per geometry (its holes cleared before the next, so overlaps
+    paint as the devkit's do). Only on the whole canvas: OpenCV draws each ring's outline with its line clipped to
+    the image, so a tile of the canvas (an offset, a smaller image) paints some edge pixels differently."""
+    for exteriors, interiors in rings:
+        cv2.fillPoly(mask, exteriors, 1)
+        cv2.fillPoly(mask, interiors, 0)
 
 
 def _patch(patch_box, patch_angle_deg: float):

@@ -2,10 +2,8 @@
 `tables/sample_annotation` and `tables/sample`, indexed once per helper as arrays (each annotation's row, its
 `prev`/`next` rows, its sample's timestamp), and the module's coordinate functions.
 
-The devkit walks `prev`/`next` one record at a time; here every agent of a call walks at once, one step of the
-chain per loop turn (at most `int(2 * seconds)` turns), with the devkit's rule kept exactly: a step is taken while
-the last elapsed time is `<= seconds + BUFFER` and fewer than `int(2 * seconds)` records were kept, and a record is
-kept when its elapsed time `|t - t0| / 1e6` is `< seconds + BUFFER`. Records (`just_xy=False`) are the
+The windows (which records an agent's past or future holds) are walked by `frames.annotation_chains`, for every
+agent of a call at once, with the devkit's rule kept exactly. Records (`just_xy=False`) are the
 `NuScenes.get('sample_annotation', token)` dicts.
 
 Where the devkit's numbers are the point, its arithmetic is reproduced operation for operation, batched through
@@ -26,16 +24,11 @@ import numpy as np
 import polars as pl
 from pyquaternion import Quaternion
 
+from nuparquet.frames.annotation_chains import DANGLING, NONE, AnnotationChains
 from nuparquet.geometry.dots import rowwise_norm
 from nuparquet.geometry.quaternions import normalise_quaternions
 
-MICROSECONDS_PER_SECOND = 1e6
-BUFFER = 0.15  # seconds, the devkit's slack on a window's end
-
 Record = dict[str, Any]
-
-_NONE = -1  # '' : the chain ends
-_DANGLING = -2  # a token no record holds: the devkit's `get` raises KeyError on reaching it
 
 
 def quaternion_yaw(q: Quaternion) -> float:
@@ -90,40 +83,24 @@ def _angle_diffs(x: np.ndarray, y: np.ndarray, period: float) -> np.ndarray:
     return np.where(diff > np.pi, diff - (2 * np.pi), diff)
 
 
-def _rows_of(tokens: pl.Series, index: pl.DataFrame) -> np.ndarray:
-    """(N,) int64 row of each token in `index` (token, row): `_NONE` for '', `_DANGLING` for an unknown token."""
-    rows = (pl.DataFrame({"token": tokens}).join(index, on="token", how="left", maintain_order="left")["row"]
-            .to_numpy().astype(np.float64))
-    rows = np.where(np.isnan(rows), _DANGLING, rows).astype(np.int64)
-    return np.where(tokens.to_numpy() == "", _NONE, rows)
-
-
 class PredictHelper:
     """The devkit's `PredictHelper(nusc)` over a `nuparquet.devkit.NuScenes` (its converted `Dataset`)."""
 
     def __init__(self, nusc):
         self.data = nusc
-        dataset = nusc._dataset
-        annotations = dataset.scan("tables/sample_annotation").select(
-            "token", "sample_token", "instance_token", "translation", "rotation", "prev", "next").collect()
-        samples = dataset.scan("tables/sample").select("token", "timestamp").collect()
+        chains, annotations = AnnotationChains.of(nusc._dataset, "rotation")
+        self._chains = chains
         n = annotations.height
-        self._tokens = annotations["token"].to_numpy()
-        self._sample_tokens = annotations["sample_token"].to_numpy()
-        self._instance_tokens = annotations["instance_token"].to_numpy()
-        # (N, 3) / (N, 4) as stored: the devkit's np.array of the record's list gives these numbers
-        self._translation = np.asarray(annotations["translation"].to_numpy(), dtype=np.float64).reshape(n, 3)
+        self._tokens = chains.tokens
+        self._sample_tokens = chains.sample_tokens
+        self._instance_tokens = chains.instance_tokens
+        self._translation = chains.translation
+        # (N, 4) as stored: the devkit's np.array of the record's list gives these numbers
         self._rotation = np.asarray(annotations["rotation"].to_numpy(), dtype=np.float64).reshape(n, 4)
-        ann_index = pl.DataFrame({"token": annotations["token"], "row": np.arange(n, dtype=np.int64)})
-        ann_index = ann_index.unique("token", keep="last", maintain_order=True)  # the devkit's get: the last wins
-        self._prev = _rows_of(annotations["prev"], ann_index)
-        self._next = _rows_of(annotations["next"], ann_index)
-        self._sample_of = {token: i for i, token in enumerate(samples["token"].to_list())}
-        sample_rows = _rows_of(annotations["sample_token"], pl.DataFrame(
-            {"token": samples["token"], "row": np.arange(samples.height, dtype=np.int64)}))
-        self._sample_row = sample_rows  # (N,) row of each annotation's sample, _DANGLING when none
-        self._sample_timestamp = samples["timestamp"].to_numpy()
-        self._timestamp = np.where(sample_rows >= 0, self._sample_timestamp[np.maximum(sample_rows, 0)], 0)
+        self._prev = chains.prev
+        self._sample_of = {token: i for i, token in enumerate(chains.sample_index["token"].to_list())}
+        self._sample_row = chains.sample_row  # (N,) row of each annotation's sample, DANGLING when none
+        self._sample_timestamp = chains.sample_timestamp
         # (sample_token, instance_token) -> row: the devkit's mapping, a later record winning
         self._row_of = dict(zip(zip(annotations["sample_token"].to_list(), annotations["instance_token"].to_list()),
                                 range(n)))
@@ -146,11 +123,6 @@ class PredictHelper:
     def _records(self, rows) -> list[Record]:
         return [self.data.get("sample_annotation", self._tokens[row]) for row in rows]
 
-    def _checked_timestamps(self, rows: np.ndarray) -> np.ndarray:
-        if (self._sample_row[rows] == _DANGLING).any():
-            raise KeyError("sample_annotation names a sample that is not in the sample table")
-        return self._timestamp[rows]
-
     def get_sample_annotation(self, instance_token: str, sample_token: str) -> Record:
         """The sample_annotation record of an instance at a sample."""
         return self.data.get("sample_annotation", self._tokens[self._row(instance_token, sample_token)])
@@ -160,39 +132,6 @@ class PredictHelper:
         return self._records(self._sample_rows(sample_token))
 
     # --- windows -----------------------------------------------------------------------------------------------
-
-    def _windows(self, start_rows: np.ndarray, seconds: float, direction: str) -> list[np.ndarray]:
-        """The devkit's `_iterate` from each of (A,) start rows: per start, the (L,) rows kept, in walk order."""
-        if seconds < 0:
-            raise ValueError(f"Parameter seconds must be non-negative. Received {seconds}.")
-        empty = [np.zeros(0, dtype=np.int64) for _ in start_rows]
-        if seconds == 0:
-            return empty
-        seconds_with_buffer = seconds + BUFFER
-        max_annotations = int(2 * seconds)
-        step = self._next if direction == "next" else self._prev
-        starting_time = self._checked_timestamps(start_rows)
-        current = start_rows.copy()
-        kept = np.zeros(len(start_rows), dtype=np.int64)
-        active = kept < max_annotations
-        agents, rows = [], []
-        while active.any():
-            following = step[current]
-            active &= following != _NONE
-            if (following[active] == _DANGLING).any():
-                raise KeyError(f"sample_annotation {direction} names no record")
-            current = np.where(active, following, current)
-            time_elapsed = np.abs(self._checked_timestamps(current) - starting_time) / MICROSECONDS_PER_SECOND
-            keep = active & (time_elapsed < seconds_with_buffer)
-            agents.append(np.flatnonzero(keep))
-            rows.append(current[keep])
-            kept += keep
-            active &= (time_elapsed <= seconds_with_buffer) & (kept < max_annotations)
-        if not agents:
-            return empty
-        agents, rows = np.concatenate(agents), np.concatenate(rows)
-        order = np.argsort(agents, kind="stable")
-        return np.split(rows[order], np.cumsum(np.bincount(agents, minlength=len(start_rows)))[:-1])
 
     def _xy(self, start_rows: np.ndarray, windows: list[np.ndarray], in_agent_frame: bool) -> list[np.ndarray]:
         """Each window's (L, 2) x, y (the devkit's `np.array([])` of shape (0,) for an empty one), turned into its
@@ -217,7 +156,7 @@ class PredictHelper:
 
     def _past_or_future(self, start_rows: np.ndarray, seconds: float, in_agent_frame: bool, direction: str,
                         just_xy: bool) -> list:
-        windows = self._windows(start_rows, seconds, direction)
+        windows = self._chains.windows(start_rows, seconds, direction)
         if not just_xy:
             return [self._records(w) for w in windows]
         return self._xy(start_rows, windows, in_agent_frame)
@@ -256,12 +195,12 @@ class PredictHelper:
         """For (A,) annotation rows seen at (A,) sample rows: their prev rows, the time differences (s) and which
         have a prev within `max_time_diff` (the devkit's `_compute_diff_between_sample_annotations` gate)."""
         prev = self._prev[rows]
-        has_prev = prev != _NONE
-        if (prev[has_prev] == _DANGLING).any():
+        has_prev = prev != NONE
+        if (prev[has_prev] == DANGLING).any():
             raise KeyError("sample_annotation prev names no record")
         prev = np.where(has_prev, prev, rows)
         current_time = 1e-6 * self._sample_timestamp[sample_rows]
-        prev_time = 1e-6 * self._checked_timestamps(prev)
+        prev_time = 1e-6 * self._chains.checked_timestamps(prev)
         time_diff = current_time - prev_time
         return prev, time_diff, has_prev & (time_diff <= max_time_diff)
 
