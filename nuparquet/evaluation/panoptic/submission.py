@@ -7,40 +7,22 @@ challenge's `validate_submission` checks)."""
 
 from __future__ import annotations
 
-import json
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
-from nuparquet.errors import InputError, UsageError
-from nuparquet.evaluation.segmentation.submission import META_KEYS
+from nuparquet.errors import InputError
+from nuparquet.evaluation.segmentation.submission import read_meta as segmentation_meta
 
 DEVKIT_TASKS = ("segmentation", "tracking")
 
 
 def read_meta(results: Path, split: str) -> dict:
     """The submission's meta ({"task"?: str, flag: bool}); UsageError when `results` is not a folder, InputError
-    for a missing or malformed submission.json."""
-    if not results.is_dir():
-        raise UsageError(f"--results {results}: a panoptic submission is a folder holding panoptic/{split}/ and "
-                         f"{split}/submission.json")
-    path = results / split / "submission.json"
-    if not path.is_file():
-        raise InputError(f"{path} does not exist (the submission's meta: task and the use_* flags)")
-    try:
-        content = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: cannot be read as JSON ({exc})") from exc
-    meta = content.get("meta") if isinstance(content, dict) else None
-    if not isinstance(meta, dict) or set(meta) - {"task"} != set(META_KEYS):
-        raise InputError(f"{path}: \"meta\" must hold exactly {', '.join(META_KEYS)} (and optionally task)")
-    if "task" in meta and meta["task"] not in DEVKIT_TASKS:
-        raise InputError(f"{path}: meta.task must be one of {', '.join(DEVKIT_TASKS)}, not {meta['task']!r}")
-    for key in META_KEYS:
-        if type(meta[key]) is not bool:
-            raise InputError(f"{path}: meta.{key} must be true or false, not {meta[key]!r}")
-    return {key: meta[key] for key in ("task", *META_KEYS) if key in meta}
+    for a missing or malformed submission.json (the lidarseg reader's checks, with the devkit's optional task)."""
+    return segmentation_meta(results, split, kind="panoptic", extra={"task": DEVKIT_TASKS},
+                             missing="the submission's meta: task and the use_* flags")
 
 
 def predictions_folder(results: Path, split: str) -> Path:

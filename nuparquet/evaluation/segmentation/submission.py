@@ -15,26 +15,33 @@ from nuparquet.errors import InputError, UsageError
 META_KEYS = ("use_camera", "use_lidar", "use_radar", "use_map", "use_external")
 
 
-def read_meta(results: Path, split: str) -> dict:
-    """The submission's meta ({key: bool}); UsageError when `results` is not a folder, InputError for a missing
-    or malformed submission.json."""
+def read_meta(results: Path, split: str, *, kind: str = "lidarseg", extra: dict | None = None,
+              missing: str = "the devkit's validate_submission requires it") -> dict:
+    """The submission's meta ({key: bool}, and the `extra` keys found); UsageError when `results` is not a folder,
+    InputError for a missing or malformed submission.json. `kind`: the task's folder name (lidarseg, panoptic);
+    `extra`: optional keys beside META_KEYS, each with the values it may take."""
+    extra = extra or {}
     if not results.is_dir():
-        raise UsageError(f"--results {results}: a lidarseg submission is a folder holding lidarseg/{split}/ and "
+        raise UsageError(f"--results {results}: a {kind} submission is a folder holding {kind}/{split}/ and "
                          f"{split}/submission.json")
     path = results / split / "submission.json"
     if not path.is_file():
-        raise InputError(f"{path} does not exist (the devkit's validate_submission requires it)")
+        raise InputError(f"{path} does not exist ({missing})")
     try:
         content = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise InputError(f"{path}: cannot be read as JSON ({exc})") from exc
     meta = content.get("meta") if isinstance(content, dict) else None
-    if not isinstance(meta, dict) or set(meta) != set(META_KEYS):
-        raise InputError(f"{path}: \"meta\" must hold exactly {', '.join(META_KEYS)}")
+    if not isinstance(meta, dict) or set(meta) - set(extra) != set(META_KEYS):
+        optional = f" (and optionally {', '.join(extra)})" if extra else ""
+        raise InputError(f"{path}: \"meta\" must hold exactly {', '.join(META_KEYS)}{optional}")
+    for key, allowed in extra.items():
+        if key in meta and meta[key] not in allowed:
+            raise InputError(f"{path}: meta.{key} must be one of {', '.join(allowed)}, not {meta[key]!r}")
     for key in META_KEYS:
         if type(meta[key]) is not bool:
             raise InputError(f"{path}: meta.{key} must be true or false, not {meta[key]!r}")
-    return {key: meta[key] for key in META_KEYS}
+    return {key: meta[key] for key in (*extra, *META_KEYS) if key in meta}
 
 
 def predictions_folder(results: Path, split: str) -> Path:
