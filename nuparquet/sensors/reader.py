@@ -150,7 +150,10 @@ class SensorReader:
         else:
             records = radar_from_bytes(source, data)
             frame = pl.DataFrame({name: records[name] for name in records.dtype.names})
-        return frame if columns is None else frame.select([c for c in columns if c in frame.columns])
+        if columns is None:
+            return frame
+        # built from the columns, not `select`ed: polars' thread pool is not there in a forked training worker
+        return pl.DataFrame([frame.get_column(c) for c in columns if c in frame.columns])
 
     def sensor_fields(self, modality: str) -> list[str] | None:
         """The sensor fields of a frame of `modality` as the converted dataset stores them (lidar: x, y, z,

@@ -4,10 +4,9 @@ semantics, built from the same arrays as the v2 infos (`nuparquet.index`), so ev
 Order: the split's samples in scene-table order, then by timestamp within a scene (stable across runs).
 
 At construction the index's `compute` and `v2_arrays` run once for the split and only small per-sample arrays are
-kept (tokens, file names, 4x4 matrices, boxes); tables are not held, and the dataset is reopened lazily (after a
-fork or in a spawned worker) from its picklable reference. Use spawned workers: polars is not fork-safe, and a
-forked child reading through it after the parent used it can hang. Sensor data is read through the one sensor reader,
-`ds.sensors`, per item.
+kept (tokens, file names, 4x4 matrices, boxes); tables are not held; a spawned worker reopens the dataset from its
+picklable reference. Forked workers serve the default parts (no polars computation per item); the radar, devkit-sweep
+and BEV-map parts need spawned workers (`shards.check_worker`). Sensors are read through `ds.sensors`, per item.
 """
 
 from __future__ import annotations
@@ -27,6 +26,7 @@ from nuparquet.sensors.reader import XYZI
 from nuparquet.training.bev_map import BEV_CLASSES, BOUND_M, bev_mask, canvas, lidar2global, sample_locations
 from nuparquet.training.devkit_sweeps import devkit_points, radar_points
 from nuparquet.training.mmdet3d import camera_matrices, gt_bboxes_3d, remove_close
+from nuparquet.training.shards import check_worker
 from nuparquet.training.temporal import patched_can_bus, queue_rows, union2one
 
 BOX_FILTERS = ("valid_flag", "num_lidar_pts", None)
@@ -164,8 +164,7 @@ class Samples:
         self._ann_valid = arrays.ann_valid  # (A,) bool
         self._ann_num_lidar_pts = arrays.ann_num_lidar_pts.astype(np.int32)  # (A,)
         lidar_rows = computed.lidar_row[picked]
-        # the keyframe lidar's poses, for the CAN bus patch and the map patch
-        self._lidar_t, self._lidar_q = d.sensor_t[lidar_rows], d.sensor_q[lidar_rows]  # (S, 3), (S, 4)
+        self._lidar_t, self._lidar_q = d.sensor_t[lidar_rows], d.sensor_q[lidar_rows]  # keyframe lidar (CAN, map)
         self._ego_t, self._ego_q = d.ego_t[lidar_rows], d.ego_q[lidar_rows]  # (S, 3), (S, 4)
         self._can_bus = (patched_can_bus(can_bus_vectors(ds, inputs.sample_token[picked]), self._ego_t, self._ego_q)
                          if can_bus else None)  # (S, 18) float64
@@ -210,6 +209,7 @@ class Samples:
         if not -len(self.indices) <= i < len(self.indices):
             raise IndexError(f"sample {i} of {len(self.indices)}")
         s = int(self.indices[i])
+        check_worker(self)
         if self.queue_length == 1:
             return self._frame(s)
         # BEVFormer's queue: the frames before this one (rows of the whole split, whatever the shard), then union2one
@@ -252,7 +252,8 @@ class Samples:
         """(P, 5) float32 x, y, z, intensity, ring of one lidar reading, through the sensor reader."""
         frame = self.dataset.sensors.points(token, filename, "lidar", columns=[*XYZI, "ring"])
         values = np.zeros((frame.height, 5), dtype=np.float32)
-        values[:, :4] = frame.select(XYZI).to_numpy()
+        for j, name in enumerate(XYZI):  # column by column: a DataFrame's select/to_numpy hang in a forked worker
+            values[:, j] = frame.get_column(name).to_numpy()
         if "ring" in frame.columns:
             values[:, 4] = frame["ring"].to_numpy()
         return values

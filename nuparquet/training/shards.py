@@ -9,6 +9,7 @@ leave some parts empty.
 from __future__ import annotations
 
 import copy
+import os
 
 import numpy as np
 
@@ -96,6 +97,32 @@ class SampleStream:
     def load_state_dict(self, state: dict) -> None:
         self.seed, self.epoch, self.position = state["seed"], state["epoch"], state["position"]
         self.worker = tuple(state["worker"])
+
+
+_forked = False  # this process was forked (a DataLoader or Pool worker): polars' thread pool did not come along
+
+
+def _after_fork() -> None:
+    global _forked
+    _forked = True
+
+
+os.register_at_fork(after_in_child=_after_fork)
+
+
+def check_worker(samples) -> None:
+    """UsageError in a forked process asked for a part that computes with polars per item (radar, the devkit's
+    sweeps, the BEV map): polars' thread pool does not survive a fork, and such a read would hang forever. The
+    default parts read with pyarrow and numpy only."""
+    if not _forked:
+        return
+    parts = [name for name, wanted in (("radars", bool(samples.radars)), ("sweeps_as='devkit'",
+             samples.sweeps_as == "devkit"), ("bev_map", bool(samples.bev_classes))) if wanted]
+    if parts:
+        from nuparquet.errors import UsageError
+
+        raise UsageError(f"Samples with {', '.join(parts)} cannot be read in a forked worker (polars' thread pool "
+                         "does not survive a fork): use DataLoader(..., multiprocessing_context='spawn')")
 
 
 def worker_init_fn(worker_id: int) -> None:

@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
+from nuparquet.errors import UsageError
 from nuparquet.index import IndexOptions, build_index
 from nuparquet.index.labels import CLASSES
 from nuparquet.training.samples import Samples
@@ -215,15 +216,34 @@ def test_close_points_leave_the_sweeps_and_the_pads_but_not_the_keyframe(synth_s
         np.testing.assert_array_equal(near, np.array([[0.3, -0.2, 0.5, 7.0, 0.0]], dtype=np.float32))
 
 
-@pytest.mark.parametrize("method", ["spawn"])  # fork after polars has run hangs in polars' thread pool: README
+@pytest.mark.parametrize("method", ["spawn", "fork"])
 def test_a_worker_process_reads_the_same_sample(synth_samples, method):
-    """A DataLoader worker's view: the object sent to a spawned process opens the dataset there."""
+    """A DataLoader worker's view: the object sent to a spawned process opens the dataset there; a forked one
+    inherits it after polars has run here (its thread pool is gone in the child), and reads the default parts with
+    pyarrow and numpy alone. A hang would be a timeout, not a stuck suite."""
     import multiprocessing
     import operator
 
-    with multiprocessing.get_context(method).Pool(1) as pool:
-        item = pool.apply(operator.getitem, (synth_samples, 5))
     expected = synth_samples[5]
-    assert item["sample_token"] == expected["sample_token"]
-    np.testing.assert_array_equal(item["points"], expected["points"])
-    np.testing.assert_array_equal(item["gt_bboxes_3d"], expected["gt_bboxes_3d"])
+    with multiprocessing.get_context(method).Pool(1) as pool:
+        item = pool.apply_async(operator.getitem, (synth_samples, 5)).get(timeout=120)
+    assert sorted(item) == sorted(expected) and item["sample_token"] == expected["sample_token"]
+    for key in ("points", "gt_bboxes_3d", "gt_labels_3d", "img", "lidar2img"):
+        np.testing.assert_array_equal(item[key], expected[key])
+
+
+def test_a_forked_worker_asked_for_a_polars_part_says_to_spawn(synth_out):
+    """Radar points compute with polars per item: in a forked worker that would hang, so it is refused, naming
+    the part and the spawn context."""
+    import multiprocessing
+    import operator
+
+    samples = Samples(synth_out, "train", version="v1.0-trainval", radars="all", cameras=None)
+    samples[0]  # the parent reads one (polars' pool started) before forking, as a DataLoader's user may
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        with pytest.raises(UsageError, match="Samples with radars cannot be read in a forked worker.*"
+                                             "multiprocessing_context='spawn'"):
+            pool.apply_async(operator.getitem, (samples, 0)).get(timeout=120)
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        item = pool.apply_async(operator.getitem, (samples, 0)).get(timeout=120)
+    np.testing.assert_array_equal(item["radar_points"], samples[0]["radar_points"])
