@@ -59,6 +59,9 @@ class MissingSensorData(InputError, FileNotFoundError):
     def __str__(self) -> str:
         return self.reason
 
+    def __reduce__(self):  # a DataLoader worker's exception is pickled to the main process: rebuilt whole there
+        return type(self), (self.path, self.reason)
+
 
 class SensorReader:
     """The sensor data of one opened dataset (`ds.sensors`)."""

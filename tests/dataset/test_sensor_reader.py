@@ -115,3 +115,45 @@ def test_a_converted_frame_is_read_from_the_points_dataset_with_its_sensor_field
         frame = converted.sensors.points(row["token"], "samples/not-there.bin", modality)  # no file read
         assert frame.columns == fields
         assert frame.equals(read(row["token"], columns=fields))
+
+
+@pytest.mark.parametrize("modality, what", [("camera", "the camera images"), ("lidar", "the lidar points"),
+                                            ("radar", "the radar points")])
+def test_a_missing_file_says_which_data_of_which_frame_and_pickles_whole(ds, tmp_path, modality, what):
+    """The refusal names the kind of data (images for cameras, points for the rest), the frame and the file; and it
+    crosses a process boundary whole (a DataLoader worker's exception is pickled to the main process)."""
+    import pickle
+
+    from nuparquet.sensors.reader import MissingSensorData
+
+    row = _frame(ds, modality)
+    with pytest.raises(MissingSensorData) as caught:
+        ds.sensors.file(row["token"], row["filename"] + ".gone", modality)
+    message = str(caught.value)
+    assert f"({what} of sample_data {row['token']}" in message and row["filename"] + ".gone" in message
+    assert caught.value.args == (message,)  # as any exception holds its message
+    back = pickle.loads(pickle.dumps(caught.value))
+    assert type(back) is MissingSensorData and str(back) == message and back.path == caught.value.path
+    assert isinstance(back, FileNotFoundError) and isinstance(back, InputError)
+
+
+def test_labels_alone_are_the_label_files_from_the_files_and_from_lidar_points(ds, labelled_out, labelled_root,
+                                                                            tmp_path):
+    """`labels(token, kind)`: the frame's ground-truth labels without its points, from lidar_points/ when the frame
+    is there with them and from the label file otherwise; the same int64 values either way."""
+    converted = nuparquet.open(labelled_out, dataroot=labelled_root)
+    assert "lidarseg_label" in converted.sensors.converted_columns("lidar")
+    assert not ds.sensors.converted_columns("lidar")
+    for kind in ("lidarseg", "panoptic"):
+        row = _frame(converted, "lidar")
+        from_points = converted.sensors.labels(row["token"], kind)
+        from_file = converted.sensors.label_file(row["token"], kind)
+        assert from_points.dtype == from_file.dtype == np.int64 and len(from_points) > 0
+        np.testing.assert_array_equal(from_points, from_file)
+        row = _frame(ds, "lidar")
+        np.testing.assert_array_equal(ds.sensors.labels(row["token"], kind), ds.sensors.label_file(row["token"], kind))
+    # from lidar_points/ alone: a dataroot without the label files is never read
+    no_files = nuparquet.open(labelled_out, dataroot=tmp_path)
+    row = _frame(no_files, "lidar")
+    np.testing.assert_array_equal(no_files.sensors.labels(row["token"], "lidarseg"),
+                                  converted.sensors.label_file(row["token"], "lidarseg"))
