@@ -15,6 +15,7 @@ back byte for byte.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
@@ -73,6 +74,8 @@ def read_truckscenes_tables(dataroot: Path | str, version: str, *, on_table: Cal
         note(path)
         if name in INFERRED:
             table, found = read_extra_table(path)
+            if table is not None and table.table.num_rows == 0:  # `[]`: no record to infer the columns from
+                table = replace(table, table=schema.arrow_schema().empty_table())
             found = found or type_problems(table, schema)
         else:
             table, found = read_table(path, schema)

@@ -399,3 +399,19 @@ def test_its_schemas_are_nuscenes_less_log_and_map_plus_its_own_and_every_refere
     for schema in found.values():
         for field in schema.fields:
             assert field.ref is None or field.ref in found, f"{schema.name}.{field.name}"
+
+
+def test_an_empty_ego_motion_table_converts_with_null_alignments(root, tmp_path):
+    """A recording whose cabin motion was not logged (`ego_motion_cabin.json` is `[]`) still converts: every sample's
+    cabin record, age, interpolation and closest token are null (there is none), the chassis ones are filled, and the
+    empty table comes back byte for byte."""
+    copy = _copy(root, tmp_path)
+    _edit(copy, "ego_motion_cabin", lambda records: records.clear())
+    convert(copy, VERSION, tmp_path / "out")
+    rows = _read(tmp_path / "out", "sample_ego_motion")
+    assert rows.height > 0 and rows.schema["ego_motion_cabin_closest_token"] == pl.String
+    for column in ("ego_motion_cabin", "ego_motion_cabin_age_us", "ego_motion_cabin_closest_token"):
+        assert rows[column].null_count() == rows.height, column
+    assert rows["ego_motion_chassis_closest_token"].null_count() == 0
+    export_json(tmp_path / "out", tmp_path / "back")
+    assert json.loads((tmp_path / "back" / VERSION / "ego_motion_cabin.json").read_text()) == []
