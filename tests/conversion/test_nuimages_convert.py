@@ -135,6 +135,9 @@ def _recount(record, delta):
     ("sample_data", lambda rs: rs[3].pop("filename"), r"sample_data.json\[3\].*lacks filename"),
     ("calibrated_sensor", lambda rs: rs[0].__setitem__("camera_intrinsic", [[1, 0], [0, 1]]), r"calibrated_sensor.json\[0\].*'camera_intrinsic' must be a 3x3"),
     ("sample", lambda rs: rs.append(dict(rs[0])), r"sample.json\[\d+\].*duplicate token"),
+    ("ego_pose", lambda rs: rs[2].__setitem__("timestamp", None), r"ego_pose.json\[2\].*field 'timestamp' is null"),
+    ("object_ann", lambda rs: rs[3].__setitem__("sample_data_token", None),
+     r"object_ann.json\[3\].*field 'sample_data_token' is null"),
 ])
 def test_input_it_cannot_convert_exactly_is_refused_naming_file_and_field(root, tmp_path, table, edit, expected):
     edited = _edited(root, tmp_path, table, edit)

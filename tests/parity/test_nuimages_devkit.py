@@ -183,6 +183,11 @@ def test_render_image_draws_only_the_tokens_asked_for(nuim):
     other = next(r["token"] for r in devkit.object_ann if r["sample_data_token"] != sd)
     with pytest.raises(UsageError, match="not an annotation of this image"):
         render_nuimage(ds, sd, object_tokens=[other])
+    # attributes are written after the category name: the devkit asserts it, we refuse saying so
+    with pytest.raises(AssertionError, match="with_category must be True"):
+        devkit.render_image(sd, with_category=False, with_attributes=True)
+    with pytest.raises(UsageError, match="^with_attributes needs with_category$"):
+        render_nuimage(ds, sd, with_category=False, with_attributes=True)
 
 
 def test_coco_export_loads_in_pycocotools_and_decodes_to_the_devkit_s_masks(nuim, tmp_path):
