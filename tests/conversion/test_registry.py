@@ -122,3 +122,26 @@ def test_bad_options_are_usage_errors(synth_root, tmp_path, options, message):
     with pytest.raises(UsageError, match=message):
         convert(synth_root, version, tmp_path / "out", **options)
     assert not (tmp_path / "out").exists()
+
+
+def test_every_builder_names_a_dataset_schema_that_describes_what_it_writes(synth_root, tmp_path):
+    """A builder's `schema` is the one place its dataset's columns are declared (schemas/): it must name a schema
+    that exists, and the schema's declared columns must be the written dataset's (a typo in the name of a builder
+    that writes its own part files would otherwise go unnoticed)."""
+    from nuparquet.conversion.formats import FORMATS
+    from nuparquet.schemas import dataset_schemas, schema_for
+
+    known = dataset_schemas()
+    builders = {b.name: b for b in registry.BUILDERS}
+    for fmt in FORMATS:
+        builders.update({b.name: b for b in fmt.builders})
+    for name, builder in builders.items():
+        assert builder.schema is None or builder.schema in known, (name, builder.schema)
+    out = tmp_path / "out"
+    manifest = convert(synth_root, SYNTH_VERSION, out, embed=("camera", "lidar", "radar"), sensors=("lidar",))
+    for name in manifest["datasets"]:
+        if name in builders and builders[name].schema:
+            declared = schema_for(name)
+            written = pq.read_schema(next((out / name).glob("*.parquet"))).names
+            assert declared is not None and declared.name == builders[name].schema, name
+            assert set(declared.names) <= set(written), name

@@ -284,7 +284,8 @@ def test_sensor_points_leave_out_the_frames_of_no_scene_and_count_them(tmp_path)
     shape = next(s for s in SHAPES if s.name == "cut_tail")
     pristine = synthesize(tmp_path / "pristine", scenes=1, samples_per_scene=3, with_lidar=True, seed=4, version=VERSION)
     root = make(pristine, tmp_path / "data", shape)
-    manifest = convert(root, VERSION, tmp_path / "out", allow_dangling=True, sensors=("lidar",), sweeps=True, workers=1)
+    manifest = convert(root, VERSION, tmp_path / "out", allow_dangling=True, sensors=("lidar",), sweeps=True, workers=1,
+                       embed=("lidar",))
     samples = {s["token"] for s in load(root / VERSION, "sample")}
     lidar = {c["token"] for c in load(root / VERSION, "calibrated_sensor")
              if c["sensor_token"] in {s["token"] for s in load(root / VERSION, "sensor") if s["modality"] == "lidar"}}
@@ -296,3 +297,5 @@ def test_sensor_points_leave_out_the_frames_of_no_scene_and_count_them(tmp_path)
     converted = set(read(tmp_path / "out", "lidar_points")["sample_data_token"].cast(pl.String))
     assert converted == {d["token"] for d in frames} - {d["token"] for d in orphans}
     assert any(w.startswith(f"lidar_points: {len(orphans)} frame(s) of no scene") for w in manifest["warnings"])
+    embedded = manifest["datasets"]["sensor_files/lidar"]  # --embed leaves them out alike, and counts them
+    assert embedded["no_scene_frames"] == len(orphans) and embedded["frames"] == len(frames) - len(orphans)

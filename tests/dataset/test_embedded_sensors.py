@@ -66,6 +66,12 @@ def test_embedded_files_are_the_files_byte_for_byte_one_part_per_scene(embed_out
                 group = file.read_row_group(g, columns=["bytes"]).column(0).to_pylist()
                 assert len(group) == 1 or sum(map(len, group)) <= ROW_GROUP_BYTES
         assert manifest["datasets"][name]["missing_count"] == 0
+        entry = manifest["datasets"][name]  # the manifest's size is the part files' on disk
+        assert entry["bytes"] == sum(p.stat().st_size for p in (embed_out / name).glob("*.parquet")) > 0
+        assert entry["parts"] == len(parts)
+        embedded = ds.sensors.embedded(modality)
+        assert frames["token"][0] in embedded and frames["token"][-1] in embedded and "f" * 32 not in embedded
+    assert ds.sensors.embedded("camera") is not None and "sensor_files/camera" in ds.datasets
     # the camera's groups hold several images (so the packing is exercised), the lidar's one file each
     camera = pq.ParquetFile(next((embed_out / "sensor_files/camera").glob("*.parquet"))).metadata
     assert max(camera.row_group(g).num_rows for g in range(camera.num_row_groups)) > 1
