@@ -345,6 +345,16 @@ def test_the_one_verb_and_the_cli_write_the_devkit_file(labelled_out, devkit_nus
                  "--out", str(tmp_path / "seg"), "--min-inst-points", "40", "--quiet"]) == 0
     seg_theirs, _ = devkit_panoptic(devkit_nusc, submission, "segmentation", 40, tmp_path / "devkit40", monkeypatch)
     assert_equal_to_devkit(json.loads((tmp_path / "seg" / "segmentation-result.json").read_text()), seg_theirs)
+    # an evaluation into a folder that holds one: refused, then replaced whole with --overwrite (the old files gone)
+    args = ["eval", str(labelled_out), "--task", "panoptic", "--results", str(submission), "--split", "train",
+            "--out", str(tmp_path / "seg"), "--quiet"]
+    assert main(args) == 2
+    (tmp_path / "seg" / "stale.txt").write_text("from before")
+    assert main([*args, "--overwrite"]) == 0
+    assert sorted(p.name for p in (tmp_path / "seg").iterdir()) == ["classes.parquet", "instances.parquet",
+                                                                   "segmentation-result.json"]
+    seg_default, _ = devkit_panoptic(devkit_nusc, submission, "segmentation", 15, tmp_path / "devkit15", monkeypatch)
+    assert_equal_to_devkit(json.loads((tmp_path / "seg" / "segmentation-result.json").read_text()), seg_default)
 
 
 def test_labels_no_category_maps_and_a_dataset_without_panoptic_are_refused(labelled_out, submission, monkeypatch):
