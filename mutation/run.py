@@ -289,7 +289,7 @@ GROUPS: dict[str, Group] = {
         keyword="not extract", cache_conversions=True),
     "panoptic": Group(  # the panoptic benchmarks: the devkit's PanopticEval and PanopticTrackingEval arithmetic
         ("nuparquet/evaluation/panoptic/*.py",),
-        ("tests/evaluation/test_panoptic_devkit.py",),
+        ("tests/evaluation/test_panoptic_devkit.py", "tests/evaluation/test_panoptic_slices.py"),
         keyword="not extract", cache_conversions=True),
     "prediction": Group(  # the prediction benchmark: the devkit's futures, ranking, min-k and off-road test
         ("nuparquet/evaluation/prediction/*.py", "nuparquet/frames/annotation_chains.py"),

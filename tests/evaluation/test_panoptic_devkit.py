@@ -301,8 +301,10 @@ def test_the_submission_json_is_checked(labelled_out, submission):
 def test_settings_that_do_not_apply_are_refused(labelled_out, submission):
     from nuparquet.errors import UsageError
 
-    with pytest.raises(UsageError, match="--by, --config and --config-file do not apply to --task panoptic"):
-        _evaluate(labelled_out, submission, by=("scene",))
+    with pytest.raises(UsageError, match="--config and --config-file do not apply to --task panoptic"):
+        _evaluate(labelled_out, submission, config="detection_cvpr_2019")
+    with pytest.raises(UsageError, match="--by distance: --task panoptic slices by location, night, rain, scene"):
+        _evaluate(labelled_out, submission, by=("distance",))
     with pytest.raises(UsageError, match="--min-inst-points must be 0 or more"):
         _evaluate(labelled_out, submission, min_inst_points=-1)
     with pytest.raises(UsageError, match="evaluates --task panoptic or panoptic-tracking, not lidarseg"):

@@ -59,7 +59,8 @@ class PanopticResult:
     frames: list[str]
     out: Path | None = None
     notes: list[str] = field(default_factory=list)
-    slices: None = None  # no slices for this task (the CLI asks every result)
+    slices: pl.DataFrame | None = None  # one row per (by, slice) (`slicing.SliceEvaluations.table`), None without by
+    slice_summaries: dict = field(default_factory=dict)  # {(by, slice): the devkit's result dict of the slice}
 
     @property
     def summary(self) -> dict:
@@ -86,13 +87,15 @@ def evaluate_panoptic(dataset, results, out=None, options: EvalOptions | None = 
     """
     from nuparquet.dataset import as_dataset
     from nuparquet.evaluation.run import _check_out
-    from nuparquet.evaluation.segmentation.run import split_frames
+    from nuparquet.evaluation.segmentation.run import frame_scenes, split_frames
+    from nuparquet.evaluation.slices import parse_bins
 
     options = resolve(EvalOptions, options, fields if options is not None else {"task": "panoptic", **fields})
     if options.task not in DEVKIT_TASK:
         raise UsageError(f"evaluate_panoptic evaluates --task panoptic or panoptic-tracking, not {options.task}")
-    if options.by or options.config or options.config_file:
-        raise UsageError(f"--by, --config and --config-file do not apply to --task {options.task}")
+    if options.config or options.config_file:
+        raise UsageError(f"--config and --config-file do not apply to --task {options.task}")
+    bins = parse_bins(options.bins) if options.bins else None
     if options.min_inst_points < 0:
         raise UsageError(f"--min-inst-points must be 0 or more, got {options.min_inst_points}")
     ds = as_dataset(dataset)
@@ -114,16 +117,25 @@ def evaluate_panoptic(dataset, results, out=None, options: EvalOptions | None = 
         frames, notes = split_frames(ds, options.split)
         if frames.is_empty():
             raise InputError(f"split {options.split}: the dataset holds no keyframe LIDAR_TOP reading of its scenes")
+        slices = None
+        if options.by:
+            from nuparquet.evaluation.panoptic.slicing import SliceEvaluations, check_by
+
+            check_by(options.by, ds.scan("scenes").collect_schema().names(), options.task)
+            slices = SliceEvaluations(options.by, frame_scenes(ds, frames, options.by), bins,
+                                      options.min_inst_points, tracking)
         rep.set_total(frames.height)
         quality = PanopticQuality(options.min_inst_points)
         tracker = PanopticTracking(options.min_inst_points) if tracking else None
         instances = []
-        for token, _, scene in frames.iter_rows():
+        for frame, (token, _, scene) in enumerate(frames.iter_rows()):
             gt = _ground_truth(ds, token, lookup)
             seg = frame_segments(gt, read_predictions(folder, token, len(gt), NUM_CLASSES), lookup)
             instances.append((token, seg, quality.add(seg)))
             if tracker is not None:
                 tracker.add(scene, seg)
+            if slices is not None:
+                slices.add(frame, scene, seg)
             rep.advance()
         metrics = {"segmentation": quality.metrics()}
         if tracker is not None:
@@ -131,6 +143,10 @@ def evaluate_panoptic(dataset, results, out=None, options: EvalOptions | None = 
         result = PanopticResult(metrics=metrics, classes=class_table(quality, tracker),
                                 instances=instance_table(instances), meta=meta, frames=frames["token"].to_list(),
                                 out=out, notes=notes)
+        if slices is not None:
+            result.slice_summaries, slice_notes = slices.summaries()
+            result.slices = slices.table(result.slice_summaries)
+            result.notes += slice_notes
         if out is not None:
             write(out, result, DEVKIT_TASK[options.task])
     return result
@@ -207,7 +223,15 @@ def write(out: Path, result: PanopticResult, devkit_task: str) -> None:
     NaN), `classes.parquet` and `instances.parquet`, into `out` at once (`atomic_directory`)."""
     from nuparquet.atomic import atomic_directory
 
+    from nuparquet.evaluation.run import slug
+
     with atomic_directory(out, overwrite=True, checked=True) as partial:
         (partial / f"{devkit_task}-result.json").write_text(json.dumps(result.metrics, indent=2))
         result.classes.write_parquet(partial / "classes.parquet")
         result.instances.write_parquet(partial / "instances.parquet")
+        if result.slices is not None:
+            result.slices.write_parquet(partial / "slices.parquet")
+            for (by, label), metrics in result.slice_summaries.items():
+                folder = partial / "slices" / slug(by) / slug(label)
+                folder.mkdir(parents=True, exist_ok=True)
+                (folder / f"{devkit_task}-result.json").write_text(json.dumps(metrics, indent=2))
