@@ -102,10 +102,13 @@ def test_the_bins_are_half_open_and_the_last_is_open_ended():
     assert list(slices.summaries()) == [("distance", "0-10m"), ("distance", "10-50m"), ("distance", "50m+")]
 
 
-def test_slices_and_plots_are_written_beside_the_result(sliced):
+def test_slices_and_plots_are_written_beside_the_result(labelled_out, devkit_nusc, tmp_path):
     import cv2
 
-    _, ours = sliced
+    from nuparquet.evaluation.segmentation import evaluate_lidarseg
+
+    results = write_submission(devkit_nusc, tmp_path / "results", 6)
+    ours = evaluate_lidarseg(labelled_out, results, tmp_path / "eval", split="train", by=("scene", "distance"))
     written = pl.read_parquet(ours.out / "slices.parquet")
     assert written.equals(ours.slices)
     assert written.columns[:6] == ["by", "slice", "frames", "points", "miou", "freq_weighted_iou"]
@@ -119,6 +122,23 @@ def test_slices_and_plots_are_written_beside_the_result(sliced):
         assert image is not None and image.std() > 10, name
 
 
+def test_the_iou_plot_draws_each_class_as_a_bar_of_its_iou_and_names_it():
+    import matplotlib.pyplot as plt
+
+    from nuparquet.evaluation.segmentation.plots import iou_figure
+
+    iou = {name: (i % 5) / 5 for i, name in enumerate(COARSE_NAMES)}
+    iou["bus"] = float("nan")  # neither in the ground truth nor predicted: no bar
+    fig = iou_figure({"iou_per_class": iou, "miou": 0.4, "freq_weighted_iou": 0.5})
+    ax = fig.axes[0]
+    heights = [bar.get_height() for bar in ax.patches]
+    assert heights == [0.0 if name == "bus" else iou[name] for name in COARSE_NAMES[1:]]
+    labels = ax.get_xticklabels()
+    assert [t.get_text() for t in labels] == list(COARSE_NAMES[1:]) and labels[0].get_rotation() == 60
+    assert ax.get_lines()[0].get_ydata()[0] == 0.4 and "mIoU 0.400" in ax.get_legend().get_texts()[0].get_text()
+    plt.close(fig)
+
+
 def test_the_confusion_plot_shows_each_ground_truth_row_as_fractions():
     from nuparquet.evaluation.segmentation.plots import row_fractions
 
@@ -129,3 +149,26 @@ def test_the_confusion_plot_shows_each_ground_truth_row_as_fractions():
     assert fractions.shape == (16, 16)
     assert fractions[0, 0] == 0.75 and fractions[0, 1] == 0.25 and fractions[2, 2] == 1.0
     assert np.isnan(fractions[1]).all() and np.isnan(fractions[3]).all()
+
+
+def test_a_split_the_dataset_holds_in_part_says_so_and_a_whole_one_does_not(labelled_out, devkit_nusc, tmp_path):
+    """Scenes of the split that the dataset lacks are left out with a note naming the counts; a (custom) split whose
+    every scene is there evaluates without one."""
+    import nuparquet
+    from nuparquet.evaluation.segmentation import evaluate_lidarseg
+    from nuscenes.utils.splits import create_splits_scenes
+
+    results = write_submission(devkit_nusc, tmp_path / "results", 2)
+    present = {scene["name"] for scene in devkit_nusc.scene}
+    train = [name for name in create_splits_scenes()["train"] if name in present]
+    partial = evaluate_lidarseg(labelled_out, results, split="train")
+    assert partial.notes == [f"the dataset holds {len(train)} of the {len(create_splits_scenes()['train'])} scenes of "
+                             "split train: evaluated on those"]
+    root = tmp_path / "root"
+    (root / SYNTH_VERSION).mkdir(parents=True)
+    (root / SYNTH_VERSION / "splits.json").write_text(json.dumps({"mine": train}))  # ground truth: lidar_points/
+    (results / "mine").mkdir()
+    (results / "mine" / "submission.json").write_text((results / "train" / "submission.json").read_text())
+    (results / "lidarseg" / "mine").symlink_to(results / "lidarseg" / "train")
+    whole = evaluate_lidarseg(nuparquet.open(labelled_out, dataroot=root), results, split="mine")
+    assert whole.notes == [] and json.dumps(whole.metrics) == json.dumps(partial.metrics)  # NaN where absent

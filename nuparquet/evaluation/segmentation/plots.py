@@ -21,11 +21,11 @@ def row_fractions(confusion: np.ndarray) -> np.ndarray:
         return np.where(totals > 0, scored / totals, np.nan)
 
 
-def write_plots(plot_dir: Path, metrics: dict, confusion: np.ndarray) -> list[Path]:
-    plot_dir.mkdir(parents=True, exist_ok=True)
+def iou_figure(metrics: dict):
+    """The IoU of each challenge class as a bar (none where the class is neither in the ground truth nor
+    predicted), the mIoU as a dashed line."""
     classes = COARSE_NAMES[1:]
     iou = np.array([metrics["iou_per_class"][c] for c in classes], dtype=np.float64)
-
     fig, ax = plt.subplots(figsize=(9, 4.5), dpi=DPI)
     ax.bar(range(len(classes)), np.nan_to_num(iou), color="tab:blue")
     ax.axhline(metrics["miou"], color="tab:red", linestyle="--", label=f"mIoU {metrics['miou']:.3f}")
@@ -35,8 +35,12 @@ def write_plots(plot_dir: Path, metrics: dict, confusion: np.ndarray) -> list[Pa
     ax.set_title("IoU per class (no bar: neither in the ground truth nor predicted)", fontsize=10)
     ax.legend(loc="upper right")
     fig.tight_layout()  # the rotated class names inside the picture
-    paths = [_save(fig, plot_dir / "iou_per_class.png")]
+    return fig
 
+
+def confusion_figure(confusion: np.ndarray):
+    """The confusion matrix as each ground-truth class's fractions (`row_fractions`)."""
+    classes = COARSE_NAMES[1:]
     fig, ax = plt.subplots(figsize=(7.5, 7), dpi=DPI)
     shown = ax.imshow(row_fractions(confusion), vmin=0, vmax=1, cmap="viridis")
     ax.set_xticks(range(len(classes)), classes, rotation=90, fontsize=7)
@@ -46,5 +50,10 @@ def write_plots(plot_dir: Path, metrics: dict, confusion: np.ndarray) -> list[Pa
     ax.set_title("Confusion: fraction of each class's points (blank: no points)", fontsize=10)
     fig.colorbar(shown, ax=ax, fraction=0.046)
     fig.tight_layout()
-    paths.append(_save(fig, plot_dir / "confusion.png"))
-    return paths
+    return fig
+
+
+def write_plots(plot_dir: Path, metrics: dict, confusion: np.ndarray) -> list[Path]:
+    plot_dir.mkdir(parents=True, exist_ok=True)
+    return [_save(iou_figure(metrics), plot_dir / "iou_per_class.png"),
+            _save(confusion_figure(confusion), plot_dir / "confusion.png")]
