@@ -200,6 +200,9 @@ GROUPS: dict[str, Group] = {
          "tests/rendering/test_pipeline.py", "tests/rendering/test_rigs.py", "tests/rendering/test_video.py",
          "tests/rendering/test_decode.py", "tests/rendering/test_legend.py", "tests/rendering/test_loop.py",
          "tests/rendering/test_colorings.py",
+         # the camera tiles of an output that embeds its images; the legend's classes (point_colors.py is here)
+         "tests/dataset/test_embedded_sensors.py::test_pictures_a_video_and_an_mcap_export_without_a_dataroot_equal_those_from_files",
+         "tests/parity/test_single_renders_devkit.py::test_point_colours_and_legend_classes_are_the_devkits",
          # ImageOptions.check (image_options.py is this group's) refuses a map picture without --map here
          "tests/rendering/test_single_cli.py::test_what_cannot_be_drawn_is_a_usage_error"),
         keyword="not extract", cache_conversions=True),

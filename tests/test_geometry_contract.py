@@ -26,6 +26,8 @@ def about_z(yaw: float) -> list[float]:
     (lambda: geometry.box_corners([1.0, 2.0], [1.0, 1.0, 1.0], IDENTITY_Q), "translation_m"),
     (lambda: geometry.box_corners([1.0, 2.0, 3.0], [1.0, 1.0], IDENTITY_Q), "size_wlh_m"),
     (lambda: geometry.view_points([1.0, 2.0], np.eye(3)), "points"),
+    (lambda: geometry.quaternion_slerp([IDENTITY_Q], [[1.0, 0.0, 0.0]], 0.5), "q1_wxyz"),
+    (lambda: geometry.quaternion_slerp([[1.0, 0.0, 0.0]], [IDENTITY_Q], 0.5), "q0_wxyz"),
 ])
 def test_wrong_shapes_are_errors_naming_the_argument(call, name):
     with pytest.raises(ValueError, match=rf"^{name} must have shape"):
@@ -113,3 +115,31 @@ def test_rowwise_dots_and_norms_round_as_np_dot_and_np_linalg_norm_of_one_vector
         np.testing.assert_array_equal(rowwise_norm(a), expected_norm)
         np.testing.assert_array_equal(rowwise_dot(a, b[0]), [np.dot(x, b[0]) for x in a])
         assert rowwise_dot(a.reshape(3, 1000, k), b.reshape(3, 1000, k)).shape == (3, 1000)
+
+
+def test_a_box_pair_at_the_cameras_centre_projects_without_warnings():
+    """A box with a corner on the camera's centre (that corner projects as 0/0, its neighbours at depth 0 as x/0)
+    is a pair outside the image, and the projection warns about nothing (those divisions are expected, masked)."""
+    from nuparquet.geometry import box_half_axes
+    from nuparquet.geometry.box_projection import project_pairs
+
+    cameras = geometry.Cameras(np.eye(4)[None], np.eye(4)[None], np.array([[[1000.0, 0, 800], [0, 1000.0, 450],
+                                                                          [0, 0, 1]]]), np.array([[1600.0, 900.0]]),
+                               np.ones((1, 2)))
+    half_axes = box_half_axes(np.array([[2.0, 2.0, 2.0]]), np.array([IDENTITY_Q]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = project_pairs(cameras, [0], [[1.0, 1.0, 1.0]], half_axes, [0], kernel="numpy")
+    assert out.in_front.tolist() == [False] and out.visible.tolist() == [False]
+    assert np.isnan(out.corners_px[0]).any()  # the corner on the centre: 0/0, as the devkit's view_points gives
+
+
+def test_cuboids_of_array_likes_keep_one_row_per_box():
+    from nuparquet.geometry.cuboids import Cuboids
+
+    boxes = Cuboids.of([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]], [[2.0, 4.0, 1.5]] * 2, [IDENTITY_Q, about_z(0.5)])
+    assert boxes.translation_m.shape == (2, 3) and boxes.size_wlh_m.shape == (2, 3)
+    assert boxes.rotation_wxyz.shape == (2, 4) and boxes.rotation_wxyz.dtype == np.float64
+    np.testing.assert_array_equal(boxes.rotation_wxyz[1], about_z(0.5))
+    one = Cuboids.of([1.0, 2.0, 3.0], [2.0, 4.0, 1.5], IDENTITY_Q, at="ego")
+    assert one.rotation_wxyz.shape == (1, 4) and one.at == "ego"

@@ -289,3 +289,36 @@ def test_boxes_are_antialiased_unless_told_not_to():
     assert set(np.unique(hard[..., 2]).tolist()) == {0, 255}
     partial = (smooth[..., 2] > 0) & (smooth[..., 2] < 255)
     assert partial.sum() > 200
+
+
+def test_a_box_touches_the_image_only_in_front_of_the_camera_and_overlapping_it_on_both_axes():
+    """`segments_touch_image` culls a box unless some segment is kept (in front) and the kept end points' box
+    overlaps the image in x and in y; each test on its own edge (a box left of, above, below the image, and one
+    whose segments are all behind the camera while their y span crosses the image)."""
+    inside = np.array([[[[100.0, 100.0], [200.0, 200.0]]]])
+    keep = np.ones((1, 1), bool)
+    cases = {
+        "inside": (inside, keep, True),
+        "left of it": (inside - [300.0, 0.0], keep, False),
+        "right of it": (inside + [1600.0, 0.0], keep, False),
+        "above it": (inside - [0.0, 300.0], keep, False),
+        "below it": (inside + [0.0, 900.0], keep, False),
+        "on the last pixel": (np.array([[[[1599.0, 899.0], [1700.0, 1000.0]]]]), keep, True),
+        "behind the camera": (inside, np.zeros((1, 1), bool), False),
+        "behind, left of it": (inside - [300.0, 0.0], np.zeros((1, 1), bool), False),
+    }
+    for name, (segments, kept, expected) in cases.items():
+        assert segments_touch_image(segments, kept, SIZE).tolist() == [expected], name
+
+
+def test_box_labels_follow_the_labels_option_through_the_scene_pipeline(synth_out, tmp_path):
+    """`--labels none` draws the outlines only, `category` adds the names: the option reaches the overlay."""
+    ds, scene, loaded, _ = _scene_boxes(synth_out)
+    frames = {}
+    for labels in ("none", "category"):
+        render(ds, scene, None, RenderOptions(channel="CAM_FRONT", frame_format="png", scale=0.5, labels=labels),
+               frames_dir=tmp_path / labels)
+        frames[labels] = [cv2.imread(str(p)) for p in sorted((tmp_path / labels).glob("*.png"))]
+    assert len(frames["none"]) == len(frames["category"]) == loaded.cameras.height
+    changed = sum(int((a != b).any(axis=2).sum()) for a, b in zip(frames["none"], frames["category"]))
+    assert changed > 100  # the label texts
