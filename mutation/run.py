@@ -270,7 +270,8 @@ GROUPS: dict[str, Group] = {
         ("tests/dataset/test_object_store.py", "tests/dataset/test_sensor_reader.py", "tests/parity/test_sweeps_devkit.py",
          "tests/dataset/test_embedded_sensors.py",
          "tests/rendering/test_lidar_colors.py",
-         "tests/mcap/test_export.py::test_an_unreadable_point_file_stops_the_export_with_the_reason"),
+         "tests/mcap/test_export.py::test_an_unreadable_point_file_stops_the_export_with_the_reason",
+         "tests/conversion/test_truckscenes.py::test_the_sensor_reader_reads_a_pcd_lidar_file_as_lidar_points_names_its_fields"),
         keyword="not extract"),
     "nuimages": Group(
         ("nuparquet/nuimages/*.py", "nuparquet/sources/nuimages.py", "nuparquet/conversion/builders/nuimages.py",

@@ -415,3 +415,20 @@ def test_an_empty_ego_motion_table_converts_with_null_alignments(root, tmp_path)
     assert rows["ego_motion_chassis_closest_token"].null_count() == 0
     export_json(tmp_path / "out", tmp_path / "back")
     assert json.loads((tmp_path / "back" / VERSION / "ego_motion_cabin.json").read_text()) == []
+
+
+def test_the_sensor_reader_reads_a_pcd_lidar_file_as_lidar_points_names_its_fields(root, bare, ts):
+    """An output converted without its points reads each lidar `.pcd` through the one sensor reader: x, y, z,
+    intensity as the devkit's `LidarPointCloud.from_file` and `point_timestamp` as its timestamps."""
+    import nuparquet
+
+    ds = nuparquet.open(bare, dataroot=root)
+    assert not ds.sensors.converted_columns("lidar")
+    for record in [r for r in ts.sample_data if r["sensor_modality"] == "lidar"][:6]:
+        frame = ds.sensors.points(record["token"], record["filename"], "lidar",
+                                  ["x", "y", "z", "intensity", "point_timestamp"])
+        cloud = LidarPointCloud.from_file(str(root / record["filename"]))
+        assert frame.columns == ["x", "y", "z", "intensity", "point_timestamp"]
+        np.testing.assert_array_equal(frame.select("x", "y", "z", "intensity").to_numpy().astype(np.float64).T,
+                                      cloud.points)
+        np.testing.assert_array_equal(frame["point_timestamp"].to_numpy(), cloud.timestamps[0])

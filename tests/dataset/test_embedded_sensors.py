@@ -321,7 +321,9 @@ def test_an_object_store_output_without_embedded_sensors_is_refused_naming_the_f
                     version="v1.0-trainval")
     with pytest.raises(UsageError, match=f"^{urls['plain']} is on object storage and does not hold the lidar points "
                                          "\\(of sample_data .*\\) \\(it embeds no sensor files\\): convert with "
-                                         "--embed camera,lidar,radar \\(those needed\\) .*or give the local dataroot"):
+                                         "--embed camera,lidar,radar \\(those needed\\) .*or give the local dataroot: "
+                                         "--dataroot PATH \\(in Python nuparquet.open\\(URL, storage_options=\\.\\.\\., "
+                                         "dataroot=\\.\\.\\.\\)\\)$"):
         plain[0]
     camera = Samples(nuparquet.open(urls["camera"], storage_options=options), "train", sweeps=0,
                      version="v1.0-trainval")

@@ -150,6 +150,9 @@ def test_labels_alone_are_the_label_files_from_the_files_and_from_lidar_points(d
         from_file = converted.sensors.label_file(row["token"], kind)
         assert from_points.dtype == from_file.dtype == np.int64 and len(from_points) > 0
         np.testing.assert_array_equal(from_points, from_file)
+        _, with_points = converted.sensors.lidar(row["token"], row["filename"], labels=kind)  # lidar_points/ too
+        assert with_points.dtype == np.int64
+        np.testing.assert_array_equal(with_points, from_file)
         row = _frame(ds, "lidar")
         np.testing.assert_array_equal(ds.sensors.labels(row["token"], kind), ds.sensors.label_file(row["token"], kind))
     # from lidar_points/ alone: a dataroot without the label files is never read
