@@ -1,6 +1,7 @@
 """`Samples(bev_map=True)`'s `gt_masks_bev` against bevfusion's own code (mit-han-lab/bevfusion, commit
 1ea4ea5ff8d2d1c2ed1b9bc7e3e7a4d26a6b1f0a-era main: `mmdet3d/datasets/nuscenes_dataset.py` `get_data_info`'s
-`ego2global`/`lidar2ego`, `mmdet3d/datasets/pipelines/loading.py` `LoadBEVSegmentation`) restated below, run on
+`ego2global`/`lidar2ego` restated below, `mmdet3d/datasets/pipelines/loading.py` `LoadBEVSegmentation` as
+tests/parity/map_clients.py restates it), run on
 the devkit's `NuScenes` and `NuScenesMap` over the same generated dataroot (6 scenes over its two maps): every
 sample of both splits, pixel for pixel."""
 
@@ -11,69 +12,7 @@ import pytest
 
 from conftest import SYNTH_VERSION
 from nuparquet.training.samples import Samples
-
-
-class LoadBEVSegmentation:
-    """bevfusion's transform, its `NuScenesMap`s given (the devkit's), `np.long`/`np.bool` spelt as numpy 2 does."""
-
-    def __init__(self, maps, xbound, ybound, classes) -> None:
-        patch_h = ybound[1] - ybound[0]
-        patch_w = xbound[1] - xbound[0]
-        canvas_h = int(patch_h / ybound[2])
-        canvas_w = int(patch_w / xbound[2])
-        self.patch_size = (patch_h, patch_w)
-        self.canvas_size = (canvas_h, canvas_w)
-        self.classes = classes
-        self.maps = maps
-
-    def __call__(self, data):
-        lidar2point = data["lidar_aug_matrix"]
-        point2lidar = np.linalg.inv(lidar2point)
-        lidar2ego = data["lidar2ego"]
-        ego2global = data["ego2global"]
-        lidar2global = ego2global @ lidar2ego @ point2lidar
-
-        map_pose = lidar2global[:2, 3]
-        patch_box = (map_pose[0], map_pose[1], self.patch_size[0], self.patch_size[1])
-
-        rotation = lidar2global[:3, :3]
-        v = np.dot(rotation, np.array([1, 0, 0]))
-        yaw = np.arctan2(v[1], v[0])
-        patch_angle = yaw / np.pi * 180
-
-        mappings = {}
-        for name in self.classes:
-            if name == "drivable_area*":
-                mappings[name] = ["road_segment", "lane"]
-            elif name == "divider":
-                mappings[name] = ["road_divider", "lane_divider"]
-            else:
-                mappings[name] = [name]
-
-        layer_names = []
-        for name in mappings:
-            layer_names.extend(mappings[name])
-        layer_names = list(set(layer_names))
-
-        location = data["location"]
-        masks = self.maps[location].get_map_mask(
-            patch_box=patch_box,
-            patch_angle=patch_angle,
-            layer_names=layer_names,
-            canvas_size=self.canvas_size,
-        )
-        masks = masks.transpose(0, 2, 1)
-        masks = masks.astype(bool)
-
-        num_classes = len(self.classes)
-        labels = np.zeros((num_classes, *self.canvas_size), dtype=np.int64)
-        for k, name in enumerate(self.classes):
-            for layer_name in mappings[name]:
-                index = layer_names.index(layer_name)
-                labels[k, masks[index]] = 1
-
-        data["gt_masks_bev"] = labels
-        return data
+from tests.parity.map_clients import LoadBEVSegmentation
 
 
 def bevfusion_data(nusc, sample) -> dict:
