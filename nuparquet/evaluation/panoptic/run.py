@@ -148,7 +148,7 @@ def evaluate_panoptic(dataset, results, out=None, options: EvalOptions | None = 
             result.slices = slices.table(result.slice_summaries)
             result.notes += slice_notes
         if out is not None:
-            write(out, result, DEVKIT_TASK[options.task])
+            write(out, result, DEVKIT_TASK[options.task], plots=options.plots)
     return result
 
 
@@ -218,9 +218,10 @@ def instance_table(frames: list) -> pl.DataFrame:
                               .alias("matched_label"))
 
 
-def write(out: Path, result: PanopticResult, devkit_task: str) -> None:
+def write(out: Path, result: PanopticResult, devkit_task: str, *, plots: bool = True) -> None:
     """`<segmentation|tracking>-result.json` (the devkit's `save_result`: indent 2, key order kept, NaN written as
-    NaN), `classes.parquet` and `instances.parquet`, into `out` at once (`atomic_directory`)."""
+    NaN), `classes.parquet`, `instances.parquet`, the slices' files and `plots/`, into `out` at once
+    (`atomic_directory`)."""
     from nuparquet.atomic import atomic_directory
 
     from nuparquet.evaluation.run import slug
@@ -235,3 +236,7 @@ def write(out: Path, result: PanopticResult, devkit_task: str) -> None:
                 folder = partial / "slices" / slug(by) / slug(label)
                 folder.mkdir(parents=True, exist_ok=True)
                 (folder / f"{devkit_task}-result.json").write_text(json.dumps(metrics, indent=2))
+        if plots:
+            from nuparquet.evaluation.panoptic.plots import write_plots
+
+            write_plots(partial / "plots", result.metrics)

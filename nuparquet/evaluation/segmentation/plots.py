@@ -21,21 +21,34 @@ def row_fractions(confusion: np.ndarray) -> np.ndarray:
         return np.where(totals > 0, scored / totals, np.nan)
 
 
+def class_bars_figure(classes, series: dict, *, mean: tuple[str, float] | None, ylabel: str, title: str):
+    """One bar per class of each series ({label: per-class values in `classes`' order}), side by side, NaN drawn
+    as no bar (height 0); `mean` (label, value) as a dashed line. Shared by the lidarseg and panoptic pictures."""
+    colors = ("tab:blue", "tab:orange", "tab:green")
+    width = 0.8 / len(series)
+    fig, ax = plt.subplots(figsize=(9, 4.5), dpi=DPI)
+    for k, (label, values) in enumerate(series.items()):
+        offset = (k - (len(series) - 1) / 2) * width
+        ax.bar(np.arange(len(classes)) + offset, np.nan_to_num(np.asarray(values, dtype=np.float64)), width,
+               color=colors[k], label=label if len(series) > 1 else None)
+    if mean is not None:
+        ax.axhline(mean[1], color="tab:red", linestyle="--", label=f"{mean[0]} {mean[1]:.3f}")
+    ax.set_xticks(range(len(classes)), classes, rotation=60, ha="right", fontsize=8)
+    ax.set_ylim(0, 1)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.legend(loc="upper right")
+    fig.tight_layout()  # the rotated class names inside the picture
+    return fig
+
+
 def iou_figure(metrics: dict):
     """The IoU of each challenge class as a bar (none where the class is neither in the ground truth nor
     predicted), the mIoU as a dashed line."""
     classes = COARSE_NAMES[1:]
-    iou = np.array([metrics["iou_per_class"][c] for c in classes], dtype=np.float64)
-    fig, ax = plt.subplots(figsize=(9, 4.5), dpi=DPI)
-    ax.bar(range(len(classes)), np.nan_to_num(iou), color="tab:blue")
-    ax.axhline(metrics["miou"], color="tab:red", linestyle="--", label=f"mIoU {metrics['miou']:.3f}")
-    ax.set_xticks(range(len(classes)), classes, rotation=60, ha="right", fontsize=8)
-    ax.set_ylim(0, 1)
-    ax.set_ylabel("IoU")
-    ax.set_title("IoU per class (no bar: neither in the ground truth nor predicted)", fontsize=10)
-    ax.legend(loc="upper right")
-    fig.tight_layout()  # the rotated class names inside the picture
-    return fig
+    return class_bars_figure(classes, {"IoU": [metrics["iou_per_class"][c] for c in classes]},
+                             mean=("mIoU", metrics["miou"]), ylabel="IoU",
+                             title="IoU per class (no bar: neither in the ground truth nor predicted)")
 
 
 def confusion_figure(confusion: np.ndarray):
