@@ -337,7 +337,7 @@ def test_the_one_verb_and_the_cli_write_the_devkit_file(labelled_out, devkit_nus
     assert_equal_to_devkit(front.metrics, theirs)
     written = (tmp_path / "front" / "tracking-result.json").read_text()
     assert sorted(p.name for p in (tmp_path / "front").iterdir()) == ["classes.parquet", "instances.parquet",
-                                                                     "tracking-result.json"]
+                                                                     "plots", "tracking-result.json"]
     assert main(["eval", str(labelled_out), "--task", "panoptic-tracking", "--results", str(submission),
                  "--split", "train", "--out", str(tmp_path / "cli"), "--quiet"]) == 0
     printed = capsys.readouterr().out
@@ -354,7 +354,7 @@ def test_the_one_verb_and_the_cli_write_the_devkit_file(labelled_out, devkit_nus
     (tmp_path / "seg" / "stale.txt").write_text("from before")
     assert main([*args, "--overwrite"]) == 0
     assert sorted(p.name for p in (tmp_path / "seg").iterdir()) == ["classes.parquet", "instances.parquet",
-                                                                   "segmentation-result.json"]
+                                                                   "plots", "segmentation-result.json"]
     seg_default, _ = devkit_panoptic(devkit_nusc, submission, "segmentation", 15, tmp_path / "devkit15", monkeypatch)
     assert_equal_to_devkit(json.loads((tmp_path / "seg" / "segmentation-result.json").read_text()), seg_default)
 
