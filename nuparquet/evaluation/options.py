@@ -38,7 +38,8 @@ class EvalOptions:
         (), metavar="EDGES", help="bin edges for --by distance (metres, default 0,10,20,30,40,50) and numeric "
         "columns, e.g. 0,20,40")
     plots: bool = option(True, help="write the task's plots as PNG into DIR/plots: the devkit's PR and TP curves "
-                         "(detection, tracking), IoU per class and the confusion matrix (lidarseg); --no-plots: skip")
+                         "(detection, tracking), IoU per class and the confusion matrix (lidarseg), PQ/SQ/RQ and PTQ per "
+                         "class (panoptic tasks); --no-plots: skip")
     min_inst_points: int = option(15, metavar="N", help="panoptic tasks: the fewest points of an instance "
                                   "counted as a false negative or positive (the devkit's --min_inst_points; default 15)")
     overwrite: bool = option(False, help="replace DIR if it already holds files")
