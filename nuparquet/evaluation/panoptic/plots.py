@@ -9,10 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from nuparquet.evaluation.plots import _save
-from nuparquet.evaluation.segmentation.classes import COARSE_NAMES
-from nuparquet.evaluation.segmentation.plots import class_bars_figure
-
-CLASSES = COARSE_NAMES[1:]  # the devkit's included classes, the ignore class left out
+from nuparquet.evaluation.segmentation.plots import CLASSES, class_bars_figure
 
 
 def pq_figure(segmentation: dict):

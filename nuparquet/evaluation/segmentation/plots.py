@@ -11,6 +11,8 @@ import numpy as np
 from nuparquet.evaluation.plots import DPI, _save, plt
 from nuparquet.evaluation.segmentation.classes import COARSE_NAMES
 
+CLASSES = COARSE_NAMES[1:]  # the devkit's included challenge classes, the ignore class left out
+
 
 def row_fractions(confusion: np.ndarray) -> np.ndarray:
     """(C-1, C-1) float64: each ground-truth class's points (row) as fractions predicted as each class, the
@@ -21,7 +23,7 @@ def row_fractions(confusion: np.ndarray) -> np.ndarray:
         return np.where(totals > 0, scored / totals, np.nan)
 
 
-def class_bars_figure(classes, series: dict, *, mean: tuple[str, float] | None, ylabel: str, title: str):
+def class_bars_figure(classes, series: dict, *, mean: tuple[str, float], ylabel: str, title: str):
     """One bar per class of each series ({label: per-class values in `classes`' order}), side by side, NaN drawn
     as no bar (height 0); `mean` (label, value) as a dashed line. Shared by the lidarseg and panoptic pictures."""
     colors = ("tab:blue", "tab:orange", "tab:green")
@@ -31,8 +33,7 @@ def class_bars_figure(classes, series: dict, *, mean: tuple[str, float] | None, 
         offset = (k - (len(series) - 1) / 2) * width
         ax.bar(np.arange(len(classes)) + offset, np.nan_to_num(np.asarray(values, dtype=np.float64)), width,
                color=colors[k], label=label if len(series) > 1 else None)
-    if mean is not None:
-        ax.axhline(mean[1], color="tab:red", linestyle="--", label=f"{mean[0]} {mean[1]:.3f}")
+    ax.axhline(mean[1], color="tab:red", linestyle="--", label=f"{mean[0]} {mean[1]:.3f}")
     ax.set_xticks(range(len(classes)), classes, rotation=60, ha="right", fontsize=8)
     ax.set_ylim(0, 1)
     ax.set_ylabel(ylabel)
@@ -45,7 +46,7 @@ def class_bars_figure(classes, series: dict, *, mean: tuple[str, float] | None, 
 def iou_figure(metrics: dict):
     """The IoU of each challenge class as a bar (none where the class is neither in the ground truth nor
     predicted), the mIoU as a dashed line."""
-    classes = COARSE_NAMES[1:]
+    classes = CLASSES
     return class_bars_figure(classes, {"IoU": [metrics["iou_per_class"][c] for c in classes]},
                              mean=("mIoU", metrics["miou"]), ylabel="IoU",
                              title="IoU per class (no bar: neither in the ground truth nor predicted)")
@@ -53,7 +54,7 @@ def iou_figure(metrics: dict):
 
 def confusion_figure(confusion: np.ndarray):
     """The confusion matrix as each ground-truth class's fractions (`row_fractions`)."""
-    classes = COARSE_NAMES[1:]
+    classes = CLASSES
     fig, ax = plt.subplots(figsize=(7.5, 7), dpi=DPI)
     shown = ax.imshow(row_fractions(confusion), vmin=0, vmax=1, cmap="viridis")
     ax.set_xticks(range(len(classes)), classes, rotation=90, fontsize=7)
