@@ -132,7 +132,7 @@ def run(args) -> int:
     elif options.task == "prediction":
         print_prediction(result.metrics)
     else:
-        print_summary(result.summary)
+        print_summary(result.metrics.serialize())
     if result.slices is not None:
         for by in dict.fromkeys(result.slices["by"].to_list()):
             table = result.slices.filter(result.slices["by"] == by).drop("by")

@@ -82,6 +82,7 @@ class BuildContext:
     files: list[dict] = field(default_factory=list)  # JSON files read beyond the tables (manifest "files")
     warnings: list[str] = field(default_factory=list)  # added to the manifest's "warnings"
     nullable_fields: tuple[str, ...] = ()  # columns the source format cannot fill (`SourceFormat.nullable_fields`)
+    source_format: str = "nuscenes"  # the family being converted (`SourceFormat.name`): whose split lists apply
     _shared: dict[str, Any] = field(default_factory=dict)
     _written: dict[str, str] = field(default_factory=dict)  # dataset name -> its directory under `out`
 

@@ -131,7 +131,7 @@ def _convert(dataroot: Path | str, version: str, out: Path | str, opts: ConvertO
         if problems:
             raise ProblemsFound(problems)
         ctx = BuildContext(Path(dataroot), version, opts, engine, tables, tmp, reporter,
-                           nullable_fields=fmt.nullable_fields)
+                           nullable_fields=fmt.nullable_fields, source_format=fmt.name)
         # every builder's units and the manifest (each table was written by the thread that read it)
         # nuScenes' builders are the registry's, read here at each run (a test may replace them)
         builders = BUILDERS if fmt.name == NUSCENES.name else fmt.builders

@@ -1,5 +1,6 @@
 """The evaluation settings: the devkit's `DetectionConfig`, by name (`detection_cvpr_2019`, the one every
-nuScenes paper uses) or from a JSON file in the devkit's format (`--config-file`).
+nuScenes paper uses; `detection_cvpr_2024`, truckscenes-devkit's for MAN TruckScenes) or from a JSON file in the
+devkit's format (`--config-file`). Its classes decide the taxonomy (`classes.Taxonomy`) it evaluates.
 
 Values keep the types the JSON gives them (a threshold written `1` stays an int), because the devkit's output
 keys are built from them (`"car:1"` vs `"car:1.0"` in metrics_details.json).
@@ -9,16 +10,18 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import ClassVar
 
 from nuparquet.errors import UsageError
-from nuparquet.evaluation.classes import DETECTION_NAMES
+from nuparquet.evaluation.classes import NUSCENES, TAXONOMIES, Taxonomy, taxonomy_of
 
-NAMED_CONFIGS = ("detection_cvpr_2019",)
+NAMED_CONFIGS = ("detection_cvpr_2019", "detection_cvpr_2024")
 DEFAULT_CONFIG = "detection_cvpr_2019"
+# the configuration a dataset of each family is evaluated with unless one is named
+FAMILY_CONFIGS = {"nuscenes": "detection_cvpr_2019", "truckscenes": "detection_cvpr_2024"}
 DISTANCE_FUNCTIONS = ("center_distance",)
 _FIELDS = ("class_range", "dist_fcn", "dist_ths", "dist_th_tp", "min_recall", "min_precision",
            "max_boxes_per_sample", "mean_ap_weight")
@@ -29,7 +32,8 @@ class DetectionConfig:
     """class_range: {detection class: metres} (every class of the devkit, in the order results are reported);
     dist_fcn: "center_distance"; dist_ths: matching thresholds (metres, xy centre distance); dist_th_tp: the
     threshold the TP errors use (one of dist_ths); min_recall, min_precision: the AP and TP-error clips;
-    max_boxes_per_sample: a submission's limit; mean_ap_weight: mAP's weight in NDS."""
+    max_boxes_per_sample: a submission's limit; mean_ap_weight: mAP's weight in NDS; taxonomy: the devkit
+    vocabulary whose classes class_range names (not serialized: the classes say it)."""
 
     class_range: dict
     dist_fcn: str
@@ -39,6 +43,7 @@ class DetectionConfig:
     min_precision: float
     max_boxes_per_sample: int
     mean_ap_weight: float
+    taxonomy: Taxonomy = field(default=NUSCENES, compare=False)
 
     named: ClassVar[tuple[str, ...]] = NAMED_CONFIGS  # the configurations shipped (nuparquet/data/<name>.json)
     default: ClassVar[str] = DEFAULT_CONFIG
@@ -62,10 +67,12 @@ class DetectionConfig:
         if missing:
             raise UsageError(f"{where}: missing {', '.join(missing)}")
         class_range = content["class_range"]
-        if not isinstance(class_range, dict) or set(class_range) != set(DETECTION_NAMES):
+        taxonomy = taxonomy_of(class_range) if isinstance(class_range, dict) else None
+        if taxonomy is None:
             given = sorted(class_range) if isinstance(class_range, dict) else class_range
-            raise UsageError(f"{where}: class_range must give a range for each of {', '.join(DETECTION_NAMES)} "
-                             f"and nothing else (the devkit's detection classes), got {given}")
+            expected = "; or ".join(f"{', '.join(t.detection_names)} ({t.family})" for t in TAXONOMIES.values())
+            raise UsageError(f"{where}: class_range must give a range for each detection class of one devkit "
+                             f"and nothing else: {expected}; got {given}")
         for name, value in class_range.items():
             if not _is_number(value) or not value > 0:
                 raise UsageError(f"{where}: class_range[{name!r}] must be a positive number of metres, got {value!r}")
@@ -93,7 +100,7 @@ class DetectionConfig:
                              f"got {content['mean_ap_weight']!r}")
         return cls(class_range=dict(class_range), dist_fcn=content["dist_fcn"], dist_ths=tuple(dist_ths),
                    dist_th_tp=content["dist_th_tp"], min_recall=min_recall, min_precision=min_precision,
-                   max_boxes_per_sample=max_boxes, mean_ap_weight=content["mean_ap_weight"])
+                   max_boxes_per_sample=max_boxes, mean_ap_weight=content["mean_ap_weight"], taxonomy=taxonomy)
 
 
 def _is_number(value) -> bool:
@@ -124,14 +131,16 @@ def config_from_file(path: str | Path, config_class=DetectionConfig):
     return config_class.from_dict(content, where=str(path))
 
 
-def resolve_config(config=None, config_file: str | Path | None = None, config_class=DetectionConfig):
-    """The configuration asked for: a `config_class` instance as given, `config_file`, else the named `config`."""
+def resolve_config(config=None, config_file: str | Path | None = None, config_class=DetectionConfig,
+                   default: str | None = None):
+    """The configuration asked for: a `config_class` instance as given, `config_file`, else the named `config`
+    (`default`, else `config_class.default`, when none is named)."""
     if isinstance(config, config_class):
         if config_file is not None:
             raise UsageError("give a configuration or a configuration file, not both")
         return config
     if config_file is not None:
-        if config not in (None, config_class.default):
+        if config not in (None, config_class.default, default):
             raise UsageError("--config and --config-file both given; use one")
         return config_from_file(config_file, config_class)
-    return named_config(config or config_class.default, config_class)
+    return named_config(config or default or config_class.default, config_class)

@@ -64,12 +64,15 @@ class GroundTruth:
 
 def load_ground_truth(dataset, split: str, class_names: Sequence[str], *, annotation_columns: Sequence[str] = (),
                       scene_columns: Sequence[str] = (), category_map: dict[str, str] = CATEGORY_TO_DETECTION,
-                      one_attribute: bool = True) -> GroundTruth:
+                      one_attribute: bool = True, reference_channel: str | None = None) -> GroundTruth:
     """The ground truth of `split` in `dataset` (a `nuparquet.dataset.Dataset`).
 
     annotation_columns, scene_columns: extra columns of `annotations` / `scenes` to carry (for slices).
     category_map: category name -> evaluated class (detection's, or `CATEGORY_TO_TRACKING`); one_attribute: refuse
-    an evaluated annotation with several attributes (the detection devkit does; the tracking devkit reads none).
+    an evaluated annotation with several attributes (the detection devkit does; the tracking devkit reads none);
+    reference_channel: the keyframe whose ego pose the ranges are measured from (None: the dataset's reference
+    lidar). A predefined split is the one of the dataset's family (`Dataset.source_format`: nuScenes' or
+    TruckScenes' lists).
     Raises UsageError when the split names no scene of the dataset; InputError for data the devkit refuses
     (a sample without reference-lidar keyframe, an evaluated annotation with several attributes).
     """
@@ -79,7 +82,8 @@ def load_ground_truth(dataset, split: str, class_names: Sequence[str], *, annota
     if dataset.row_count("annotations") == 0:  # the devkit: "you do not have the annotations" (a test set)
         raise InputError(f"{dataset.root} has no annotations: there is no ground truth to evaluate against "
                          f"(a test version such as {dataset.version}?)")
-    names = split_scene_names(split, dataroot=dataset.dataroot, version=dataset.version)
+    names = split_scene_names(split, dataroot=dataset.dataroot, version=dataset.version,
+                              family=dataset.source_format)
     wanted_scene_columns = list(dict.fromkeys(["token", "name", "log_location", "description", *scene_columns]))
     scenes = (dataset.scan("scenes").filter(pl.col("name").is_in(names)).select(wanted_scene_columns)
               .sort("name").collect())
@@ -89,7 +93,10 @@ def load_ground_truth(dataset, split: str, class_names: Sequence[str], *, annota
                          f"({', '.join(present[:8])}{', ...' if len(present) > 8 else ''}); pick the split they "
                          "belong to, or list them in <dataroot>/<version>/splits.json as a custom split")
     scene_names = scenes["name"].to_list()
-    reference = dataset.channels.get("reference_lidar")
+    reference = reference_channel or dataset.channels.get("reference_lidar")
+    if reference_channel is not None and reference_channel not in (dataset.channels.get("lidars") or ()):
+        raise InputError(f"{dataset.root} has no {reference_channel}: the devkit measures the class ranges from the "
+                         f"ego pose of each sample's {reference_channel} keyframe")
     if reference is None:
         raise InputError(f"{dataset.root} has no lidar: the class ranges are measured from the ego pose of each "
                          "sample's reference-lidar keyframe (LIDAR_TOP in nuScenes)")

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nuparquet.evaluation.boxes import Boxes
-from nuparquet.evaluation.classes import TP_METRICS, UNDEFINED_TP_METRICS, orientation_period_rad
+from nuparquet.evaluation.classes import NUSCENES, TP_METRICS, Taxonomy
 from nuparquet.evaluation.config import DetectionConfig
 from nuparquet.evaluation.matching import Matches
 from nuparquet.geometry.dots import rowwise_norm
@@ -68,12 +68,12 @@ def cummean(x: np.ndarray) -> np.ndarray:
 
 
 def match_errors(gt: Boxes, pred: Boxes, gt_rows: np.ndarray, pred_rows: np.ndarray, distance_m: np.ndarray,
-                 class_names: tuple[str, ...]) -> dict[str, np.ndarray]:
+                 class_names: tuple[str, ...], taxonomy: Taxonomy = NUSCENES) -> dict[str, np.ndarray]:
     """The TP errors of matched pairs (K,), as the devkit computes them per match.
 
     trans_err: the centre distance; vel_err: xy velocity difference norm (NaN if either is NaN); scale_err:
     1 - IoU of the boxes aligned at one centre and heading; orient_err: |yaw difference| wrapped to the class's
-    period (pi for barriers); attr_err: 0 / 1, NaN where the ground truth has no attribute.
+    period (`taxonomy.period_rad`: pi for barriers, and TruckScenes' traffic signs); attr_err: 0 / 1, NaN where the ground truth has no attribute.
     """
     g, p = gt.take(gt_rows), pred.take(pred_rows)
     vel_err = rowwise_norm(p.velocity_mps - g.velocity_mps)  # the devkit's velocity_l2: np.linalg.norm
@@ -83,7 +83,7 @@ def match_errors(gt: Boxes, pred: Boxes, gt_rows: np.ndarray, pred_rows: np.ndar
     volume_result = sr[:, 0] * sr[:, 1] * sr[:, 2]
     intersection = mins[:, 0] * mins[:, 1] * mins[:, 2]
     iou = intersection / (volume_annotation + volume_result - intersection)
-    period = np.array([orientation_period_rad(name) for name in class_names])[p.class_index]
+    period = np.array([taxonomy.period_rad(name) for name in class_names])[p.class_index]
     diff = np.mod(heading_from_quaternions(g.rotation_wxyz) - heading_from_quaternions(p.rotation_wxyz)
                   + period / 2, period) - period / 2
     diff = np.where(diff > np.pi, diff - 2 * np.pi, diff)
@@ -144,7 +144,8 @@ def metric_data(gt: Boxes, pred: Boxes, matches: Matches, config: DetectionConfi
     for t, threshold in enumerate(matches.thresholds):
         matched = matches.gt[t]
         hit = np.flatnonzero(matched >= 0)
-        errors = match_errors(gt, pred, matched[hit], hit, matches.distance_m[t, hit], class_names)
+        errors = match_errors(gt, pred, matched[hit], hit, matches.distance_m[t, hit], class_names,
+                              config.taxonomy)
         error_at = np.full(len(pred), -1, dtype=np.int64)
         error_at[hit] = np.arange(len(hit))
         for c, name in enumerate(class_names):
@@ -207,11 +208,18 @@ def detection_metrics(data: dict[tuple, MetricData], config: DetectionConfig,
         label_aps[name] = {threshold: calc_ap(data[(name, threshold)], config.min_recall, config.min_precision)
                            for threshold in config.dist_ths}
         md = data[(name, config.dist_th_tp)]
-        label_tp_errors[name] = {metric: (np.nan if metric in UNDEFINED_TP_METRICS.get(name, ())
+        undefined = config.taxonomy.undefined_tp_metrics.get(name, ())
+        label_tp_errors[name] = {metric: (np.nan if metric in undefined
                                           else calc_tp(md, config.min_recall, metric)) for metric in TP_METRICS}
     return DetectionMetrics(config, label_aps, label_tp_errors, eval_time)
 
 
-def serialize_details(data: dict[tuple, MetricData]) -> dict:
-    """metrics_details.json: {"<class>:<threshold>": curves} (the devkit's `DetectionMetricDataList`)."""
+def serialize_details(data: dict[tuple, MetricData], tagged: bool = False) -> dict:
+    """metrics_details.json: {"<class>:<threshold>": curves} (the devkit's `DetectionMetricDataList`).
+
+    tagged: TruckScenes' list, keyed (tag, class, threshold) but serialized as "<tag>:<class>", so each class's
+    key is written once, in its first place, holding its last threshold's curves (truckscenes-devkit 1.2.0's
+    file, kept as it is: the other thresholds' curves are in the predictions table's matches)."""
+    if tagged:
+        return {f"all:{name}": md.serialize() for (name, _threshold), md in data.items()}
     return {f"{name}:{threshold}": md.serialize() for (name, threshold), md in data.items()}

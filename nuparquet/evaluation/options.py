@@ -29,6 +29,7 @@ class EvalOptions:
                         "train_track, or a custom split of <dataroot>/<version>/splits.json (default val)")
     config: str | None = option(None, metavar="NAME",
                                 help="the devkit configuration by name (default: the task's: detection_cvpr_2019, "
+                                "or truckscenes-devkit's detection_cvpr_2024 for a MAN TruckScenes dataset; "
                                 "tracking_nips_2019, predict_2020_icra)")
     config_file: str | Path | None = option(
         None, metavar="CONFIG.json", help="a configuration in the devkit's JSON format instead of --config")

@@ -13,9 +13,7 @@ matplotlib.use("Agg")  # headless; must precede pyplot
 
 import matplotlib.pyplot as plt  # noqa: E402
 
-from nuparquet.evaluation.classes import (  # noqa: E402
-    DETECTION_COLORS, PRETTY_DETECTION_NAMES, PRETTY_TP_METRICS, TP_METRICS, TP_METRICS_UNITS,
-)
+from nuparquet.evaluation.classes import PRETTY_TP_METRICS, TP_METRICS, TP_METRICS_UNITS  # noqa: E402
 from nuparquet.evaluation.config import DetectionConfig  # noqa: E402
 from nuparquet.evaluation.metrics import DetectionMetrics, MetricData  # noqa: E402
 
@@ -46,8 +44,8 @@ def _setup_axis(ax, xlabel=None, ylabel=None, xlim=None, ylim=None, title=None, 
     return ax
 
 
-def _pretty(name: str) -> str:
-    return PRETTY_DETECTION_NAMES.get(name, name)
+def _pretty(name: str, config: DetectionConfig) -> str:
+    return config.taxonomy.pretty_names.get(name, name)
 
 
 def class_pr_curve(ax, data: dict, metrics: DetectionMetrics, name: str) -> None:
@@ -102,7 +100,7 @@ def write_plots(plot_dir: Path, data: dict, metrics: DetectionMetrics, config: D
         title1, title2 = ("Recall vs Precision", "Recall vs Error") if i == 0 else (None, None)
         ax1 = _setup_axis(axes[i, 0], xlim=1, ylim=1, title=title1, min_precision=config.min_precision,
                           min_recall=config.min_recall)
-        ax1.set_ylabel(f"{_pretty(name)} \n \n Precision", size=20)
+        ax1.set_ylabel(f"{_pretty(name, config)} \n \n Precision", size=20)
         ax2 = _setup_axis(axes[i, 1], xlim=1, title=title2, min_recall=config.min_recall)
         if i == len(names) - 1:
             ax1.set_xlabel("Recall", size=20)
@@ -113,12 +111,12 @@ def write_plots(plot_dir: Path, data: dict, metrics: DetectionMetrics, config: D
     written.append(_save(fig, plot_dir / "summary.png"))
     for name in names:
         fig, ax = plt.subplots()
-        _setup_axis(ax, title=_pretty(name), xlabel="Recall", ylabel="Precision", xlim=1, ylim=1,
+        _setup_axis(ax, title=_pretty(name, config), xlabel="Recall", ylabel="Precision", xlim=1, ylim=1,
                     min_precision=config.min_precision, min_recall=config.min_recall)
         class_pr_curve(ax, data, metrics, name)
         written.append(_save(fig, plot_dir / f"{name}_pr.png"))
         fig, ax = plt.subplots()
-        _setup_axis(ax, title=_pretty(name), xlabel="Recall", ylabel="Error", xlim=1, min_recall=config.min_recall)
+        _setup_axis(ax, title=_pretty(name, config), xlabel="Recall", ylabel="Error", xlim=1, min_recall=config.min_recall)
         class_tp_curve(ax, data[(name, config.dist_th_tp)], metrics, name, config.min_recall)
         written.append(_save(fig, plot_dir / f"{name}_tp.png"))
     for threshold in config.dist_ths:
@@ -128,8 +126,8 @@ def write_plots(plot_dir: Path, data: dict, metrics: DetectionMetrics, config: D
         for name in names:
             md = data[(name, threshold)]
             ap = metrics.label_aps[name][threshold]
-            ax.plot(md.recall, md.precision, label=f"{_pretty(name)}: {ap * 100:.1f}%",
-                    color=DETECTION_COLORS.get(name))
+            ax.plot(md.recall, md.precision, label=f"{_pretty(name, config)}: {ap * 100:.1f}%",
+                    color=config.taxonomy.colors.get(name))
         handles, labels = ax.get_legend_handles_labels()
         legend_ax.legend(handles, labels, borderaxespad=0)
         legend_ax.axis("off")

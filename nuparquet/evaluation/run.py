@@ -26,7 +26,7 @@ from nuparquet.errors import UsageError
 from nuparquet.evaluation import filters
 from nuparquet.evaluation.boxes import Boxes
 from nuparquet.evaluation.classes import CYCLE_CLASSES, MEAN_TP_NAMES, TP_METRICS
-from nuparquet.evaluation.config import DetectionConfig, resolve_config
+from nuparquet.evaluation.config import FAMILY_CONFIGS, DetectionConfig, resolve_config
 from nuparquet.evaluation.ground_truth import GroundTruth, load_ground_truth
 from nuparquet.evaluation.matching import Matches, match_boxes
 from nuparquet.evaluation.metrics import (
@@ -57,12 +57,17 @@ class Evaluation:
     num_predictions: int
 
     def summary(self, meta: dict) -> dict:
-        """metrics_summary.json: the devkit's keys, in its order, with the submission's meta."""
+        """metrics_summary.json: the devkit's keys, in its order, with the submission's meta. TruckScenes'
+        (`Taxonomy.tagged_output`): its `DetectionMetricsList` of the tag "all" (whose own eval_time stays None),
+        then the evaluation time and the meta."""
+        if self.metrics.config.taxonomy.tagged_output:
+            untimed = DetectionMetrics(self.metrics.config, self.metrics.label_aps, self.metrics.label_tp_errors)
+            return {"all": untimed.serialize(), "eval_time": self.metrics.eval_time, "meta": dict(meta)}
         return {**self.metrics.serialize(), "meta": dict(meta)}
 
     def details(self) -> dict:
         """metrics_details.json."""
-        return serialize_details(self.data)
+        return serialize_details(self.data, tagged=self.metrics.config.taxonomy.tagged_output)
 
 
 def evaluate_boxes(gt: Boxes, pred: Boxes, config: DetectionConfig) -> Evaluation:
@@ -80,8 +85,9 @@ def evaluate_boxes(gt: Boxes, pred: Boxes, config: DetectionConfig) -> Evaluatio
 class EvalResult:
     """What an evaluation found and wrote.
 
-    summary, details: the contents of metrics_summary.json / metrics_details.json; metrics: the
-    `DetectionMetrics` behind them; predictions, ground_truth: the tables of `nuparquet.evaluation.tables`;
+    summary, details: the contents of metrics_summary.json / metrics_details.json (TruckScenes': the figures
+    under summary["all"]); metrics: the `DetectionMetrics` behind them (`metrics.serialize()`: the figures, in
+    either case); predictions, ground_truth: the tables of `nuparquet.evaluation.tables`;
     slices: one row per (by, slice) with its counts and headline metrics (None without --by); slice_summaries,
     slice_details: {(by, slice): metrics_summary / metrics_details}; out: the directory written (None: nothing
     written); notes: what a user should know (a split only partly present in the dataset, ...).
@@ -145,10 +151,16 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
         raise UsageError(f"--min-inst-points applies to --task panoptic and panoptic-tracking, not {options.task}")
     if options.task != "detection":  # the other benchmarks, each in its own package, through the one verb
         return task_function(options.task)(dataset, results, out, options, on_progress=on_progress)
-    config = resolve_config(options.config, options.config_file)
+    ds = as_dataset(dataset)
+    config = resolve_config(options.config, options.config_file, default=FAMILY_CONFIGS.get(ds.source_format))
+    taxonomy = config.taxonomy
+    if taxonomy.family != _family(ds.source_format):
+        raise UsageError(f"the configuration evaluates {taxonomy.family}'s detection classes "
+                         f"({', '.join(taxonomy.detection_names[:4])}, ...), but {ds.root} is a {ds.source_format} "
+                         f"dataset; use its own (--config {FAMILY_CONFIGS.get(ds.source_format, '?')}) or a "
+                         "configuration file with its classes")
     bins = parse_bins(options.bins) if options.bins else None
     by = tuple(dict.fromkeys(options.by))
-    ds = as_dataset(dataset)
     out = Path(out) if out is not None else None
     if out is not None:
         _check_out(out, ds, options.overwrite)
@@ -157,7 +169,7 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
     with Reporter(on_progress, "eval", total=None if by else steps, unit="step") as rep:
         rep.note("read the submission")
         sub = read_submission(results, max_boxes_per_sample=config.max_boxes_per_sample,
-                              class_names=config.class_names)
+                              class_names=config.class_names, attribute_names=taxonomy.attribute_names)
         rep.advance(step="load the ground truth")
         annotation_names = ds.scan("annotations").collect_schema().names()
         scene_names = ds.scan("scenes").collect_schema().names()
@@ -165,7 +177,8 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
         annotation_columns = list(dict.fromkeys(
             [*(["visibility_name"] if "visibility_name" in annotation_names else []), *slice_annotation_columns]))
         gt = load_ground_truth(ds, options.split, config.class_names, annotation_columns=annotation_columns,
-                               scene_columns=slice_scene_columns)
+                               scene_columns=slice_scene_columns, category_map=taxonomy.category_to_detection,
+                               reference_channel=taxonomy.reference_channel)
         # a predefined split wants exactly its samples; a custom one ignores the others (devkit
         # load_prediction_of_sample_tokens) and takes the split's samples in its order
         custom = not is_predefined(options.split)
@@ -191,7 +204,7 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
         tp_match = whole.matches.gt[tp_index]
         hit = np.flatnonzero(tp_match >= 0)
         errors = match_errors(gt_boxes, pred_boxes, tp_match[hit], hit, whole.matches.distance_m[tp_index, hit],
-                              config.class_names)
+                              config.class_names, taxonomy)
         errors_at_tp = {}
         for metric in TP_METRICS:
             values = np.full(len(pred_boxes), np.nan)
@@ -220,6 +233,11 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
     return result
 
 
+def _family(source_format: str) -> str:
+    """The detection vocabulary a source format's datasets are labelled in (Lyft and T4 convert as nuScenes)."""
+    return source_format if source_format in FAMILY_CONFIGS else "nuscenes"
+
+
 def _notes(gt: GroundTruth) -> list[str]:
     found = gt.scenes.height
     if found < gt.split_scenes:
@@ -246,9 +264,9 @@ def _evaluate_slices(by, gt: GroundTruth, gt_kept, gt_boxes: Boxes, pred_boxes: 
         for label in dim.labels:
             gt_mask, pred_mask = dim.masks(label)
             evaluation = evaluate_boxes(gt_boxes.take(gt_mask), pred_boxes.take(pred_mask), config)
-            summary = evaluation.summary(meta)
-            summaries[(dim.name, label)] = summary
+            summaries[(dim.name, label)] = evaluation.summary(meta)
             details[(dim.name, label)] = evaluation.details()
+            summary = evaluation.metrics.serialize()
             rows.append({"by": dim.name, "slice": label, "num_gt": evaluation.num_gt,
                          "num_predictions": evaluation.num_predictions, "mAP": summary["mean_ap"],
                          "NDS": summary["nd_score"], **{MEAN_TP_NAMES[m]: summary["tp_errors"][m] for m in TP_METRICS},

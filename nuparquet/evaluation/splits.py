@@ -1,6 +1,7 @@
 """Which scenes an evaluation split holds: the devkit's `create_splits_scenes` lists (train, val, test,
-mini_train, mini_val, train_detect, train_track: scene names, in `nuparquet/data/nuscenes_splits.json`), or a
-custom split from `<dataroot>/<version>/splits.json` as the devkit's `get_scenes_of_custom_split` reads it.
+mini_train, mini_val, train_detect, train_track: scene names, in `nuparquet/data/<family>_splits.json`: nuScenes'
+or TruckScenes'), or a custom split from `<dataroot>/<version>/splits.json` as the devkit's
+`get_scenes_of_custom_split` reads it.
 
 Unlike the devkit, the version folder's name is not checked against the split (the devkit refuses `val` unless
 the version ends in "trainval"): a dataset holding some of the split's scenes (an extract, a derived dataset)
@@ -18,15 +19,17 @@ from nuparquet.splits import scene_splits
 PREDEFINED_SPLITS = ("train", "val", "test", "mini_train", "mini_val", "train_detect", "train_track")
 
 
-def predefined_splits() -> dict[str, list[str]]:
+def predefined_splits(family: str = "nuscenes") -> dict[str, list[str]]:
     """The devkit's splits by name (`nuparquet.splits`, the one loader of the lists)."""
-    return {name: scene_splits()[name] for name in PREDEFINED_SPLITS}
+    return {name: scene_splits(family)[name] for name in PREDEFINED_SPLITS}
 
 
-def split_scene_names(split: str, *, dataroot: str | None = None, version: str | None = None) -> list[str]:
-    """The scene names of `split`: a predefined split, else one of `<dataroot>/<version>/splits.json`."""
+def split_scene_names(split: str, *, dataroot: str | None = None, version: str | None = None,
+                      family: str = "nuscenes") -> list[str]:
+    """The scene names of `split`: a predefined split of the family's devkit, else one of
+    `<dataroot>/<version>/splits.json`."""
     if split in PREDEFINED_SPLITS:
-        return predefined_splits()[split]
+        return predefined_splits(family)[split]
     custom = Path(dataroot) / version / "splits.json" if dataroot and version else None
     if custom is None or not custom.is_file():
         where = f" and {custom} does not exist" if custom is not None else ""

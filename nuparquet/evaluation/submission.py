@@ -147,16 +147,18 @@ class _Problems:
 
 
 def read_submission(path: str | Path, *, max_boxes_per_sample: int | None = None,
-                    class_names: Sequence[str] = DETECTION_NAMES) -> SubmittedBoxes:
+                    class_names: Sequence[str] = DETECTION_NAMES,
+                    attribute_names: Sequence[str] = ATTRIBUTE_NAMES) -> SubmittedBoxes:
     """Read and check the detection submission at `path` (see the module docstring); InputError listing the
-    problems. `class_names`: the detection classes a box may name; `max_boxes_per_sample`: the configuration's limit.
+    problems. `class_names`, `attribute_names`: what a box may name (the configuration's taxonomy);
+    `max_boxes_per_sample`: the configuration's limit.
     """
     return read_boxes(path, DETECTION_FIELDS, max_boxes_per_sample=max_boxes_per_sample,
-                      class_names=class_names)
+                      class_names=class_names, attribute_names=attribute_names)
 
 
 def read_boxes(path: str | Path, fields: BoxFields, *, max_boxes_per_sample: int | None = None,
-               class_names: Sequence[str]) -> SubmittedBoxes:
+               class_names: Sequence[str], attribute_names: Sequence[str] = ATTRIBUTE_NAMES) -> SubmittedBoxes:
     """Read and check a submission of the kind `fields` describes (DETECTION_FIELDS, TRACKING_FIELDS)."""
     path = Path(path)
     if not path.is_file():
@@ -165,7 +167,7 @@ def read_boxes(path: str | Path, fields: BoxFields, *, max_boxes_per_sample: int
         submission = _read_with_duckdb(path, fields)
     except _Unreadable:
         submission = _read_boxes_with_python(path, fields)
-    _check_boxes(submission, path, max_boxes_per_sample, class_names, fields)
+    _check_boxes(submission, path, max_boxes_per_sample, class_names, fields, attribute_names)
     return submission
 
 
@@ -405,7 +407,7 @@ def _short(value) -> str:
 
 
 def _check_boxes(sub: SubmittedBoxes, path: Path, max_boxes_per_sample: int | None, class_names: Sequence[str],
-                 fields: BoxFields) -> None:
+                 fields: BoxFields, attribute_names: Sequence[str] = ATTRIBUTE_NAMES) -> None:
     """The checks of the module docstring that need no dataset, vectorised over every box."""
     problems = _Problems(path)
     if max_boxes_per_sample is not None:
@@ -428,7 +430,7 @@ def _check_boxes(sub: SubmittedBoxes, path: Path, max_boxes_per_sample: int | No
                        "rotation is the zero quaternion")
     vocabularies = [(sub.class_name, class_names, fields.name)]
     if "attribute_name" in fields.labels:
-        vocabularies.append((sub.labels["attribute_name"], ("", *ATTRIBUTE_NAMES), "attribute_name"))
+        vocabularies.append((sub.labels["attribute_name"], ("", *attribute_names), "attribute_name"))
     for column, valid, what in vocabularies:
         unknown = np.flatnonzero(~np.isin(column, np.array(list(valid), dtype=object)))
         if len(unknown):

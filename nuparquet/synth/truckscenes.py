@@ -77,7 +77,22 @@ OBJECTS = (
     ("human.pedestrian.adult", ("pedestrian.standing",), (-14.0, 9.0), 0.0, (0.7, 0.7, 1.8)),
     ("static_object.traffic_sign", ("traffic_sign.pole_mounted",), (30.0, -9.0), 0.0, (0.8, 0.2, 2.5)),
     ("vehicle.ego_trailer", (), (-9.0, 0.0), SPEED_M_S, (2.5, 13.6, 4.0)),
+    ("animal", (), (11.0, -3.5), 0.0, (0.5, 1.1, 0.8)),
+    ("vehicle.other", ("vehicle.parked",), (40.0, 8.0), 0.0, (2.4, 7.5, 3.0)),
 )
+
+
+def scene_name(scene_index: int) -> str:
+    """The TruckScenes mini split's scene names first (mini_val's, then mini_train's: truckscenes-devkit's
+    `create_splits_scenes`, so that its evaluation and ours find a split that holds the scenes), then names of
+    the same pattern made up from the index."""
+    from nuparquet.splits import scene_splits
+
+    lists = scene_splits("truckscenes")
+    known = [*lists["mini_val"], *lists["mini_train"]]
+    if scene_index < len(known):
+        return known[scene_index]
+    return f"scene-{name_token('ts-scene', str(scene_index))}-{scene_index}"
 
 
 def synthesize_truckscenes(dataroot: Path, scenes: int, samples_per_scene: int, seed: int, version: str) -> Path:
@@ -148,7 +163,7 @@ def _scene(rng, tables, files, calibrations, scene_index, start_us, samples_per_
     tables["weather_annotation"].append({"token": weather_token, "temperature": round(rng.uniform(275, 295), 2),
                                          "wind": round(rng.uniform(0, 8), 2), "precipitation": 0.0,
                                          "cloud_cover": int(rng.integers(0, 9)), "visibility": 10000.0})
-    tables["scene"].append({"token": scene_token, "name": f"scene-{name_token('ts-scene', str(scene_index))}-{scene_index}",
+    tables["scene"].append({"token": scene_token, "name": scene_name(scene_index),
                             "description": ";".join(TAGS), "log_token": "", "nbr_samples": samples_per_scene,
                             "first_sample_token": sample_tokens[0], "last_sample_token": sample_tokens[-1],
                             "weather_annotation_token": weather_token})

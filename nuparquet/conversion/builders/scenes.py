@@ -26,7 +26,7 @@ def path_lengths(df: pl.DataFrame, group: str, order: str, position: str) -> pl.
 
 
 def build_scenes(tables: dict[str, pl.DataFrame], references: pl.DataFrame, counts: pl.DataFrame,
-                 source_version: str) -> pl.DataFrame:
+                 source_version: str, family: str = "nuscenes") -> pl.DataFrame:
     """One row per scene. `counts`: scene_token -> num_annotations, num_instances over all annotations."""
     sample_ts = as_int(tables["sample"], "timestamp").select("token", "timestamp")
     ego_path = path_lengths(references, "scene_name", "timestamp", "ego_translation").rename(
@@ -49,7 +49,7 @@ def build_scenes(tables: dict[str, pl.DataFrame], references: pl.DataFrame, coun
         )
         .sort("name", "token")
     )
-    return scenes.with_columns(split=known_split(scenes["name"], source_version))
+    return scenes.with_columns(split=known_split(scenes["name"], source_version, family))
 
 
 def scene_counts(annotations: pl.LazyFrame) -> pl.DataFrame:
@@ -61,7 +61,7 @@ def scene_counts(annotations: pl.LazyFrame) -> pl.DataFrame:
 
 def build(ctx: BuildContext) -> pl.DataFrame:
     counts = scene_counts(ctx.dataset("annotations").select("scene_token", "instance_token"))
-    return build_scenes(ctx.tables, reference_poses(ctx), counts, ctx.version)
+    return build_scenes(ctx.tables, reference_poses(ctx), counts, ctx.version, ctx.source_format)
 
 
 BUILDER = Builder("scenes", build, scope="whole", schema="scenes", group_by=None, needs=("annotations",))
