@@ -8,16 +8,10 @@ Modules: `masks` (`masks`, the annotations of an image), `segmentation` (`segmen
 
 from __future__ import annotations
 
-__all__ = ["attribute_counts", "category_counts", "category_indices", "masks", "segmentation"]
+# Imported here, not lazily: `masks` and `segmentation` name both a module and its function, and the package's
+# names are the functions (a lazy __getattr__ re-entered itself importing the module of the same name).
+from nuparquet.nuimages.masks import image_annotations, masks  # noqa: E402
+from nuparquet.nuimages.segmentation import category_indices, segmentation  # noqa: E402
+from nuparquet.nuimages.counts import attribute_counts, category_counts  # noqa: E402
 
-
-def __getattr__(name: str):
-    if name in ("masks", "image_annotations"):
-        from nuparquet.nuimages import masks as module
-    elif name in ("segmentation", "category_indices"):
-        from nuparquet.nuimages import segmentation as module
-    elif name in ("category_counts", "attribute_counts"):
-        from nuparquet.nuimages import counts as module
-    else:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(module, name)
+__all__ = ["attribute_counts", "category_counts", "category_indices", "image_annotations", "masks", "segmentation"]

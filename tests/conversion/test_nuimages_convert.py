@@ -240,3 +240,16 @@ def test_a_mask_table_without_any_mask_keeps_the_string_type_of_mask_counts(root
     facts, problems = mask_facts(pl.DataFrame({"token": ["a", "b"], "mask": [None, None]},
                                               schema={"token": pl.String, "mask": pl.String}), "surface_ann.json")
     assert not problems and facts.schema["mask_counts"] == pl.String and facts["mask_area"].null_count() == 2
+
+
+def test_the_package_names_are_the_functions_in_a_fresh_interpreter():
+    # `masks` and `segmentation` name both a module and its function: the documented import gives the functions
+    import subprocess
+    import sys
+
+    code = ("from nuparquet.nuimages import masks, segmentation, category_counts, attribute_counts\n"
+            "print(masks.__module__, segmentation.__module__, category_counts.__name__, attribute_counts.__name__)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == ["nuparquet.nuimages.masks", "nuparquet.nuimages.segmentation", "category_counts",
+                                   "attribute_counts"]
