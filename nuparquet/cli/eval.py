@@ -86,6 +86,21 @@ def print_summary(summary: dict) -> None:
                                                                  errors["attr_err"])))
 
 
+def print_tags(summary: dict) -> None:
+    """truckscenes-devkit's "Per-tag results" table (`--tags`): one line per scene tag."""
+    print()
+    print("Per-tag results:")
+    print("%-22s\t%-6s\t%-6s\t%-6s\t%-6s\t%-6s\t%-6s\t%-6s" % ("Scene Tag", "mAP", "mATE", "mASE", "mAOE", "mAVE",
+                                                          "mAAE", "NDS"))
+    for tag, metrics in summary.items():
+        if tag in ("all", "eval_time", "meta"):
+            continue
+        errors = metrics["tp_errors"]
+        print("%-22s\t" % tag + "\t".join(_number(v) for v in (
+            metrics["mean_ap"], errors["trans_err"], errors["scale_err"], errors["orient_err"], errors["vel_err"],
+            errors["attr_err"], metrics["nd_score"])))
+
+
 def print_lidarseg(metrics: dict) -> None:
     """The devkit's result dict, one class a line (LidarSegEval's verbose printout is its JSON dump)."""
     print(f"mIoU: {metrics['miou']:.4f}")
@@ -133,6 +148,8 @@ def run(args) -> int:
         print_prediction(result.metrics)
     else:
         print_summary(result.metrics.serialize())
+        if options.tags:
+            print_tags(result.summary)
     if result.slices is not None:
         for by in dict.fromkeys(result.slices["by"].to_list()):
             table = result.slices.filter(result.slices["by"] == by).drop("by")

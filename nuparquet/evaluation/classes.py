@@ -78,7 +78,8 @@ class Taxonomy:
     as NaN}; orientation_period_rad: {class: period} (2 pi otherwise); reference_channel: the keyframe whose ego
     pose the class ranges are measured from (None: the dataset's reference lidar, LIDAR_TOP in nuScenes);
     tagged_output: the devkit writes its metrics per scene tag (TruckScenes' `DetectionMetricsList`: the
-    metrics under "all", and metrics_details keyed "all:<class>").
+    metrics under "all", and metrics_details keyed "all:<class>"); scene_tags, unevaluated_tags: its per-tag
+    evaluation (`evaluate_tags`).
     """
 
     family: str
@@ -90,6 +91,8 @@ class Taxonomy:
     pretty_names: dict[str, str]
     reference_channel: str | None = None
     tagged_output: bool = False
+    scene_tags: tuple[str, ...] = ()  # the tags a scene's description may hold, evaluated one by one on request
+    unevaluated_tags: tuple[str, ...] = ()  # tags whose metrics the devkit reports as NaN (too few scenes)
     colors: dict[str, str] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -119,7 +122,17 @@ TRUCKSCENES = Taxonomy(
     {"barrier": math.pi, "traffic_sign": math.pi},
     {**{n: p for n, p in PRETTY_DETECTION_NAMES.items() if n != "construction_vehicle"},
      "other_vehicle": "Other Veh.", "animal": "Animal", "traffic_sign": "Traffic Sign"},
-    reference_channel="LIDAR_LEFT", tagged_output=True)
+    reference_channel="LIDAR_LEFT", tagged_output=True,
+    # truckscenes-devkit `eval/common/constants.py` TAG_NAMES, and the tags `DetectionEval.evaluate` gives NaN
+    scene_tags=("weather.clear", "weather.rain", "weather.snow", "weather.fog", "weather.hail", "weather.overcast",
+                "weather.other_weather", "area.highway", "area.rural", "area.terminal", "area.parking", "area.city",
+                "area.residential", "area.other_area", "daytime.morning", "daytime.noon", "daytime.evening",
+                "daytime.night", "season.spring", "season.summer", "season.autumn", "season.winter",
+                "lighting.illuminated", "lighting.glare", "lighting.dark", "lighting.twilight",
+                "lighting.other_lighting", "structure.tunnel", "structure.bridge", "structure.underpass",
+                "structure.overpass", "structure.regular", "construction.roadworks", "construction.unchanged"),
+    unevaluated_tags=("weather.other_weather", "weather.snow", "weather.hail", "area.parking", "area.other_area",
+                      "season.spring", "lighting.other_lighting"))
 
 TAXONOMIES = {t.family: t for t in (NUSCENES, TRUCKSCENES)}
 

@@ -214,12 +214,12 @@ def detection_metrics(data: dict[tuple, MetricData], config: DetectionConfig,
     return DetectionMetrics(config, label_aps, label_tp_errors, eval_time)
 
 
-def serialize_details(data: dict[tuple, MetricData], tagged: bool = False) -> dict:
+def serialize_details(data: dict[tuple, MetricData], tag: str | None = None) -> dict:
     """metrics_details.json: {"<class>:<threshold>": curves} (the devkit's `DetectionMetricDataList`).
 
-    tagged: TruckScenes' list, keyed (tag, class, threshold) but serialized as "<tag>:<class>", so each class's
+    tag: TruckScenes' list, keyed (tag, class, threshold) but serialized as "<tag>:<class>", so each class's
     key is written once, in its first place, holding its last threshold's curves (truckscenes-devkit 1.2.0's
     file, kept as it is: the other thresholds' curves are in the predictions table's matches)."""
-    if tagged:
-        return {f"all:{name}": md.serialize() for (name, _threshold), md in data.items()}
+    if tag is not None:
+        return {f"{tag}:{name}": md.serialize() for (name, _threshold), md in data.items()}
     return {f"{name}:{threshold}": md.serialize() for (name, threshold), md in data.items()}

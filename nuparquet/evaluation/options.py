@@ -43,6 +43,9 @@ class EvalOptions:
                          "class (panoptic tasks); --no-plots: skip")
     min_inst_points: int = option(15, metavar="N", help="panoptic tasks: the fewest points of an instance "
                                   "counted as a false negative or positive (the devkit's --min_inst_points; default 15)")
+    tags: bool = option(False, help="MAN TruckScenes detection: also evaluate each scene tag of its devkit "
+                        "(weather.rain, area.highway, ...: truckscenes-devkit's --evaluate_tags), one entry per tag in "
+                        "metrics_summary.json beside \"all\"")
     overwrite: bool = option(False, help="replace DIR if it already holds files")
 
     def __post_init__(self) -> None:

@@ -33,6 +33,7 @@ from nuparquet.evaluation.metrics import (
     DetectionMetrics, MetricData, detection_metrics, match_errors, metric_data, serialize_details,
 )
 from nuparquet.evaluation.options import EvalOptions
+from nuparquet.evaluation.tags import tag_evaluations, tagged_details, tagged_summary
 from nuparquet.evaluation.tasks import task_function
 from nuparquet.options import resolve
 from nuparquet.evaluation.slices import dimension, needed_columns, parse_bins
@@ -61,13 +62,14 @@ class Evaluation:
         (`Taxonomy.tagged_output`): its `DetectionMetricsList` of the tag "all" (whose own eval_time stays None),
         then the evaluation time and the meta."""
         if self.metrics.config.taxonomy.tagged_output:
-            untimed = DetectionMetrics(self.metrics.config, self.metrics.label_aps, self.metrics.label_tp_errors)
-            return {"all": untimed.serialize(), "eval_time": self.metrics.eval_time, "meta": dict(meta)}
+            return tagged_summary({"all": self}, meta)
         return {**self.metrics.serialize(), "meta": dict(meta)}
 
     def details(self) -> dict:
         """metrics_details.json."""
-        return serialize_details(self.data, tagged=self.metrics.config.taxonomy.tagged_output)
+        if self.metrics.config.taxonomy.tagged_output:
+            return tagged_details({"all": self})
+        return serialize_details(self.data)
 
 
 def evaluate_boxes(gt: Boxes, pred: Boxes, config: DetectionConfig) -> Evaluation:
@@ -149,6 +151,8 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
     options = resolve(EvalOptions, options, fields)
     if options.min_inst_points != EvalOptions.min_inst_points and not options.task.startswith("panoptic"):
         raise UsageError(f"--min-inst-points applies to --task panoptic and panoptic-tracking, not {options.task}")
+    if options.tags and options.task != "detection":
+        raise UsageError(f"--tags applies to --task detection (TruckScenes' per-tag metrics), not {options.task}")
     if options.task != "detection":  # the other benchmarks, each in its own package, through the one verb
         return task_function(options.task)(dataset, results, out, options, on_progress=on_progress)
     ds = as_dataset(dataset)
@@ -159,6 +163,9 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
                          f"({', '.join(taxonomy.detection_names[:4])}, ...), but {ds.root} is a {ds.source_format} "
                          f"dataset; use its own (--config {FAMILY_CONFIGS.get(ds.source_format, '?')}) or a "
                          "configuration file with its classes")
+    if options.tags and not taxonomy.scene_tags:
+        raise UsageError(f"--tags: the {taxonomy.family} benchmark has no scene tags (MAN TruckScenes' has: its "
+                         "scenes' descriptions list them)")
     bins = parse_bins(options.bins) if options.bins else None
     by = tuple(dict.fromkeys(options.by))
     out = Path(out) if out is not None else None
@@ -221,8 +228,13 @@ def evaluate(dataset, results, out=None, options: EvalOptions | None = None, *,
             slices, slice_summaries, slice_details = _evaluate_slices(
                 by, gt, gt_kept, gt_boxes, pred_boxes, gt_distance[gt_kept], pred_distance[pred_kept], tp_match,
                 config, bins, sub.meta, rep, steps)
-        summary = whole.summary(sub.meta)
-        details = whole.details()
+        summary, details = whole.summary(sub.meta), whole.details()
+        if options.tags:
+            description = dict(zip(gt.scenes["token"].to_list(), gt.scenes["description"].to_list()))
+            evaluations = {"all": whole, **tag_evaluations(
+                gt_boxes, pred_boxes, [description[t] for t in gt.samples.scene_token.tolist()], config,
+                evaluate_boxes)}
+            summary, details = tagged_summary(evaluations, sub.meta), tagged_details(evaluations)
         notes = _notes(gt)
         result = EvalResult(summary=summary, details=details, metrics=whole.metrics, predictions=predictions,
                             ground_truth=ground_truth, slices=slices, slice_summaries=slice_summaries,

@@ -68,8 +68,11 @@ VISIBILITIES = (("v0-40", "visibility of whole object is between 0 and 40%"),
                 ("v40-60", "visibility of whole object is between 40 and 60%"),
                 ("v60-80", "visibility of whole object is between 60 and 80%"),
                 ("v80-100", "visibility of whole object is between 80 and 100%"))
-TAGS = ("weather.clear", "area.highway", "daytime.morning", "season.autumn", "lighting.illuminated",
-        "structure.regular", "construction.unchanged")
+# Scene tags (the scene's `description`, ";"-joined): scene i takes choice i of each group (modulo its size),
+# so scenes differ in weather, area and lighting; weather.snow is one whose per-tag metrics the devkit reports NaN.
+TAG_CHOICES = (("weather.clear", "weather.snow", "weather.rain"), ("area.highway", "area.city"), ("daytime.morning",),
+               ("season.autumn",), ("lighting.illuminated", "lighting.dark"), ("structure.regular",),
+               ("construction.unchanged",))
 # (category, attributes, offset from the ego at the scene start [x, y] m, own speed m/s, size [w, l, h] m)
 OBJECTS = (
     ("vehicle.car", ("vehicle.moving",), (18.0, 6.0), 14.0, (1.9, 4.6, 1.6)),
@@ -164,7 +167,7 @@ def _scene(rng, tables, files, calibrations, scene_index, start_us, samples_per_
                                          "wind": round(rng.uniform(0, 8), 2), "precipitation": 0.0,
                                          "cloud_cover": int(rng.integers(0, 9)), "visibility": 10000.0})
     tables["scene"].append({"token": scene_token, "name": scene_name(scene_index),
-                            "description": ";".join(TAGS), "log_token": "", "nbr_samples": samples_per_scene,
+                            "description": ";".join(c[scene_index % len(c)] for c in TAG_CHOICES), "log_token": "", "nbr_samples": samples_per_scene,
                             "first_sample_token": sample_tokens[0], "last_sample_token": sample_tokens[-1],
                             "weather_annotation_token": weather_token})
     for motion in ("ego_motion_cabin", "ego_motion_chassis"):

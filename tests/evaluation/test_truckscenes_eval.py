@@ -133,10 +133,10 @@ def submissions(ts, tmp_path_factory):
     return paths
 
 
-def _devkit(ts, results, out_dir) -> tuple[DetectionEval, dict, dict]:
+def _devkit(ts, results, out_dir, tags: bool = False) -> tuple[DetectionEval, dict, dict]:
     evaluation = DetectionEval(ts, config_factory("detection_cvpr_2024"), str(results), SPLIT, str(out_dir),
                                verbose=False)
-    evaluation.main(render_curves=False)
+    evaluation.main(render_curves=False, evaluate_tags=tags)
     return (evaluation, json.loads((out_dir / "metrics_summary.json").read_text()),
             json.loads((out_dir / "metrics_details.json").read_text()))
 
@@ -222,3 +222,30 @@ def test_truckscenes_attributes_are_accepted_and_unknown_ones_named(ts, out, sub
     path.write_text(json.dumps(content))
     with pytest.raises(InputError, match=f"sample {token} box 0: unknown attribute_name 'vehicle.flying'"):
         evaluate(out, results=path, split=SPLIT)
+
+
+def test_per_tag_metrics_equal_the_devkits_evaluate_tags(ts, out, submissions, tmp_path, capsys):
+    _, summary, details = _devkit(ts, submissions["noisy"], tmp_path / "devkit", tags=True)
+    descriptions = [s["description"] for s in ts.scene]
+    assert len(set(descriptions)) == 2 and any("weather.snow" in d for d in descriptions)  # tags differ by scene
+    evaluate(out, results=submissions["noisy"], split=SPLIT, out=tmp_path / "ours", plots=False, tags=True)
+    assert_same_metrics(tmp_path / "ours", summary, details)
+    ours = json.loads((tmp_path / "ours" / "metrics_summary.json").read_text())
+    # a tag of one scene only, a tag the devkit reports as NaN though a scene holds it, a tag no scene holds
+    assert ours["weather.clear"]["mean_ap"] != ours["all"]["mean_ap"]
+    assert math.isnan(ours["weather.snow"]["mean_ap"]) and ours["weather.snow"]["tp_scores"]["trans_err"] == 0.0
+    assert ours["weather.fog"]["mean_ap"] == 0.0
+
+
+def test_the_cli_prints_per_tag_results_and_tags_are_refused_where_there_are_none(out, submissions, tmp_path,
+                                                                                    capsys, eval_out):
+    from nuparquet.cli.main import main
+
+    assert main(["eval", str(out), "--results", str(submissions["noisy"]), "--split", SPLIT, "--tags",
+                 "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "Per-tag results:" in printed and "area.highway" in printed and "NDS:" in printed
+    with pytest.raises(UsageError, match="--tags: the nuscenes benchmark has no scene tags"):
+        evaluate(eval_out, results=submissions["noisy"], split="val", tags=True)
+    with pytest.raises(UsageError, match="--tags applies to --task detection"):
+        evaluate(out, results=submissions["noisy"], split=SPLIT, tags=True, task="tracking")
