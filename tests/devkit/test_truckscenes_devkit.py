@@ -21,6 +21,7 @@ from nuparquet.devkit import NotServed, NuScenes
 from nuparquet.devkit.truckscenes import TruckScenes as Ours
 from nuparquet.errors import InputError, UsageError
 from nuparquet.synth import synthesize
+from tests.conftest import converted, generated_root
 
 truckscenes = pytest.importorskip("truckscenes")
 from truckscenes import TruckScenes  # noqa: E402
@@ -38,15 +39,13 @@ def _devkit(root) -> TruckScenes:
 
 @pytest.fixture(scope="module")
 def root(tmp_path_factory):
-    return synthesize(tmp_path_factory.mktemp("ts") / "root", scenes=2, samples_per_scene=6, seed=3,
-                      family="truckscenes", version=VERSION)
+    return generated_root(tmp_path_factory, "truckscenes-devkit", lambda path: synthesize(
+        path, scenes=2, samples_per_scene=6, seed=3, family="truckscenes", version=VERSION))
 
 
 @pytest.fixture(scope="module")
 def out(root, tmp_path_factory):
-    target = tmp_path_factory.mktemp("ts-out") / "out"
-    convert(root, VERSION, target)  # the box calls read no points
-    return target
+    return converted(tmp_path_factory, "truckscenes-devkit-out", root, VERSION)  # the box calls read no points
 
 
 @pytest.fixture(scope="module")
