@@ -11,6 +11,8 @@ The import paths mirror the devkit's where user code imports from: `nuparquet.de
 `...utils.splits`, `...utils.color_map`, `...utils.map_mask`, `...utils.data_io`,
 `nuparquet.devkit.can_bus.can_bus_api` (`NuScenesCanBus`, over the converted `can_bus/` datasets) and
 `nuparquet.devkit.prediction` (`PredictHelper`, over the converted annotation and sample tables).
+`nuparquet.devkit.truckscenes.TruckScenes` is truckscenes-devkit's `TruckScenes` over a converted MAN TruckScenes
+output (the same machinery: its tables, `getclosest`, its `get_sample_data`; each class refuses the other's output).
 
 A skin, not a second engine: the records come from the converted tables (`tables/<name>`), rebuilt exactly as
 `json.load` gave them; which boxes a frame shows follows `nuparquet.frames.boxes`' rule; the batch visibility

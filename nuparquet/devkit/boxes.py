@@ -185,13 +185,18 @@ def visibility_bounds(boxes: GlobalBoxes, move: SensorMove, intrinsic: np.ndarra
 
 
 def get_sample_data(nusc, sample_data_token: str, box_vis_level=BoxVisibility.ANY, selected_anntokens=None,
-                    use_flat_vehicle_coordinates: bool = False):
+                    use_flat_vehicle_coordinates: bool = False, pose_record: dict | None = None, turn=None):
     """The devkit's `NuScenes.get_sample_data`: (data path, boxes in the sensor frame (or the flat ego frame), the
-    camera intrinsic (3, 3) or None). For a camera, boxes failing `box_in_image(box_vis_level)` are left out."""
+    camera intrinsic (3, 3) or None). For a camera, boxes failing `box_in_image(box_vis_level)` are left out.
+
+    `pose_record`: the ego pose the boxes are moved with (default: the frame's own, nuScenes'); `turn(box)`: one
+    more move of each box after that (truckscenes-devkit's flat frame turns every box about its own up axis), which
+    the batch pre-check does not know: every camera box then goes through `box_in_image`."""
     sd_record = nusc.get("sample_data", sample_data_token)
     cs_record = nusc.get("calibrated_sensor", sd_record["calibrated_sensor_token"])
     sensor_record = nusc.get("sensor", cs_record["sensor_token"])
-    pose_record = nusc.get("ego_pose", sd_record["ego_pose_token"])
+    if pose_record is None:
+        pose_record = nusc.get("ego_pose", sd_record["ego_pose_token"])
     data_path = nusc.get_sample_data_path(sample_data_token)
     camera = sensor_record["modality"] == "camera"
     cam_intrinsic = np.array(cs_record["camera_intrinsic"]) if camera else None
@@ -203,16 +208,18 @@ def get_sample_data(nusc, sample_data_token: str, box_vis_level=BoxVisibility.AN
         decided = [False] * len(candidates)
     else:
         boxes = global_boxes(nusc, sample_data_token)
-        if camera:
+        if camera and turn is None:
             maybe, surely = visibility_bounds(boxes, move, cam_intrinsic, imsize, box_vis_level)
         else:
-            maybe = surely = np.ones(len(boxes), dtype=bool)
+            maybe, surely = np.ones(len(boxes), dtype=bool), np.full(len(boxes), not camera)
         candidates = [boxes.box(k) for k in np.flatnonzero(maybe).tolist()]
         decided = surely[maybe].tolist()
 
     box_list = []
     for box, passes in zip(candidates, decided):
         move.apply(box)
+        if turn is not None:
+            turn(box)
         if camera:
             if passes:
                 box.orientation._normalise()  # what box_in_image's corners() does to the box it keeps

@@ -24,7 +24,7 @@ import numpy as np
 from nuparquet.devkit import boxes as box_calls
 from nuparquet.devkit.errors import NotServed
 from nuparquet.devkit.explorer import NuScenesExplorer
-from nuparquet.devkit.output import open_output
+from nuparquet.devkit.output import open_output, require_format
 from nuparquet.devkit.reverse import ReverseIndex
 from nuparquet.devkit.tables import ConvertedTables, Table
 from nuparquet.devkit.utils.color_map import get_colormap
@@ -75,6 +75,7 @@ class NuScenes:
         dataset, dataroot = open_output(dataroot, parquet, what="nuparquet.devkit.NuScenes",
                                         convert=f"nuparquet convert {{dataroot}} --version {version} --out OUT",
                                         storage_options=storage_options)
+        require_format(dataset, "nuscenes", "nuparquet.devkit.NuScenes")
         if dataset.version != version:
             raise UsageError(f"version {version!r} was asked for, but {dataset.root} holds the conversion of "
                              f"{dataset.version!r}: pass version={dataset.version!r}, or convert {version!r}")

@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from nuparquet.errors import UsageError
+from nuparquet.errors import InputError, UsageError
 from nuparquet.format import MANIFEST
 
 DEVKIT_DATAROOT = "/data/sets/nuscenes"  # the devkit's default
@@ -37,3 +37,20 @@ def open_output(dataroot: str | os.PathLike | None, parquet: str | os.PathLike |
     else:
         dataset = open_dataset(parquet, dataroot=dataroot, storage_options=storage_options)
     return dataset, dataroot
+
+
+# The devkit class that serves each converted family (`Dataset.source_format`); nuImages has none.
+SERVED_BY = {"nuscenes": "nuparquet.devkit.NuScenes", "truckscenes": "nuparquet.devkit.truckscenes.TruckScenes"}
+FAMILY = {"nuscenes": "nuScenes", "truckscenes": "MAN TruckScenes", "nuimages": "nuImages"}
+
+
+def require_format(dataset, expected: str, what: str) -> None:
+    """Refuse an output of another dataset family than `expected` (a `Dataset.source_format`), naming its format and
+    what serves it: its tables are not the ones `what` (a devkit class) serves."""
+    found = dataset.source_format
+    if found == expected:
+        return
+    other = SERVED_BY.get(found)
+    instead = f"open it with {other}" if other else "read it with nuparquet.open (no devkit class serves it)"
+    raise InputError(f"{dataset.root} is a conversion of {FAMILY.get(found, found)} (source format {found!r}), and "
+                     f"{what} serves {FAMILY[expected]} ({expected!r}) outputs only: {instead}")

@@ -42,14 +42,24 @@ def closest_rows(timestamps_us: np.ndarray, query_timestamps_us: np.ndarray) -> 
     (ego_pose, ego_motion_*): a tie between an earlier and a later record goes to the earlier; among records
     sharing one timestamp, the last in file order (the devkit keys a dict by timestamp: the last one written wins).
     `timestamps_us`: (P,) the table's timestamps in file order (P >= 1)."""
-    order = np.argsort(timestamps_us, kind="stable")
-    times = timestamps_us[order]
-    distinct, last = np.unique(times[::-1], return_index=True)  # each timestamp's last row in sorted order
-    last_row = order[len(times) - 1 - last]
-    pos = np.searchsorted(distinct, query_timestamps_us, side="left")  # bisect_left
-    before = np.clip(pos - 1, 0, len(distinct) - 1)
-    after = np.clip(pos, 0, len(distinct) - 1)
-    take_after = (pos == 0) | ((pos < len(distinct))
-                               & (distinct[after] - query_timestamps_us < query_timestamps_us - distinct[before]))
-    return last_row[np.where(take_after, after, before)]
+    return ClosestRows(timestamps_us)(query_timestamps_us)
 
+
+class ClosestRows:
+    """`closest_rows` with the table's timestamps sorted once, for many separate queries (the devkit-style
+    `TruckScenes.getclosest`, one time per call)."""
+
+    def __init__(self, timestamps_us: np.ndarray):
+        order = np.argsort(timestamps_us, kind="stable")
+        times = timestamps_us[order]
+        self.distinct, last = np.unique(times[::-1], return_index=True)  # each timestamp's last row in sorted order
+        self.last_row = order[len(times) - 1 - last]
+
+    def __call__(self, query_timestamps_us: np.ndarray) -> np.ndarray:
+        distinct = self.distinct
+        pos = np.searchsorted(distinct, query_timestamps_us, side="left")  # bisect_left
+        before = np.clip(pos - 1, 0, len(distinct) - 1)
+        after = np.clip(pos, 0, len(distinct) - 1)
+        take_after = (pos == 0) | ((pos < len(distinct))
+                                   & (distinct[after] - query_timestamps_us < query_timestamps_us - distinct[before]))
+        return self.last_row[np.where(take_after, after, before)]
