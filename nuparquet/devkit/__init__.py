@@ -29,5 +29,6 @@ videos and `render_egoposes_on_map` (`nuparquet render`), tables that were not c
 
 from nuparquet.devkit.errors import NotServed, ReadOnly
 from nuparquet.devkit.nuscenes import NuScenes, NuScenesExplorer
+from nuparquet.devkit.truckscenes import TruckScenes
 
-__all__ = ["NuScenes", "NuScenesExplorer", "NotServed", "ReadOnly"]
+__all__ = ["NuScenes", "NuScenesExplorer", "NotServed", "ReadOnly", "TruckScenes"]
