@@ -40,7 +40,8 @@ class EvalOptions:
         "columns, e.g. 0,20,40")
     plots: bool = option(True, help="write the task's plots as PNG into DIR/plots: the devkit's PR and TP curves "
                          "(detection, tracking), IoU per class and the confusion matrix (lidarseg), PQ/SQ/RQ and PTQ per "
-                         "class (panoptic tasks); --no-plots: skip")
+                         "class (panoptic tasks), the predicted trajectories of the 8 agents of largest final error "
+                         "over the map (prediction: plots/trajectories/); --no-plots: skip")
     min_inst_points: int = option(15, metavar="N", help="panoptic tasks: the fewest points of an instance "
                                   "counted as a false negative or positive (the devkit's --min_inst_points; default 15)")
     tags: bool = option(False, help="MAN TruckScenes detection: also evaluate each scene tag of its devkit "

@@ -406,3 +406,39 @@ def test_a_configuration_the_devkit_would_refuse_or_misread_is_refused(content, 
 
     with pytest.raises(UsageError, match=message):
         PredictionConfig.from_dict(content, where="my.json")
+
+
+def test_predicted_trajectories_are_drawn_over_the_map_by_rank():
+    from nuparquet.evaluation.prediction.pictures import FUTURE_RGB, trajectory_picture
+    from nuparquet.rendering.palette import LINE_CYCLE_RGB
+
+    future = np.c_[np.arange(1.0, 11.0), np.zeros(10)]
+    modes = np.stack([np.c_[np.arange(1.0, 11.0), np.full(10, 5.0)],    # probability 0.2: ranked second
+                      np.c_[np.arange(1.0, 11.0), np.full(10, -5.0)]])  # 0.8: first
+    picture = trajectory_picture(None, None, (0.0, 0.0), np.zeros((0, 2)), future, modes, [0.2, 0.8])
+    # drawn extent (-10, -15) to (20, 15) m on 700 px: pixel (u, v) of (x, y) = ((x + 10), (15 - y)) * 700 / 30 - 0.5
+    s = 700 / 30
+
+    def at(x, y):
+        return tuple(int(c) for c in picture[round((15 - y) * s - 0.5), round((x + 10) * s - 0.5)])
+
+    assert picture.shape == (700, 700, 3)
+    assert at(5.5, -5.0) == LINE_CYCLE_RGB[0] and at(5.5, 5.0) == LINE_CYCLE_RGB[1]
+    assert at(5.5, 0.0) == FUTURE_RGB and at(5.5, 2.5) == (255, 255, 255)
+
+
+def test_the_eval_folder_holds_the_worst_agents_trajectories(pred_out, devkit, tmp_path):
+    import cv2
+
+    from nuparquet.evaluation.prediction import evaluate_prediction
+
+    records = perturbed(devkit, 3, count=20)
+    ours = evaluate_prediction(pred_out, write(tmp_path, records), tmp_path / "eval", split=SPLIT)
+    pictures = sorted((tmp_path / "eval" / "plots" / "trajectories").glob("*.png"))
+    assert len(pictures) == 8
+    worst = ours.agents.sort("MinFDEK_1", descending=True).row(0, named=True)
+    assert pictures[0].name == f"00_{worst['instance_token']}_{worst['sample_token']}.png"
+    image = cv2.imread(str(pictures[0]))
+    assert image.shape[:2] == (700, 700) and len(np.unique(image.reshape(-1, 3), axis=0)) > 10  # map, lines, text
+    evaluate_prediction(pred_out, write(tmp_path, records), tmp_path / "bare", split=SPLIT, plots=False)
+    assert not (tmp_path / "bare" / "plots").exists()

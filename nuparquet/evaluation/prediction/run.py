@@ -91,7 +91,13 @@ def evaluate_prediction(dataset, results, out=None, options: EvalOptions | None 
         slices = agent_slices(ds, agents, by, options.bins) if by else None
         result = PredictionResult(metrics=metrics, agents=agents, modes=modes, out=out, slices=slices)
         if out is not None:
-            write(out, result)
+            draw = None
+            if options.plots:
+                from nuparquet.evaluation.prediction.pictures import write_trajectory_plots
+
+                def draw(plot_dir: Path) -> None:
+                    write_trajectory_plots(plot_dir, ds, submission, agents, futures, modes)
+            write(out, result, draw=draw)
         rep.advance()
     return result
 
@@ -194,9 +200,10 @@ def score(ds, submission, futures: list[np.ndarray], agents: pl.DataFrame, confi
     return metrics, agent_table, mode_table
 
 
-def write(out: Path, result: PredictionResult) -> None:
+def write(out: Path, result: PredictionResult, draw=None) -> None:
     """`prediction_metrics.json` (the devkit's dict as its `main` dumps it: indent 2, key order kept, NaN written
-    as NaN), `agents.parquet` and `modes.parquet`, into `out` at once (`atomic_directory`)."""
+    as NaN), `agents.parquet` and `modes.parquet`, and `draw(plots/trajectories)`'s pictures (the predicted
+    trajectories over the map: `pictures`), into `out` at once (`atomic_directory`)."""
     from nuparquet.atomic import atomic_directory
 
     with atomic_directory(out, overwrite=True, checked=True) as partial:
@@ -205,6 +212,8 @@ def write(out: Path, result: PredictionResult) -> None:
         result.modes.write_parquet(partial / "modes.parquet")
         if result.slices is not None:
             result.slices.write_parquet(partial / "slices.parquet")
+        if draw is not None:
+            draw(partial / "plots" / "trajectories")
 
 
 def agent_slices(ds, agents: pl.DataFrame, by: tuple[str, ...], bins) -> pl.DataFrame:
