@@ -213,7 +213,10 @@ GROUPS: dict[str, Group] = {
          "tests/rendering/test_topview.py", "tests/rendering/test_charts.py",
          # charts.write_plots in the test's process: the CAN bus charts' file names, the lidarseg chart
          "tests/cli/test_analytics.py::test_stats_plots_writes_four_png_charts_and_two_from_the_can_bus",
-         "tests/conversion/test_points.py::test_stats_gains_lidarseg_sections_and_a_chart_when_labels_were_converted"),
+         "tests/conversion/test_points.py::test_stats_gains_lidarseg_sections_and_a_chart_when_labels_were_converted",
+         # trajectories.py: the predicted trajectories over the map, tested beside the prediction evaluation
+         "tests/evaluation/test_prediction_devkit.py::test_predicted_trajectories_are_drawn_over_the_map_by_rank",
+         "tests/evaluation/test_prediction_devkit.py::test_the_eval_folder_holds_the_worst_agents_trajectories"),
         keyword="not extract", cache_conversions=True),
     "index": Group(
         ("nuparquet/index/**/*.py",),

@@ -146,6 +146,12 @@ def run(args) -> int:
         print_panoptic(result.metrics)
     elif options.task == "prediction":
         print_prediction(result.metrics)
+        if args.out is not None and options.plots:  # the pictures are the rendering layer's
+            from pathlib import Path
+
+            from nuparquet.rendering.pictures.trajectories import write_trajectory_plots
+
+            write_trajectory_plots(Path(args.out) / "plots" / "trajectories", args.dataset, result)
     else:
         print_summary(result.metrics.serialize())
         if options.tags:

@@ -409,7 +409,7 @@ def test_a_configuration_the_devkit_would_refuse_or_misread_is_refused(content, 
 
 
 def test_predicted_trajectories_are_drawn_over_the_map_by_rank():
-    from nuparquet.evaluation.prediction.pictures import FUTURE_RGB, trajectory_picture
+    from nuparquet.rendering.pictures.trajectories import FUTURE_RGB, trajectory_picture
     from nuparquet.rendering.palette import LINE_CYCLE_RGB
 
     future = np.c_[np.arange(1.0, 11.0), np.zeros(10)]
@@ -430,15 +430,19 @@ def test_predicted_trajectories_are_drawn_over_the_map_by_rank():
 def test_the_eval_folder_holds_the_worst_agents_trajectories(pred_out, devkit, tmp_path):
     import cv2
 
+    from nuparquet.cli.main import main
     from nuparquet.evaluation.prediction import evaluate_prediction
 
     records = perturbed(devkit, 3, count=20)
-    ours = evaluate_prediction(pred_out, write(tmp_path, records), tmp_path / "eval", split=SPLIT)
+    assert main(["eval", str(pred_out), "--task", "prediction", "--results", str(write(tmp_path, records)),
+                 "--split", SPLIT, "--out", str(tmp_path / "eval"), "--quiet"]) == 0
+    ours = evaluate_prediction(pred_out, write(tmp_path, records), split=SPLIT)
     pictures = sorted((tmp_path / "eval" / "plots" / "trajectories").glob("*.png"))
     assert len(pictures) == 8
     worst = ours.agents.sort("MinFDEK_1", descending=True).row(0, named=True)
     assert pictures[0].name == f"00_{worst['instance_token']}_{worst['sample_token']}.png"
     image = cv2.imread(str(pictures[0]))
     assert image.shape[:2] == (700, 700) and len(np.unique(image.reshape(-1, 3), axis=0)) > 10  # map, lines, text
-    evaluate_prediction(pred_out, write(tmp_path, records), tmp_path / "bare", split=SPLIT, plots=False)
+    assert main(["eval", str(pred_out), "--task", "prediction", "--results", str(write(tmp_path, records)),
+                 "--split", SPLIT, "--out", str(tmp_path / "bare"), "--no-plots", "--quiet"]) == 0
     assert not (tmp_path / "bare" / "plots").exists()

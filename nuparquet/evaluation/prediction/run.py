@@ -38,7 +38,8 @@ class PredictionResult:
     names: MinADEK_5, MissRateTopK_2_1, OffRoadRate...); modes: one row per (agent, mode) (probability, rank: 0 the
     most probable, ade_m, fde_m, max_distance_m, off_road); out: the directory written (None: nothing written);
     notes: what a user should know; slices: with `by`, one row per (by, slice): its agents and each metric's RowMean
-    over them under the flattened names (None without `by`)."""
+    over them under the flattened names (None without `by`); submission, futures: the records read and each
+    agent's ground-truth future (global x, y), for pictures."""
 
     metrics: dict
     agents: pl.DataFrame
@@ -46,6 +47,8 @@ class PredictionResult:
     out: Path | None = None
     notes: list[str] = field(default_factory=list)
     slices: pl.DataFrame | None = None
+    submission: object = field(default=None, repr=False)
+    futures: list = field(default_factory=list, repr=False)
 
     @property
     def summary(self) -> dict:
@@ -89,15 +92,10 @@ def evaluate_prediction(dataset, results, out=None, options: EvalOptions | None 
         metrics, agents, modes = score(ds, submission, futures, agents, config)
         rep.advance()
         slices = agent_slices(ds, agents, by, options.bins) if by else None
-        result = PredictionResult(metrics=metrics, agents=agents, modes=modes, out=out, slices=slices)
+        result = PredictionResult(metrics=metrics, agents=agents, modes=modes, out=out, slices=slices,
+                                  submission=submission, futures=futures)
         if out is not None:
-            draw = None
-            if options.plots:
-                from nuparquet.evaluation.prediction.pictures import write_trajectory_plots
-
-                def draw(plot_dir: Path) -> None:
-                    write_trajectory_plots(plot_dir, ds, submission, agents, futures, modes)
-            write(out, result, draw=draw)
+            write(out, result)
         rep.advance()
     return result
 
@@ -200,10 +198,10 @@ def score(ds, submission, futures: list[np.ndarray], agents: pl.DataFrame, confi
     return metrics, agent_table, mode_table
 
 
-def write(out: Path, result: PredictionResult, draw=None) -> None:
+def write(out: Path, result: PredictionResult) -> None:
     """`prediction_metrics.json` (the devkit's dict as its `main` dumps it: indent 2, key order kept, NaN written
-    as NaN), `agents.parquet` and `modes.parquet`, and `draw(plots/trajectories)`'s pictures (the predicted
-    trajectories over the map: `pictures`), into `out` at once (`atomic_directory`)."""
+    as NaN), `agents.parquet` and `modes.parquet`, into `out` at once (`atomic_directory`). The pictures of
+    `plots/trajectories/` are the rendering layer's (`rendering.pictures.trajectories`, drawn by `nuparquet eval`)."""
     from nuparquet.atomic import atomic_directory
 
     with atomic_directory(out, overwrite=True, checked=True) as partial:
@@ -212,8 +210,6 @@ def write(out: Path, result: PredictionResult, draw=None) -> None:
         result.modes.write_parquet(partial / "modes.parquet")
         if result.slices is not None:
             result.slices.write_parquet(partial / "slices.parquet")
-        if draw is not None:
-            draw(partial / "plots" / "trajectories")
 
 
 def agent_slices(ds, agents: pl.DataFrame, by: tuple[str, ...], bins) -> pl.DataFrame:

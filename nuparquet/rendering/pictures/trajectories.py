@@ -1,5 +1,5 @@
-"""Predicted trajectories over the map raster (`eval --task prediction` plots, `plots/trajectories/*.png`): for an
-agent, the map around where it stands (drivable area, walkways, crossings and lane dividers, north up, as the map
+"""Predicted trajectories over the map raster (`nuparquet eval --task prediction --out DIR` draws them into
+`DIR/plots/trajectories/*.png`; `write_trajectory_plots(dir, ds, result)` from Python): for an agent, the map around where it stands (drivable area, walkways, crossings and lane dividers, north up, as the map
 pictures draw them), its past over `HISTORY_S` seconds (grey), its ground-truth future (black, a dot per step) and
 each predicted mode (the matplotlib colour cycle by rank, the most probable first and thickest), named with its
 probability and displacement errors.
@@ -82,10 +82,14 @@ def worst_agents(agents: pl.DataFrame, count: int) -> list[int]:
     return ranked["agent"].head(count).to_list()
 
 
-def write_trajectory_plots(plot_dir: Path, ds, submission, agents: pl.DataFrame, futures, modes: pl.DataFrame, *,
-                           count: int = DEFAULT_COUNT) -> list[Path]:
-    """`trajectory_picture` of the `worst_agents` as `plot_dir/<n>_<instance>_<sample>.png` (n: their order)."""
+def write_trajectory_plots(plot_dir: Path, ds, result, *, count: int = DEFAULT_COUNT) -> list[Path]:
+    """`trajectory_picture` of the `worst_agents` of `result` (a `PredictionResult` of `ds`) as
+    `plot_dir/<n>_<instance>_<sample>.png` (n: their order)."""
+    from nuparquet.dataset import as_dataset
     from nuparquet.frames.annotation_chains import AnnotationChains
+
+    ds = as_dataset(ds)
+    submission, agents, futures, modes = result.submission, result.agents, result.futures, result.modes
 
     chosen = worst_agents(agents, count)
     if not chosen:
