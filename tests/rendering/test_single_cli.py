@@ -187,3 +187,31 @@ def test_a_sample_picture_reads_its_files_from_the_dataroot_given(synth_out, tok
     assert np.array_equal(render_image(nuparquet.open(synth_out, dataroot=tmp_path / "copy"), sample=tokens["sample"],
                                        scale=0.2),
                           render_image(ds, sample=tokens["sample"], scale=0.2))
+
+
+def test_the_extra_info_band_holds_seven_lines_of_28_pixels(synth_out, tokens, tmp_path):
+    # the devkit's extra_info: category, lidar and radar points, distance, width, length, height
+    plain, extra = tmp_path / "plain.png", tmp_path / "extra.png"
+    assert _render(synth_out, "--annotation", tokens["annotation"], "--scale", "0.25", target=plain) == 0
+    assert _render(synth_out, "--annotation", tokens["annotation"], "--scale", "0.25", "--extra-info",
+                   target=extra) == 0
+    without, with_band = cv2.imread(str(plain)), cv2.imread(str(extra))
+    assert with_band.shape[1] == without.shape[1]
+    assert with_band.shape[0] - without.shape[0] == 7 * 28 + 12
+
+
+def test_ego_poses_on_the_map_are_those_of_the_scenes_named(map_out, tmp_path, capsys):
+    ds = nuparquet.open(map_out)
+    scenes = ds.scan("scenes").select("name", "token", "log_location").sort("name").collect()
+    loc = scenes.group_by("log_location").len().filter(pl.col("len") >= 2).sort("log_location")["log_location"][0]
+    here = scenes.filter(pl.col("log_location") == loc)
+    pictures = {}
+    for name, flags in (("one", ["--scenes", here["name"][0]]), ("all", [])):
+        code = _render(map_out, "--map", loc, "--ego-poses", *flags, target=tmp_path / f"{name}.png")
+        assert code == 0, capsys.readouterr().err
+        pictures[name] = cv2.imread(str(tmp_path / f"{name}.png"))
+    from nuparquet.rendering.pictures.single import render_egoposes_on_map
+
+    assert np.array_equal(pictures["one"], render_egoposes_on_map(ds, loc, [here["token"][0]])[:, :, ::-1])
+    assert np.array_equal(pictures["all"], render_egoposes_on_map(ds, loc, None)[:, :, ::-1])
+    assert not np.array_equal(pictures["one"], pictures["all"])  # the other scene's poses are left out
