@@ -172,3 +172,19 @@ def test_a_split_the_dataset_holds_in_part_says_so_and_a_whole_one_does_not(labe
     (results / "lidarseg" / "mine").symlink_to(results / "lidarseg" / "train")
     whole = evaluate_lidarseg(nuparquet.open(labelled_out, dataroot=root), results, split="mine")
     assert whole.notes == [] and json.dumps(whole.metrics) == json.dumps(partial.metrics)  # NaN where absent
+
+
+def test_the_confusion_plot_names_the_classes_on_both_axes_alike():
+    """Columns (predicted, names turned upright) and rows (ground truth) name the 16 challenge classes in the
+    same order and the same small type, so that each name sits in line with its cell."""
+    import matplotlib.pyplot as plt
+
+    from nuparquet.evaluation.segmentation.plots import confusion_figure
+
+    fig = confusion_figure(np.eye(17, dtype=np.int64))
+    ax = fig.axes[0]
+    x, y = ax.get_xticklabels(), ax.get_yticklabels()
+    assert [t.get_text() for t in x] == [t.get_text() for t in y] == list(COARSE_NAMES[1:])
+    assert x[0].get_rotation() == 90 and y[0].get_rotation() == 0
+    assert {t.get_fontsize() for t in x} == {t.get_fontsize() for t in y} == {7.0}
+    plt.close(fig)

@@ -100,8 +100,10 @@ def test_perturbed_submissions_equal_the_devkit(labelled_out, devkit_nusc, seed,
                              task="panoptic" if task == "segmentation" else "panoptic-tracking")
     assert_equal_to_devkit(ours.metrics, theirs)
     _counts_equal(ours, evaluator)
-    written = json.loads((tmp_path / "ours" / f"{task}-result.json").read_text())
+    text = (tmp_path / "ours" / f"{task}-result.json").read_text()
+    written = json.loads(text)
     assert written == json.loads(json.dumps(ours.metrics))
+    assert text == json.dumps(written, indent=2)  # laid out as the devkit's save_result: json.dump(indent=2)
     # the perturbations reach the edges: misses and false instances, instances under the minimum counted nowhere
     classes = ours.classes
     assert classes["fn"].sum() > 0 and classes["fp"].sum() > 0 and classes["tp"].sum() > 0
@@ -288,8 +290,10 @@ def test_the_submission_json_is_checked(labelled_out, submission):
     with pytest.raises(InputError, match="submission.json: cannot be read as JSON"):
         _evaluate(labelled_out, submission)
     meta_path.write_text(json.dumps({"meta": {**make.META, "task": "tracking"}}))
-    with pytest.raises(UsageError, match="is a tracking submission: evaluate it with --task panoptic-tracking"):
+    with pytest.raises(UsageError) as caught:
         _evaluate(labelled_out, submission)
+    assert str(caught.value) == (f"{submission / 'train' / 'submission.json'} is a tracking submission: "
+                                 "evaluate it with --task panoptic-tracking")
     _evaluate(labelled_out, submission, task="panoptic-tracking")  # the task the devkit's main would take
     meta_path.unlink()
     with pytest.raises(InputError, match="submission.json does not exist"):
@@ -357,6 +361,23 @@ def test_the_one_verb_and_the_cli_write_the_devkit_file(labelled_out, devkit_nus
                                                                    "plots", "segmentation-result.json"]
     seg_default, _ = devkit_panoptic(devkit_nusc, submission, "segmentation", 15, tmp_path / "devkit15", monkeypatch)
     assert_equal_to_devkit(json.loads((tmp_path / "seg" / "segmentation-result.json").read_text()), seg_default)
+
+
+def test_a_label_no_category_maps_is_named_by_its_first_point():
+    """The refusal names the first point whose category index maps to nothing: its label, its place, its index."""
+    import types
+
+    from nuparquet.errors import InputError
+    from nuparquet.evaluation.panoptic import run
+
+    labels = np.array([1001, 5003, 5007, 2000])
+    ds = types.SimpleNamespace(sensors=types.SimpleNamespace(labels=lambda token, kind: labels))
+    lookup = np.array([0, 1, 2, -1, -1, -1])
+    with pytest.raises(InputError) as caught:
+        run._ground_truth(ds, "tok", lookup)
+    assert str(caught.value) == ("panoptic label 5003 at point 1 of lidar sample_data tok: category index 5 is the "
+                                 "index of no category")
+    assert run._ground_truth(ds, "tok", np.array([0, 1, 2, 3, 4, 5])) is labels
 
 
 def test_labels_no_category_maps_and_a_dataset_without_panoptic_are_refused(labelled_out, submission, monkeypatch):

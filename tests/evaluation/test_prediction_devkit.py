@@ -164,6 +164,10 @@ def test_each_agent_and_mode_equals_the_devkit_metrics(pred_out, devkit, tmp_pat
         assert modes["fde_m"].to_list() == their_metrics.final_distances(prediction.prediction, stacked)[0].tolist()
         order = np.flip(prediction.probabilities.argsort(axis=-1), axis=-1)
         assert modes["rank"].to_numpy()[order].tolist() == list(range(len(order)))
+        # a mode is its place in the record's prediction, with the probability given there
+        assert modes["mode"].to_list() == list(range(prediction.number_of_modes))
+        assert modes["probability"].to_list() == prediction.probabilities.tolist()
+        assert row["predicted_steps"] == prediction.prediction.shape[1] and row["modes"] == prediction.number_of_modes
 
 
 def test_tied_probabilities_rank_as_the_devkits_argsort(pred_out, devkit, tmp_path):
@@ -446,3 +450,31 @@ def test_the_eval_folder_holds_the_worst_agents_trajectories(pred_out, devkit, t
     assert main(["eval", str(pred_out), "--task", "prediction", "--results", str(write(tmp_path, records)),
                  "--split", SPLIT, "--out", str(tmp_path / "bare"), "--no-plots", "--quiet"]) == 0
     assert not (tmp_path / "bare" / "plots").exists()
+
+
+def test_a_configuration_object_is_taken_as_given_and_a_metric_entry_that_is_no_object_is_refused():
+    from nuparquet.errors import UsageError
+    from nuparquet.evaluation.prediction.config import PredictionConfig, resolve_prediction_config
+
+    custom = PredictionConfig.from_dict({"seconds": 3, "metrics": [
+        {"name": "MinADEK", "k_to_report": [1, 2], "aggregators": [{"name": "RowMean"}]}]})
+    assert resolve_prediction_config(custom) is custom
+    assert resolve_prediction_config().seconds == 6  # the devkit's predict_2020_icra
+    with pytest.raises(UsageError) as caught:
+        PredictionConfig.from_dict({"seconds": 6, "metrics": ["MinADEK"]})
+    assert str(caught.value) == ("config: metrics[0]: name must be one of MinADEK, MinFDEK, MissRateTopK, "
+                                 "OffRoadRate, got None")
+
+
+def test_an_empty_submission_gives_typed_empty_tables(pred_out, tmp_path):
+    """No record: the devkit's NaN means, and agents and modes tables of no row that keep their column types."""
+    import polars as pl
+
+    from nuparquet.evaluation.prediction import evaluate_prediction
+
+    ours = evaluate_prediction(pred_out, write(tmp_path, []), split=SPLIT)
+    assert ours.agents.height == ours.modes.height == 0
+    assert ours.agents.schema["modes"] == ours.agents.schema["predicted_steps"] == pl.Int64
+    assert ours.agents.schema["future_steps"] == pl.Int64
+    assert [(name, ours.modes.schema[name]) for name in ("agent", "mode", "probability", "rank")] == [
+        ("agent", pl.Int64), ("mode", pl.Int64), ("probability", pl.Float64), ("rank", pl.Int64)]

@@ -198,6 +198,11 @@ def test_a_slice_equals_the_devkit_on_the_filtered_boxes(eval_root, eval_out, ev
     assert_same(folder, summary, details)
     row = ours.slices.row(1, named=True)
     assert row["amota"] == summary["amota"] or (math.isnan(row["amota"]) and math.isnan(summary["amota"]))
+    # each evaluated box is in the slice of its one scene: the counts add up to the boxes the tracks were made of
+    # (their frames less the interpolated ones)
+    assert ours.slices["num_gt"].sum() == (ours.tracks["boxes"] - ours.tracks["interpolated"]).sum() > 0
+    predicted = ours.predicted_tracks
+    assert ours.slices["num_predictions"].sum() == (predicted["boxes"] - predicted["interpolated"]).sum() > 0
 
 
 def test_the_one_verb_and_the_cli_evaluate_tracking_as_evaluate_tracking_does(edge_run, eval_out, tmp_path, capsys):
@@ -217,3 +222,29 @@ def test_the_one_verb_and_the_cli_evaluate_tracking_as_evaluate_tracking_does(ed
     assert "AMOTA" in printed and format_summary(front.summary).splitlines()[0] in printed
     for name in ("metrics_details.json",):
         assert (tmp_path / "cli" / name).read_text() == (folder / "ours" / name).read_text()
+
+
+def test_the_track_table_gives_each_evaluated_class_its_best_mota_threshold_and_tracked_ratio(edge_run):
+    """tracks: every ground-truth track of a class that has a best-MOTA threshold carries it (the devkit's
+    metrics_details confidence at its highest MOTA) and its tracked ratio ((matched + switches) / boxes, what
+    motmetrics' mostly-tracked count reads: as many tracks at 0.8 or more as the devkit's MT)."""
+    import numpy as np
+
+    _, summary, details, ours, _ = edge_run
+    tracks = ours.tracks
+    checked = 0
+    for name, md in details.items():
+        rows = tracks.filter(tracks["tracking_name"] == name)
+        mota = np.array(md["mota"], dtype=np.float64)
+        if np.all(np.isnan(mota)) or rows.height == 0:
+            continue
+        best = md["confidence"][int(np.nanargmax(mota))]
+        if math.isnan(best):  # no prediction reached a recall level (bus): no threshold, nothing tracked
+            assert rows["threshold"].null_count() == rows["tracked_ratio"].null_count() == rows.height, name
+            continue
+        assert rows["threshold"].to_list() == pytest.approx([best] * rows.height), name
+        ratio = ((rows["matched"] + rows["switches"]) / rows["boxes"]).to_list()
+        assert rows["tracked_ratio"].to_list() == pytest.approx(ratio), name
+        assert int((rows["tracked_ratio"] >= 0.8).sum()) == summary["label_metrics"]["mt"][name], name
+        checked += 1
+    assert checked >= 2

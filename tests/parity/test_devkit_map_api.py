@@ -384,3 +384,29 @@ def test_a_pickled_map_reopens_the_same_output(pairs):
     assert copy is not ours and copy.dataroot == ours.dataroot and copy.parquet == ours.parquet
     x, y = theirs.node[0]["x"], theirs.node[0]["y"]
     assert copy.lane == theirs.lane and copy.get_closest_lane(x, y) == theirs.get_closest_lane(x, y)
+
+
+def test_an_output_without_the_map_is_refused_naming_the_maps_it_holds(map_root, tmp_path):
+    from conftest import SYNTH_VERSION
+
+    from nuparquet.conversion import convert
+    from nuparquet.errors import UsageError
+
+    out = tmp_path / "no-map"
+    convert(map_root, SYNTH_VERSION, out, no_map=True)
+    with pytest.raises(UsageError) as caught:
+        NuScenesMap(str(out), "boston-seaport")
+    assert str(caught.value).endswith(" holds no map of 'boston-seaport' (maps: none): convert a dataroot whose "
+                                      "maps/expansion/ holds it")
+
+
+def test_a_map_mask_of_a_map_of_unknown_size_raises_the_devkits_exception(pairs, monkeypatch):
+    """The explorer's map sizes are the devkit's four: a map renamed to none of them raises its message."""
+    theirs, ours = pairs["boston-seaport"]
+    messages = []
+    for nusc_map in (theirs, ours):
+        monkeypatch.setattr(nusc_map.explorer.map_api, "map_name", "nowhere")
+        with pytest.raises(Exception) as caught:
+            nusc_map.explorer.get_map_mask(None, 0.0, ["drivable_area"])
+        messages.append(str(caught.value))
+    assert messages == ["Error: Invalid map!"] * 2

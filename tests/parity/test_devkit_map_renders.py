@@ -115,7 +115,8 @@ def test_the_polygon_renders_draw_where_the_devkits_raise(pair, monkeypatch):
         assert np.array_equal(image, _pixels(_figure(call(theirs))))
 
 
-def test_egoposes_on_the_fancy_map_from_our_nuscenes(pair, map_out, devkit, map_root, monkeypatch, tmp_path):
+def test_egoposes_on_the_fancy_map_from_our_nuscenes(pair, map_out, devkit, map_root, monkeypatch, tmp_path,
+                                                      capsys):
     from conftest import SYNTH_VERSION
 
     from nuparquet.devkit import NuScenes
@@ -133,6 +134,15 @@ def test_egoposes_on_the_fancy_map_from_our_nuscenes(pair, map_out, devkit, map_
     expected, devkit_fig, _ = theirs.render_egoposes_on_fancy_map(nusc, verbose=False)
     assert poses.dtype == expected.dtype and np.array_equal(poses, expected) and len(poses) > 0
     assert np.array_equal(_pixels(fig), _pixels(devkit_fig))
+    plt.close("all")
+    # verbose: the devkit's printout (its check of each scene against the bad-localisation list), the same poses
+    theirs_verbose, _, _ = theirs.render_egoposes_on_fancy_map(nusc, verbose=True)
+    printed_theirs = capsys.readouterr().out
+    ours_verbose, _, _ = ours.render_egoposes_on_fancy_map(NuScenes(SYNTH_VERSION, str(map_out), verbose=False),
+                                                           verbose=True)
+    assert capsys.readouterr().out == printed_theirs and "Adding ego poses to map..." in printed_theirs
+    assert np.array_equal(ours_verbose, expected) and np.array_equal(theirs_verbose, expected)
+    plt.close("all")
 
 
 def _maptr_explorer(base):

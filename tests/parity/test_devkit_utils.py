@@ -83,6 +83,16 @@ def test_boxes_draw_what_the_devkits_draw(dk_utils):
         assert images[0].any()
 
 
+@pytest.mark.parametrize("shape", [(4, 5), (5, 4), (3, 5)])
+def test_view_points_refuses_a_view_larger_than_4x4_as_the_devkit_asserts(dk_utils, shape):
+    """A view matrix of more than 4 rows or columns: both raise the devkit's AssertionError (no padding error)."""
+    points = np.ones((3, 2))
+    with pytest.raises(AssertionError):
+        dk_utils["geometry_utils"].view_points(points, np.ones(shape), False)
+    with pytest.raises(AssertionError):
+        geometry_utils.view_points(points, np.ones(shape), False)
+
+
 def test_geometry_utils_give_the_devkits_numbers(dk_utils):
     G = dk_utils["geometry_utils"]
     rng = np.random.default_rng(2)

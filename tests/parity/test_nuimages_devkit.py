@@ -47,6 +47,16 @@ def test_every_mask_decodes_to_the_devkit_s_pixels(nuim):
             assert 0 < expected.sum() < expected.size  # neither empty nor full: the runs' order matters
 
 
+def test_masks_of_tokens_that_are_not_there_are_refused_naming_the_first_and_counting_the_rest(nuim):
+    _, ds = nuim
+    with pytest.raises(UsageError) as caught:
+        ds.masks(["nope-1", "nope-2", "nope-3"])
+    assert str(caught.value) == "no object_ann or surface_ann 'nope-1' (and 2 more)"
+    with pytest.raises(UsageError) as caught:
+        ds.masks("nope-1")
+    assert str(caught.value) == "no object_ann or surface_ann 'nope-1'"
+
+
 def test_a_mask_that_runs_over_the_image_s_edges_decodes_exactly(nuim):
     devkit, ds = nuim
     edge = [r for r in devkit.object_ann if r["mask"] is not None and r["bbox"][0] == 0 and r["bbox"][1] == 0]

@@ -190,3 +190,79 @@ def test_everything_the_legend_draws_lies_on_its_darkened_panel(height, map_laye
     inside = np.zeros(image.shape[:2], bool)
     inside[rows[0]:rows[-1] + 1, columns[0]:columns[-1] + 1] = True
     assert not (image != grey).any(axis=2)[~inside].any()  # nothing drawn outside the panel
+
+
+def test_footprints_are_the_devkits_bottom_corners_front_first_then_the_front_centre():
+    """A box's footprint: its four bottom corners as the devkit's `Box.bottom_corners()` (front-left, front-right,
+    rear-right, rear-left; length along the heading, width across it), then the centre of its front edge."""
+    from nuscenes.utils.data_classes import Box
+    from pyquaternion import Quaternion
+
+    from nuparquet.rendering.bev import footprints
+
+    centre, wlh = np.array([[10.0, 20.0, 1.0], [-3.0, 5.0, 0.5]]), np.array([[2.0, 4.0, 1.5], [1.0, 6.0, 2.0]])
+    heading = np.array([0.0, 0.7])
+    corners = footprints(centre, wlh, heading)
+    assert corners.shape == (2, 5, 2)
+    assert np.allclose(corners[0], [[12, 21], [12, 19], [8, 19], [8, 21], [12, 20]])  # by hand: l = 4 along x
+    for b in range(2):
+        box = Box(centre[b], wlh[b], Quaternion(axis=[0, 0, 1], angle=heading[b]))
+        bottom = box.bottom_corners()[:2].T  # the devkit's order: front-right, front-left, rear-left, rear-right
+        assert np.allclose(corners[b, :4], bottom[[1, 0, 3, 2]])
+        assert np.allclose(corners[b, 4], centre[b, :2] + wlh[b, 1] / 2 * np.array([np.cos(heading[b]), np.sin(heading[b])]))
+
+
+def test_each_keyframes_boxes_are_drawn_in_their_category_colour_around_their_centre(bev_north, map_out):
+    """The boxes drawn on a view are the boxes of its own lidar frame: at each keyframe, pixels of every box's
+    category colour (`palette.category_rgb`) lie within the box's reach of its centre."""
+    from nuparquet.rendering.palette import category_rgb
+
+    poses = _lidar_keyframes(map_out, SCENE)
+    annotations = nuparquet.open(map_out).scan("annotations").filter(pl.col("scene_name") == SCENE).collect()
+    samples = annotations.select("sample_token", "timestamp").unique().sort("timestamp")["sample_token"]
+    seen = total = 0
+    for k in range(poses.height):
+        image = cv2.imread(str(bev_north / "frames" / f"{k:05d}.png")).astype(np.int64)
+        h, w = image.shape[:2]
+        s = h / (2 * 50.0)
+        ex, ey = poses["ego_translation"][k][:2]
+        rows = annotations.filter(pl.col("sample_token") == samples[k])
+        for (x, y, _), size, name in zip(rows["translation"], rows["size"], rows["category_name"]):
+            u, v = (w - 1) / 2 + (x - ex) * s, (h - 1) / 2 - (y - ey) * s
+            reach = max(size[:2]) / 2 * s + 2
+            if not (reach < u < w - reach and reach < v < h - reach) or (u < 0.3 * w and v < 0.35 * h):
+                continue  # outside the view, or under the legend
+            r, g, b = category_rgb(str(name))
+            window = image[int(v - reach):int(v + reach) + 1, int(u - reach):int(u + reach) + 1]
+            total += 1
+            seen += bool((np.abs(window - [b, g, r]).max(axis=2) <= 2).any())
+    assert total >= 5
+    assert seen >= 0.8 * total, (seen, total)
+
+
+def test_the_legend_explains_the_height_colouring_unless_told_otherwise():
+    """draw_legend's default point colouring is the height scale (its bar and range): the same pixels as asked
+    for by name, and not those of another colouring's line."""
+    from nuparquet.rendering.bev import draw_legend
+
+    by_default, by_name, other = (np.full((600, 600, 3), 120, np.uint8) for _ in range(3))
+    draw_legend(by_default)
+    draw_legend(by_name, points="height")
+    draw_legend(other, points="intensity")
+    assert np.array_equal(by_default, by_name) and not np.array_equal(by_default, other)
+
+
+def test_an_all_frames_bev_video_runs_at_the_lidars_own_rate(synth_out, tmp_path):
+    """--channel bev --all-frames without --fps: one picture per LIDAR_TOP frame, at the rate of its frames
+    (1 / the median step between them, rounded), not the keyframes' default."""
+    out = tmp_path / "bev.mp4"
+    assert main(["render", str(synth_out), "--scene", SCENE, "--channel", "bev", "--all-frames", "--bev-size", "200",
+                 "--out", str(out), "--quiet"]) == 0
+    times = (nuparquet.open(synth_out).scan("frames")
+             .filter((pl.col("scene_name") == SCENE) & (pl.col("channel").cast(pl.String) == "LIDAR_TOP"))
+             .sort("timestamp").collect()["timestamp"].to_numpy())
+    expected = round(1e6 / float(np.median(np.diff(times))))
+    with av.open(str(out)) as container:
+        stream = container.streams.video[0]
+        rate, frames = float(stream.average_rate), sum(1 for _ in container.decode(stream))
+    assert frames == len(times) and rate == expected > 2

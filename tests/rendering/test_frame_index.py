@@ -41,6 +41,9 @@ def test_one_camera_index_names_each_frame_in_time_order(synth_out, tmp_path):
         assert index["timestamp"].to_list() == expected["timestamp"].to_list() == index["time_us"].to_list()
         assert set(index["channel"]) == {"CAM_BACK"} and index["drawn"].all()
         assert index["shows_frame"].to_list() == index["frame"].to_list()
+        assert dict(index.schema) == {  # the file's declared types, not those polars would infer
+            "frame": pl.Int32, "time_us": pl.Int64, "tile": pl.Int16, "channel": pl.String,
+            "sample_data_token": pl.String, "timestamp": pl.Int64, "drawn": pl.Boolean, "shows_frame": pl.Int32}
     assert len(list((tmp_path / "f").glob("*.jpg"))) == _video_frames(tmp_path / "v.mp4") == expected.height
 
 

@@ -153,6 +153,16 @@ def test_bev_points_take_their_lidarseg_class_colour(labelled_images, tmp_path):
         k, sample_token = k + 1, sample["next"]
     assert checked > 500
     assert equal / checked > 0.9, (equal, checked)  # the rest: under boxes and the ego, drawn on top
+    # the legend says how the points are coloured: a line of white text (nothing else in the view is pure white
+    # but the ego, at the centre) in the top-left corner below the map layers' swatches (the last, the lane
+    # divider's, a filled (215, 215, 215) block)
+    image = cv2.imread(str(tmp_path / "frames" / "00000.png"))
+    corner = image[:int(0.35 * image.shape[0]), :int(0.3 * image.shape[1])]
+    swatch = np.flatnonzero((corner[:, 10:18] == 215).all(axis=(1, 2)))
+    start = 0
+    if len(swatch):
+        start = swatch[np.r_[np.flatnonzero(np.diff(swatch) > 1), len(swatch) - 1][0]] + 1  # the first block's end
+    assert (corner[start:] == 255).all(axis=2).sum() > 10
 
 
 def test_panoptic_colours_are_the_devkits_table_per_instance_label():
