@@ -275,7 +275,8 @@ def draw_legend(image: np.ndarray, points: str | None = "height", map_layers: bo
     text = f"points: {points}"
     if points == "height":
         bar = _HEIGHT_LUT[np.linspace(0, 255, panel_w - 12).astype(np.uint8)]
-        image[top + 2:top + step - 4, x + 4:x + 4 + len(bar)] = bar[None]
+        region = image[top + 2:top + step - 4, x + 4:x + 4 + len(bar)]  # cut where a small view ends
+        region[:] = bar[None, :region.shape[1]]
         text += f" {lo:g}..{hi:g} m"
     cv2.putText(image, text, (x + 4, top + 2 * step - 5), cv2.FONT_HERSHEY_SIMPLEX, font, (255, 255, 255), 1,
                 cv2.LINE_AA)

@@ -252,6 +252,19 @@ def test_the_legend_explains_the_height_colouring_unless_told_otherwise():
     assert np.array_equal(by_default, by_name) and not np.array_equal(by_default, other)
 
 
+def test_a_view_smaller_than_its_legend_gets_the_legend_cut_at_its_edge(synth_out, tmp_path):
+    """The legend's panel and its height bar end where a small view ends (a 96 px view raised a broadcast error),
+    and a larger view's legend is the small one's, uncut."""
+    from nuparquet.rendering.bev import draw_legend
+
+    small, large = np.full((96, 96, 3), 120, np.uint8), np.full((300, 300, 3), 120, np.uint8)
+    draw_legend(small, points="height", map_layers=True)
+    draw_legend(large, points="height", map_layers=True)
+    assert (small != 120).any() and np.array_equal(small, large[:96, :96])  # the same font at both sizes
+    assert main(["render", str(synth_out), "--scene", SCENE, "--channel", "bev", "--bev-size", "96",
+                 "--out", str(tmp_path / "small.mp4"), "--quiet"]) == 0
+
+
 def test_an_all_frames_bev_video_runs_at_the_lidars_own_rate(synth_out, tmp_path):
     """--channel bev --all-frames without --fps: one picture per LIDAR_TOP frame, at the rate of its frames
     (1 / the median step between them, rounded), not the keyframes' default."""
