@@ -87,8 +87,9 @@ def test_token_index_finds_rows_and_refuses_what_is_not_there():
     index = TokenIndex(token_bytes(pa.array(tokens)))
     assert [index.find(t) for t in tokens] == [0, 1, 2]
     for missing in ("d" * 32, "a" * 31, "a" * 33, "", None, 5):
-        with pytest.raises(KeyError):
+        with pytest.raises(KeyError) as raised:
             index.find(missing)
+        assert raised.value.args == (missing,)  # the devkit's dict lookup names the token
     assert index.find_all(np.array([b"b" * 32, b"x" * 32, b"c" * 32])).tolist() == [2, -1, 0]
     empty = TokenIndex(token_bytes(pa.array([], pa.string())))  # a table with no rows: every token is absent
     with pytest.raises(KeyError):

@@ -75,6 +75,20 @@ def test_label_statistics_print_what_the_devkits_print(labelled_root, labelled_o
             expected = printed(theirs.list_panoptic_instances, sort_by=sort_by, get_hist=get_hist)
             assert printed(ours.list_panoptic_instances, sort_by=sort_by, get_hist=get_hist) == expected
             assert "instances, each instance spans" in expected
+    # an unknown sort_by: the devkit's assertion, word for word
+    for call in ("list_lidarseg_categories", "list_panoptic_instances"):
+        messages = []
+        for nusc in (ours, theirs):
+            with pytest.raises(AssertionError) as raised:
+                getattr(nusc, call)(sort_by="size")
+            messages.append(str(raised.value))
+        assert messages[0] == messages[1] and "sort_by can only be" in messages[0], call
+    messages = []
+    for nusc in (ours, theirs):
+        with pytest.raises(AssertionError) as raised:
+            nusc.get_sample_lidarseg_stats(samples[0], sort_by="size")
+        messages.append(str(raised.value))
+    assert messages[0] == messages[1] and "sort_by can only be" in messages[0]
 
 
 def test_lidarseg_statistics_of_a_prediction_file_print_what_the_devkits_print(labelled_root, labelled_out, devkit,

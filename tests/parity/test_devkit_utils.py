@@ -188,10 +188,13 @@ def test_create_splits_logs_of_every_split_and_version_suffix_is_the_devkits(dk_
                 logs = sorted(splits.create_splits_logs(split, nusc))
                 assert logs == sorted(S.create_splits_logs(split, nusc)) and logs, (split, version)
             else:
+                messages = []
                 for module in (splits, S):
                     with pytest.raises(AssertionError, match=f"split {split} which is not compatible with NuScenes "
-                                                             f"version {version}"):
+                                                             f"version {version}") as raised:
                         module.create_splits_logs(split, nusc)
+                    messages.append(str(raised.value))
+                assert messages[0] == messages[1]  # word for word
 
 
 def test_an_empty_label_file_fails_with_the_devkits_assertion_word_for_word(dk_utils, tmp_path):
