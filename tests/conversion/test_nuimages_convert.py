@@ -131,6 +131,8 @@ def _recount(record, delta):
     ("object_ann", lambda rs: _recount(_first_masked(rs), 1), r"object_ann.json\[\d+\].*'mask' cannot be decoded: its runs cover"),
     ("surface_ann", lambda rs: _first_masked(rs)["mask"].__setitem__("counts", "!!!"), r"surface_ann.json\[\d+\].*'mask' cannot be decoded"),
     ("surface_ann", lambda rs: _first_masked(rs)["mask"].__setitem__("size", [2, 3]), r"surface_ann.json\[\d+\].*'mask'"),
+    ("surface_ann", lambda rs: _first_masked(rs)["mask"].__setitem__("counts", 17),
+     r"surface_ann.json\[\d+\].*'mask' cannot be decoded: its counts must be a base64 string, got 17"),
     ("object_ann", lambda rs: rs[2].__setitem__("category_token", "nope"), r"object_ann.json\[2\].*category_token 'nope' does not resolve"),
     ("sample_data", lambda rs: rs[3].pop("filename"), r"sample_data.json\[3\].*lacks filename"),
     ("calibrated_sensor", lambda rs: rs[0].__setitem__("camera_intrinsic", [[1, 0], [0, 1]]), r"calibrated_sensor.json\[0\].*'camera_intrinsic' must be a 3x3"),
