@@ -228,17 +228,19 @@ GROUPS: dict[str, Group] = {
         ("tests/devkit/", "tests/parity/test_devkit_tables.py", "tests/parity/test_devkit_boxes.py",
          "tests/parity/test_devkit_utils.py", "tests/parity/test_devkit_printers.py",
          "tests/parity/test_devkit_clients.py", "tests/rendering/test_colorings.py",
-         "tests/parity/test_predict_helper_devkit.py", "tests/parity/test_devkit_can_bus.py"),
+         "tests/parity/test_predict_helper_devkit.py", "tests/parity/test_devkit_can_bus.py",
+         "tests/parity/test_devkit_signatures.py"),
         keyword="not extract", cache_conversions=True),
     "devkit_map": Group(  # the devkit's map expansion face, and the map files' records it and export-json rebuild
         ("nuparquet/devkit/map_expansion/*.py", "nuparquet/sources/map_records.py"),
         ("tests/parity/test_devkit_map_api.py", "tests/parity/test_devkit_map_renders.py",
          "tests/parity/test_devkit_arcline_path_utils.py", "tests/parity/test_devkit_map_edges.py",
-         "tests/map/test_map_datasets.py::test_export_json_writes_every_map_file_back_exactly"),
+         "tests/map/test_map_datasets.py::test_export_json_writes_every_map_file_back_exactly",
+         "tests/parity/test_devkit_signatures.py"),
         keyword="not extract", cache_conversions=True),
     "rasters": Group(  # the prediction models' input rasters (issue 37)
         ("nuparquet/devkit/prediction/input_representation/*.py",),
-        ("tests/parity/test_input_representation_devkit.py",),
+        ("tests/parity/test_input_representation_devkit.py", "tests/parity/test_devkit_signatures.py"),
         cache_conversions=True),
     "evaluation": Group(
         ("nuparquet/evaluation/*.py",),
