@@ -257,3 +257,25 @@ def test_map_in_image_from_our_nuscenes_equals_the_devkits_code(synth_root, synt
     assert np.array_equal(mine, _pixels(theirs.render_map_in_image(nusc, sample["token"], verbose=False)[0]))
     with pytest.raises(AssertionError, match="Can only render non-geometry polygons"):
         ours.render_map_in_image(nusc, sample["token"], layer_names=["lane_divider"], verbose=False)
+
+
+def test_a_subclass_overriding_is_record_in_patch_is_asked_for_every_record(pair):
+    """A client's `is_record_in_patch` override is what `get_records_in_patch` asks, record by record with the box
+    and the mode, as in the devkit (here it keeps only records the devkit's own test keeps and whose token ends in
+    an even hex digit)."""
+    theirs, ours, _ = pair
+
+    def subclass(base):
+        class Even(base):
+            def is_record_in_patch(self, layer_name, token, box_coords, mode="intersect"):
+                return super().is_record_in_patch(layer_name, token, box_coords, mode) and int(token[-1], 16) % 2 == 0
+        return Even
+
+    mine, expected = subclass(NuScenesMapExplorer)(ours), subclass(devkit_map_api.NuScenesMapExplorer)(theirs)
+    node = theirs.node[len(theirs.node) // 2]
+    box = (node["x"] - 80, node["y"] - 80, node["x"] + 80, node["y"] + 80)
+    layers = ["lane", "road_segment", "ped_crossing", "stop_line", "lane_divider"]
+    for mode in ("intersect", "within"):
+        got = mine.get_records_in_patch(box, layers, mode)
+        assert got == expected.get_records_in_patch(box, layers, mode), mode
+        assert any(got.values()) and all(int(t[-1], 16) % 2 == 0 for tokens in got.values() for t in tokens)
