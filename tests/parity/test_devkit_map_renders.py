@@ -279,3 +279,17 @@ def test_a_subclass_overriding_is_record_in_patch_is_asked_for_every_record(pair
         got = mine.get_records_in_patch(box, layers, mode)
         assert got == expected.get_records_in_patch(box, layers, mode), mode
         assert any(got.values()) and all(int(t[-1], 16) % 2 == 0 for tokens in got.values() for t in tokens)
+
+
+def test_a_patch_of_no_polygon_is_refused_as_descartes_refuses_it():
+    import descartes
+    import shapely
+
+    from nuparquet.devkit.map_expansion.map_renders import polygon_patch
+
+    for geometry in (shapely.Point(0, 0), shapely.LineString([(0, 0), (1, 1)])):
+        with pytest.raises(ValueError) as theirs:
+            descartes.PolygonPatch(geometry)
+        with pytest.raises(ValueError) as ours:
+            polygon_patch(geometry)
+        assert str(ours.value) == str(theirs.value) == "A polygon or multi-polygon representation is required"
