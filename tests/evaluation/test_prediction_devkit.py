@@ -478,3 +478,40 @@ def test_an_empty_submission_gives_typed_empty_tables(pred_out, tmp_path):
     assert ours.agents.schema["future_steps"] == pl.Int64
     assert [(name, ours.modes.schema[name]) for name in ("agent", "mode", "probability", "rank")] == [
         ("agent", pl.Int64), ("mode", pl.Int64), ("probability", pl.Float64), ("rank", pl.Int64)]
+
+
+def test_attribute_slices_and_a_custom_split_hold_the_records_they_name(pred_out, pred_root, devkit, tmp_path):
+    """--by attribute places an agent by its annotation's first attribute (the devkit's metrics of those records);
+    a custom split of <dataroot>/<version>/splits.json is read from the dataset's version folder; the modes table
+    names its columns."""
+    from nuscenes.eval.prediction.compute_metrics import compute_metrics
+
+    from nuparquet.evaluation.prediction import evaluate_prediction
+
+    nusc = devkit[0]
+    records = perturbed(devkit, 6, count=40)
+    ours = evaluate_prediction(pred_out, write(tmp_path, records), split=SPLIT, by=("attribute",))
+    attributes = {a["token"]: a["name"] for a in nusc.attribute}
+
+    def first_attribute(record):
+        ann = next(nusc.get("sample_annotation", t) for t in nusc.get("sample", record["sample"])["anns"]
+                   if nusc.get("sample_annotation", t)["instance_token"] == record["instance"])
+        return attributes[ann["attribute_tokens"][0]] if ann["attribute_tokens"] else ""
+
+    labels = [first_attribute(r) for r in records]
+    assert len({label for label in labels if label}) >= 2
+    for row in ours.slices.iter_rows(named=True):
+        members = [r for r, label in zip(records, labels) if (label or "none") == row["slice"]]
+        assert row["agents"] == len(members) > 0, row["slice"]
+        assert row["MinADEK_5"] == compute_metrics(members, devkit[1], devkit[2])["MinADEK"]["RowMean"][1]
+    assert ours.modes.columns[:7] == ["agent", "mode", "probability", "rank", "ade_m", "fde_m", "max_distance_m"]
+    # a custom split naming the records' scenes, in the version folder of the dataset's dataroot
+    scenes = sorted({nusc.get("scene", nusc.get("sample", r["sample"])["scene_token"])["name"] for r in records})
+    splits_file = pred_root / SYNTH_VERSION / "splits.json"
+    assert not splits_file.exists()
+    try:
+        splits_file.write_text(json.dumps({"mine": scenes}))
+        custom = evaluate_prediction(pred_out, write(tmp_path, records), split="mine")
+    finally:
+        splits_file.unlink()
+    assert json.dumps(custom.metrics) == json.dumps(ours.metrics)
