@@ -282,7 +282,8 @@ def test_the_submission_json_is_checked(labelled_out, submission):
     meta_path = submission / "train" / "submission.json"
     for meta, message in (({**make.META, "use_lidar": 1}, "meta.use_lidar must be true or false"),
                           ({**make.META, "task": "detection"}, "meta.task must be one of segmentation, tracking"),
-                          ({"use_lidar": True}, "\"meta\" must hold exactly use_camera")):
+                          ({"use_lidar": True}, "\"meta\" must hold exactly use_camera, use_lidar, use_radar, "
+                                                "use_map, use_external \\(and optionally task\\)$")):
         meta_path.write_text(json.dumps({"meta": meta}))
         with pytest.raises(InputError, match=message):
             _evaluate(labelled_out, submission)
