@@ -279,3 +279,19 @@ def test_an_all_frames_bev_video_runs_at_the_lidars_own_rate(synth_out, tmp_path
         stream = container.streams.video[0]
         rate, frames = float(stream.average_rate), sum(1 for _ in container.decode(stream))
     assert frames == len(times) and rate == expected > 2
+
+
+def test_the_ego_is_drawn_at_the_centre_with_its_front_marked_ahead(map_out, tmp_path):
+    """With the ego up, its front's red dot is straight above the picture's centre, half the ego's length away."""
+    from nuparquet.rendering.bev import EGO_SIZE_LW_M
+
+    assert main(["render", str(map_out), "--scene", SCENE, "--channel", "bev", "--frames-dir", str(tmp_path / "frames"),
+                 "--frame-format", "png", "--quiet", "--bev-range-m", "30", "--bev-size", "400"]) == 0
+    image = cv2.imread(str(tmp_path / "frames" / "00000.png"))
+    h, w = image.shape[:2]
+    s = h / (2 * 30.0)
+    tip_u, tip_v = (w - 1) / 2, (h - 1) / 2 - EGO_SIZE_LW_M[0] / 2 * s
+    red = np.argwhere((image[:, :, 0] < 40) & (image[:, :, 1] < 40) & (image[:, :, 2] > 215))  # (v, u)
+    near = red[np.hypot(red[:, 1] - tip_u, red[:, 0] - tip_v) <= 4]
+    assert len(near) >= 5
+    assert abs(near[:, 1].mean() - tip_u) <= 1.5 and abs(near[:, 0].mean() - tip_v) <= 1.5
