@@ -254,7 +254,9 @@ def test_a_missing_ego_motion_field_is_refused(root, tmp_path):
 def test_a_weather_token_that_names_no_record_is_refused(root, tmp_path):
     copy = _copy(root, tmp_path)
     _edit(copy, "scene", lambda records: records[1].update(weather_annotation_token="nowhere"))
-    with pytest.raises(ProblemsFound, match=r"scene.json.*weather_annotation_token 'nowhere' does not resolve"):
+    token = json.loads((copy / VERSION / "scene.json").read_text())[1]["token"]
+    with pytest.raises(ProblemsFound, match=rf"scene.json\[1\] token={token}: .*weather_annotation_token 'nowhere' "
+                                            "does not resolve"):
         convert(copy, VERSION, tmp_path / "out")
 
 
@@ -322,6 +324,9 @@ def test_a_lidar_pcd_without_intensity_or_of_another_type_is_refused_naming_the_
 
 
 def test_the_generator_lays_out_keyframes_and_sweeps_as_nuscenes(ts, root):
+    for scene in ts.scene:  # a scene names its first and its last sample, the ends of its chain
+        first, last = ts.get("sample", scene["first_sample_token"]), ts.get("sample", scene["last_sample_token"])
+        assert first["prev"] == "" and last["next"] == "" and first["scene_token"] == scene["token"]
     for record in ts.sample_data:
         folder = "samples" if record["is_key_frame"] else "sweeps"
         assert record["filename"] == f"{folder}/{record['channel']}/{record['channel']}_{record['timestamp']}." + (
