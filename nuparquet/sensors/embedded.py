@@ -41,7 +41,9 @@ class EmbeddedFiles:
         self._paths: list[str] = []
         self._files: dict = {}  # part -> its open pyarrow ParquetFile (pyarrow loads only when files are embedded)
         self._last: tuple[tuple[int, int], list] | None = None  # ((part, group), its bytes as Python objects)
-        self._lock = threading.Lock()  # a ParquetFile is not safe to read from two threads (the renderers')
+        # a ParquetFile is not safe to read from two threads (the renderers' and the report's): every read of the
+        # part files, the index's first build included, holds it (re-entrant: `read` builds the index under it)
+        self._lock = threading.RLock()
 
     def _parquet(self, part: int):
         """The open part file (its footer parsed once while it stays among the `OPEN_FILES` last used)."""
@@ -58,6 +60,14 @@ class EmbeddedFiles:
 
     def index(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(tokens sorted, part, row group, row in group) of every embedded file (read once)."""
+        if self._index is not None:
+            return self._index
+        with self._lock:
+            if self._index is None:
+                self._build_index()
+        return self._index
+
+    def _build_index(self) -> None:
         if self._index is None:
             self._paths = [path for path, _size in self.dataset.files(self.name)]
             tokens, parts, groups, rows = [], [], [], []
@@ -73,7 +83,6 @@ class EmbeddedFiles:
             order = np.argsort(keys, kind="stable")
             join = (lambda arrays: np.concatenate(arrays)[order] if arrays else np.zeros(0, np.int32))
             self._index = (keys[order], join(parts), join(groups), join(rows))
-        return self._index
 
     def __contains__(self, token: str) -> bool:
         return self._find(token) is not None

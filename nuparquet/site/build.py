@@ -163,7 +163,8 @@ def build_report(dataset, selection: SceneSelection | None = None, out=None, opt
     check_target(out, overwrite=options.overwrite)
     scenes = select_scenes(dataset, selection.scenes, selection.where)
     has_cameras = bool(dataset.channels.get("cameras"))
-    if options.videos and has_cameras:
+    if options.videos and has_cameras and not dataset.sensors.embeds("camera"):
+        # the images come from the dataroot unless the output embeds them (`convert --embed camera`)
         dataset.sensors.root("the camera images", otherwise=", or --no-videos for a report without videos and "
                              "keyframe renderings")
     scope = scenes if selection.subset else None

@@ -169,6 +169,57 @@ def test_pictures_a_video_and_an_mcap_export_without_a_dataroot_equal_those_from
     assert (tmp_path / "embedded.mcap").read_bytes() == (tmp_path / "files.mcap").read_bytes()
 
 
+def test_a_report_without_a_dataroot_has_the_videos_and_stills_of_the_files(embed_out, synth_out, synth_root,
+                                                                               no_root, tmp_path):
+    """`nuparquet report` of an output embedding its sensors needs no dataroot: its scene video and keyframe
+    renderings are byte for byte those of the same scene read from the files."""
+    from nuparquet.engine import EngineOptions
+    from nuparquet.site import build_report
+
+    files, embedded = nuparquet.open(synth_out, dataroot=synth_root), nuparquet.open(embed_out, dataroot=no_root)
+    scene = files.scene_names()[0]
+    written = {}
+    for name, ds in (("files", files), ("embedded", embedded)):
+        result = build_report(ds, None, tmp_path / name, engine=EngineOptions(engine="serial"), scenes=(scene,),
+                              stills=1)
+        assert result.videos[scene] is not None and not result.problems, (name, result.problems)
+        written[name] = sorted(p.relative_to(tmp_path / name) for p in (tmp_path / name).rglob("*")
+                               if p.suffix in (".mp4", ".jpg"))
+    assert written["files"] == written["embedded"] and any(p.suffix == ".mp4" for p in written["files"])
+    for relative in written["files"]:
+        assert (tmp_path / "embedded" / relative).read_bytes() == (tmp_path / "files" / relative).read_bytes(), relative
+
+
+def test_threads_reading_a_fresh_output_at_once_get_each_file(embed_out, synth_root, no_root):
+    """Eight threads asking a just-opened output for files at the same moment (the report's video and stills do) get
+    each file's bytes: the part files are read under one lock, the index's first build included."""
+    import threading
+
+    from nuparquet.sensors.embedded import EmbeddedFiles
+
+    files = _frames(nuparquet.open(embed_out, dataroot=no_root), "camera").head(16)
+    for attempt in range(5):
+        embedded = EmbeddedFiles(nuparquet.open(embed_out, dataroot=no_root), "camera")
+        barrier, got, errors = threading.Barrier(8), {}, []
+
+        def read(rows):
+            barrier.wait()
+            try:
+                for token in rows:
+                    got[token] = embedded.read(token)
+            except Exception as exc:  # the race showed as pyarrow's "ReadRangeCache did not find ..."
+                errors.append(exc)
+
+        threads = [threading.Thread(target=read, args=(files["token"].to_list()[i::8],)) for i in range(8)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+        assert errors == [], (attempt, errors[:1])
+        for token, filename in zip(files["token"], files["filename"]):
+            assert got[token] == (synth_root / filename).read_bytes()
+
+
 def test_an_output_embedding_only_its_camera_says_the_points_are_missing(camera_out, no_root):
     from nuparquet.training import Samples
 
