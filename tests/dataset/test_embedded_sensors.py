@@ -282,6 +282,10 @@ def test_a_file_missing_at_conversion_is_listed_and_read_from_the_dataroot_when_
         # the file back under a dataroot given: read from there
         assert nuparquet.open(out, dataroot=synth_root).sensors.file_bytes(token, filename, modality) == \
             (synth_root / filename).read_bytes()
+        # a dataroot that lacks it too: the message says it is not in the embedded files either
+        with pytest.raises(MissingSensorData, match=f"^missing (image|point) file: .*{re.escape(filename)} .*not in "
+                                                    f"sensor_files/{modality}/; or --dataroot PATH"):
+            nuparquet.open(out, dataroot=root).sensors.file_bytes(token, filename, modality)
     assert any("sensor_files/camera: 1 sensor file(s) missing, not embedded" in w for w in manifest["warnings"])
     from nuparquet.conversion import convert
     from nuparquet.problems import ProblemsFound

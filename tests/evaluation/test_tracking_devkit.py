@@ -229,6 +229,7 @@ def test_the_track_table_gives_each_evaluated_class_its_best_mota_threshold_and_
     metrics_details confidence at its highest MOTA) and its tracked ratio ((matched + switches) / boxes, what
     motmetrics' mostly-tracked count reads: as many tracks at 0.8 or more as the devkit's MT)."""
     import numpy as np
+    import polars as pl
 
     _, summary, details, ours, _ = edge_run
     tracks = ours.tracks
@@ -246,5 +247,10 @@ def test_the_track_table_gives_each_evaluated_class_its_best_mota_threshold_and_
         ratio = ((rows["matched"] + rows["switches"]) / rows["boxes"]).to_list()
         assert rows["tracked_ratio"].to_list() == pytest.approx(ratio), name
         assert int((rows["tracked_ratio"] >= 0.8).sum()) == summary["label_metrics"]["mt"][name], name
+        # first_tracked: the frames before the first match, null exactly for the tracks never matched
+        never = ((rows["matched"] + rows["switches"]) == 0).to_list()
+        assert rows["first_tracked"].is_null().to_list() == never, name
+        assert (rows["first_tracked"].drop_nulls() >= 0).all() and (rows["first_tracked"].drop_nulls()
+                                                                     < rows.filter(~pl.Series(never))["boxes"]).all()
         checked += 1
     assert checked >= 2
