@@ -295,3 +295,31 @@ def test_the_ego_is_drawn_at_the_centre_with_its_front_marked_ahead(map_out, tmp
     near = red[np.hypot(red[:, 1] - tip_u, red[:, 0] - tip_v) <= 4]
     assert len(near) >= 5
     assert abs(near[:, 1].mean() - tip_u) <= 1.5 and abs(near[:, 0].mean() - tip_v) <= 1.5
+
+
+def test_road_dividers_are_drawn_two_pixels_wide_and_lane_dividers_one(map_out, monkeypatch):
+    """The BEV map raster strokes a road divider 2 px wide and a lane divider 1 px: the pixels each layer changes
+    (the raster with it against the raster without it, anti-aliased edges included) per pixel of its lines' length,
+    at 10 px/m over every divider of a map."""
+    import shapely
+
+    from nuparquet.rendering import bev
+
+    ds = nuparquet.open(map_out)
+    location = ds.scan("scenes").filter(pl.col("name") == SCENE).collect()["log_location"][0]
+    layers = ds.map(location)
+    style = bev.MAP_STYLE
+    widths = {}
+    for layer in ("road_divider", "lane_divider"):
+        lines = [g for g in layers.layers[layer].geometry if g is not None and not g.is_empty]
+        assert lines, layer
+        x0, y0, x1, y1 = shapely.total_bounds(np.array(lines, dtype=object))
+        extent = (x0 - 5, y0 - 5, x1 + 5, y1 + 5)
+        with_layer = bev.MapRaster.build(layers, extent, 10.0).image
+        monkeypatch.setattr(bev, "MAP_STYLE", tuple(entry for entry in style if entry[0] != layer))
+        without = bev.MapRaster.build(layers, extent, 10.0).image
+        monkeypatch.setattr(bev, "MAP_STYLE", style)
+        changed = (with_layer != without).any(axis=2).sum()
+        widths[layer] = changed / (sum(line.length for line in lines) * 10.0)
+    # anti-aliasing adds about a pixel to each side of a stroke: 2 + 2 against 1 + 2, give or take the line ends
+    assert widths["road_divider"] - widths["lane_divider"] > 1.0 and 1.5 < widths["lane_divider"] < 3.5, widths
