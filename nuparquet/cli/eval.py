@@ -45,7 +45,9 @@ def register(sub) -> None:
         description="Compute the nuScenes detection metrics of a submission (results.json) from the converted "
         "dataset, exactly as nuscenes-devkit's DetectionEval does (class ranges, bike-rack filter, greedy "
         "centre-distance matching, 101-point precision, TP errors, NDS), optionally per slice (--by), and write "
-        "the devkit's metric files, its plots as PNG, and the predictions and ground truth as Parquet.",
+        "the devkit's metric files, its plots as PNG, and the predictions and ground truth as Parquet. A MAN "
+        "TruckScenes output is evaluated as truckscenes-devkit's DetectionEval does (detection_cvpr_2024, its "
+        "12 classes, --tags for its per-scene-tag metrics); --task picks the other nuScenes benchmarks.",
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
