@@ -388,3 +388,19 @@ def test_an_object_store_output_without_embedded_sensors_is_refused_naming_the_f
     images = Samples(nuparquet.open(urls["camera"], storage_options=options), "train", lidar=False, sweeps=0,
                      version="v1.0-trainval")
     assert images[0]["img"].shape[0] == 6
+
+
+def test_embedding_a_modality_the_rig_lacks_writes_an_empty_scannable_dataset(lyft_rig_root, tmp_path):
+    """--embed radar of a rig without radar (Lyft's): sensor_files/radar/ holds one empty part of the declared
+    schema, scans to no row, and the reader says no radar file is embedded."""
+    from tests.conftest import LYFT_RIG_VERSION
+
+    out = tmp_path / "out"
+    nuparquet.convert(lyft_rig_root, LYFT_RIG_VERSION, out, embed=("radar",))
+    ds = nuparquet.open(out, dataroot=tmp_path / "no-dataroot-here")
+    parts = sorted(p.name for p in (out / "sensor_files" / "radar").iterdir())
+    assert parts == ["part-00000.parquet"]
+    frame = ds.scan("sensor_files/radar").collect()
+    assert frame.height == 0 and {"sample_data_token", "bytes"} <= set(frame.columns)
+    manifest = json.loads((out / "manifest.json").read_text())["datasets"]["sensor_files/radar"]
+    assert manifest["frames"] == 0 and manifest["scene_parts"] == {}
