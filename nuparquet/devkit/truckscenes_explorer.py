@@ -1,6 +1,7 @@
 """truckscenes-devkit's `TruckScenesExplorer` (`truckscenes.utils.visualization_utils`) over a
 `nuparquet.devkit.truckscenes.TruckScenes`: its printers and scene filters, with the devkit's output and order; its
-colormap (`truckscenes.utils.colormap.get_colormap`), copied so that nuparquet never imports the devkit.
+colormap (`truckscenes.utils.colormap.get_colormap`: `palette.TRUCKSCENES_RGB`, so that nuparquet never imports
+the devkit).
 
 Its renderers (matplotlib, OpenCV and Open3D in the devkit) are not served: each raises `NotServed` naming the
 `nuparquet render` command that draws a TruckScenes sample or scene.
@@ -13,37 +14,7 @@ from datetime import datetime, timezone
 import numpy as np
 
 from nuparquet.devkit.errors import NotServed
-
-# RGB, exactly as truckscenes-devkit 1.2.0's `get_colormap()` (its order too).
-TRUCKSCENES_RGB: dict[str, tuple[int, int, int]] = {
-    "animal": (70, 130, 180),
-    "human.pedestrian.adult": (0, 0, 230),
-    "human.pedestrian.child": (135, 206, 235),
-    "human.pedestrian.construction_worker": (100, 149, 237),
-    "human.pedestrian.personal_mobility": (219, 112, 147),
-    "human.pedestrian.police_officer": (0, 0, 128),
-    "human.pedestrian.stroller": (240, 128, 128),
-    "human.pedestrian.wheelchair": (138, 43, 226),
-    "movable_object.barrier": (112, 128, 144),
-    "movable_object.debris": (210, 105, 30),
-    "movable_object.pushable_pullable": (105, 105, 105),
-    "movable_object.trafficcone": (47, 79, 79),
-    "static_object.bicycle_rack": (188, 143, 143),
-    "static_object.traffic_sign": (222, 184, 135),
-    "vehicle.bicycle": (220, 20, 60),
-    "vehicle.bus.bendy": (255, 127, 80),
-    "vehicle.bus.rigid": (255, 69, 0),
-    "vehicle.car": (255, 158, 0),
-    "vehicle.construction": (233, 150, 70),
-    "vehicle.emergency.ambulance": (255, 83, 0),
-    "vehicle.emergency.police": (255, 215, 0),
-    "vehicle.motorcycle": (255, 61, 99),
-    "vehicle.trailer": (255, 140, 0),
-    "vehicle.truck": (255, 99, 71),
-    "vehicle.train": (255, 228, 196),
-    "vehicle.other": (255, 240, 245),
-    "vehicle.ego_trailer": (0, 0, 0),
-}
+from nuparquet.rendering.palette import TRUCKSCENES_RGB
 
 OPERATORS = {"<", ">", "<=", ">=", "==", "!="}
 RENDERERS = ("render_pointcloud_in_image", "render_sample", "render_sample_data", "render_annotation",

@@ -7,7 +7,7 @@ which class, which true-positive errors a class has no use for, and which orient
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 DETECTION_NAMES = ("car", "truck", "bus", "trailer", "construction_vehicle", "pedestrian", "motorcycle", "bicycle",
                    "traffic_cone", "barrier")
@@ -93,10 +93,11 @@ class Taxonomy:
     tagged_output: bool = False
     scene_tags: tuple[str, ...] = ()  # the tags a scene's description may hold, evaluated one by one on request
     unevaluated_tags: tuple[str, ...] = ()  # tags whose metrics the devkit reports as NaN (too few scenes)
-    colors: dict[str, str] = field(init=False)
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "colors", {name: f"C{i}" for i, name in enumerate(self.detection_names)})
+    @property
+    def colors(self) -> dict[str, str]:
+        """{class: matplotlib colour}: the devkit's DETECTION_COLORS, "C<i>" by the class's place."""
+        return {name: f"C{i}" for i, name in enumerate(self.detection_names)}
 
     def period_rad(self, detection_name: str) -> float:
         return orientation_period_rad(detection_name, self.orientation_period_rad)

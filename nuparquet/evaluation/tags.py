@@ -15,6 +15,7 @@ tag's own eval_time None); metrics_details.json is {"<tag>:<class>": curves at t
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -45,9 +46,8 @@ def tag_evaluations(gt_boxes: Boxes, pred_boxes: Boxes, sample_descriptions, con
         if tag in taxonomy.unevaluated_tags:
             nan_aps = {name: {threshold: np.nan for threshold in config.dist_ths} for name in config.class_names}
             nan_errors = {name: dict.fromkeys(TP_METRICS, np.nan) for name in config.class_names}
-            evaluation = type(evaluation)(DetectionMetrics(config, nan_aps, nan_errors, evaluation.metrics.eval_time),
-                                          evaluation.data, evaluation.matches, evaluation.num_gt,
-                                          evaluation.num_predictions)
+            evaluation = replace(evaluation, metrics=DetectionMetrics(config, nan_aps, nan_errors,
+                                                                      evaluation.metrics.eval_time))
         result[tag] = evaluation
     return result
 

@@ -45,6 +45,19 @@ CATEGORY_RGB: dict[str, tuple[int, int, int]] = {
     "vehicle.ego": (255, 240, 245),
 }
 
+# RGB, exactly as truckscenes-devkit 1.2.0's `get_colormap()` (its order too): nuScenes' object classes in their
+# colours, its traffic sign after the bicycle rack, and its own vehicles last.
+_NUSCENES_OBJECTS = list(CATEGORY_RGB)[1:list(CATEGORY_RGB).index("flat.driveable_surface")]  # animal .. vehicle.truck
+_BEFORE_BICYCLE = _NUSCENES_OBJECTS.index("vehicle.bicycle")
+TRUCKSCENES_RGB: dict[str, tuple[int, int, int]] = {
+    **{name: CATEGORY_RGB[name] for name in _NUSCENES_OBJECTS[:_BEFORE_BICYCLE]},
+    "static_object.traffic_sign": (222, 184, 135),
+    **{name: CATEGORY_RGB[name] for name in _NUSCENES_OBJECTS[_BEFORE_BICYCLE:]},
+    "vehicle.train": (255, 228, 196),
+    "vehicle.other": (255, 240, 245),
+    "vehicle.ego_trailer": (0, 0, 0),
+}
+
 # RGB of the 16 lidarseg challenge classes and the ignore class, exactly as nuscenes-devkit 1.2.0's
 # `LidarsegClassMapper.get_coarse2color()` (the classes a lidarseg or panoptic submission predicts).
 CHALLENGE_CLASS_RGB: dict[str, tuple[int, int, int]] = {
